@@ -1,0 +1,48 @@
+"""Exact integer geometry: fixed-width 128/192/256-bit plane predicates (paper §3.2).
+
+Wide integers live in numpy arrays of a record dtype (little-endian uint64 limbs,
+:func:`wide_dtype`); :func:`to_wide` / :func:`from_wide` convert to and from Python
+ints. Every predicate checks its inputs against the bit budget of the width
+(:func:`budget`) and raises :class:`csgnb.PrecisionError` rather than overflow.
+
+>>> import numpy as np
+>>> from csgnb import exact
+>>> planes = exact.to_wide([[1, 0, 0, -1], [0, 1, 0, -2], [0, 0, 1, -3]], 128)
+>>> x = exact.intersect_3_planes(planes[0], planes[1], planes[2])
+>>> exact.to_double_position(x)
+array([1., 2., 3.])
+"""
+
+from .budgets import BitBudget, budget, integer_root
+from .predicates import (
+    are_planes_parallel,
+    classify_vertex,
+    intersect_3_planes,
+    plane_from_points,
+    points_equal,
+    signed_distance,
+    to_double_position,
+)
+from .quantize import Quantization, quantize
+from .wide import WIDTHS, from_wide, is_wide, to_wide, wide_dtype, width_of
+
+__all__ = [
+    "WIDTHS",
+    "BitBudget",
+    "Quantization",
+    "are_planes_parallel",
+    "budget",
+    "classify_vertex",
+    "from_wide",
+    "integer_root",
+    "intersect_3_planes",
+    "is_wide",
+    "plane_from_points",
+    "points_equal",
+    "quantize",
+    "signed_distance",
+    "to_double_position",
+    "to_wide",
+    "wide_dtype",
+    "width_of",
+]

@@ -1,0 +1,254 @@
+"""Bit budgets: which inputs a b-bit computation handles exactly, and their enforcement.
+
+Derivation (paper §3.2, eq. 7-9). Let N bound every normal coefficient |a|, |b|,
+|c| and D every offset |d| of a set of planes. All quantities the predicates
+compute are integer polynomials in plane coefficients whose *final* values are
+bounded by Hadamard's inequality (|det M| <= product of column norms):
+
+* ``x4 = -det(n_p, n_q, n_r)``  (3x3, columns <= sqrt(3) N):     |x4|      <= 3^(3/2) N^3
+* ``x1, x2, x3`` (3x3 with one column of offsets):                |x_i|     <= 3^(3/2) N^2 D
+* classification ``x·s = det[s; p; q; r]`` (4x4, columns <= 2N, 2D): |x·s|  <= 16 N^3 D
+
+Two's-complement arithmetic is exact modulo 2^b, so a b-bit computation is exact
+exactly when each final value lies in [-2^(b-1), 2^(b-1)); intermediate
+wrap-around cancels. The governing condition is the last one (eq. 7 with
+``D = 3 v+ n+``: ``48 n+^4 v+ <= 2^(b-1)``); the 3x3 bounds only matter when all
+offsets are zero.
+
+Planes made from integer mesh vertices bounded by V (``n = (q-p) x (r-p)``) have
+``N <= 8 V^2`` and ``D <= 24 V^3``, so ``16 N^3 D <= 48 * 8^4 * V^9`` (eq. 8), i.e.
+``V <= 0.239 * 2^(b/9)`` (eq. 9): 4 517 at 128 bits, 633 318 at 192 bits and
+87 281 710 at 256 bits.
+
+Every public predicate checks its inputs against these bounds before any kernel
+runs, using the exact maxima (a jitted arg-max by exact wide comparison, then
+Python ints), and raises :class:`csgnb.PrecisionError` naming the bound and the
+value. Inputs exactly at a bound are accepted; one more is refused.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import cached_property
+
+import numpy as np
+
+from .._jit import jit
+from ..errors import GeometryError, PrecisionError
+from .intrinsics import wide_abs_greater_at, wide_sign_at
+from .wide import WIDTHS, from_wide, width_of
+
+__all__ = [
+    "BitBudget",
+    "budget",
+    "integer_root",
+    "check_mesh_points",
+    "check_planes",
+    "check_points_against_planes",
+    "check_integer_points_against_planes",
+]
+
+
+def integer_root(value: int, k: int) -> int:
+    """Return floor(value ** (1/k)) for a non-negative Python int (exact, no floats)."""
+    if value < 0:
+        raise ValueError("integer_root needs a non-negative value")
+    if value < 2:
+        return value
+    x = 1 << -(-value.bit_length() // k)  # an upper bound
+    while True:
+        y = ((k - 1) * x + value // x ** (k - 1)) // k
+        if y >= x:
+            break
+        x = y
+    while x**k > value:
+        x -= 1
+    while (x + 1) ** k <= value:
+        x += 1
+    return x
+
+
+@dataclass(frozen=True)
+class BitBudget:
+    """The exact input bounds of ``width``-bit predicates (paper eq. 7-9).
+
+    All values are Python ints. ``limit = 2**(width-1)``: every final value must
+    lie in ``[-limit, limit)``.
+    """
+
+    width: int
+
+    def __post_init__(self) -> None:
+        if self.width not in WIDTHS:
+            raise ValueError(f"width must be one of {WIDTHS} bits, got {self.width!r}")
+
+    @property
+    def limit(self) -> int:
+        """2**(width-1): the magnitude no final value may reach."""
+        return 1 << (self.width - 1)
+
+    @cached_property
+    def max_mesh_coordinate(self) -> int:
+        """Largest |coordinate| V of integer mesh vertices: 48 * 8**4 * V**9 < 2**(b-1) (eq. 8)."""
+        return integer_root((self.limit - 1) // (48 * 8**4), 9)
+
+    @property
+    def max_mesh_normal(self) -> int:
+        """Largest normal coefficient of a plane through in-budget mesh vertices: 8 V**2."""
+        return 8 * self.max_mesh_coordinate**2
+
+    @property
+    def max_mesh_offset(self) -> int:
+        """Largest offset |d| of a plane through in-budget mesh vertices: 24 V**3."""
+        return 24 * self.max_mesh_coordinate**3
+
+    def max_vertex_coordinate(self, max_normal: int) -> int:
+        """Largest vertex coordinate v+ usable with normals bounded by ``max_normal`` (eq. 7)."""
+        if max_normal < 1:
+            raise ValueError("max_normal must be >= 1")
+        return (self.limit - 1) // (48 * max_normal**4)
+
+    def max_normal_coefficient(self, max_vertex: int) -> int:
+        """Largest normal bound n+ usable with vertex coordinates bounded by ``max_vertex`` (eq. 7)."""
+        if max_vertex < 1:
+            raise ValueError("max_vertex must be >= 1")
+        return integer_root((self.limit - 1) // (48 * max_vertex), 4)
+
+    def plane_violations(self, N: int, D: int) -> list[str]:
+        """Return the bounds that planes with max normal ``N`` and max offset ``D`` break (empty if none)."""
+        problems = []
+        if 16 * N**3 * D >= self.limit:
+            problems.append(
+                f"the classification dot product x·s = det[s;p;q;r] is bounded by 16·N³·D = "
+                f"{16 * N**3 * D}, which must be < 2**{self.width - 1}"
+            )
+        if 27 * N**6 >= self.limit**2:
+            problems.append(
+                f"the 3x3 determinant x4 is bounded by 3^(3/2)·N³ ≈ {int(5.196152422706632 * N**3)}, "
+                f"which must be < 2**{self.width - 1}"
+            )
+        if 27 * N**4 * D**2 >= self.limit**2:
+            problems.append(
+                f"the 3x3 determinants x1..x3 are bounded by 3^(3/2)·N²·D ≈ "
+                f"{int(5.196152422706632 * N**2 * D)}, which must be < 2**{self.width - 1}"
+            )
+        return problems
+
+
+def budget(width: int) -> BitBudget:
+    """Return the :class:`BitBudget` of ``width`` bits (128, 192 or 256)."""
+    return _BUDGETS[width] if width in _BUDGETS else BitBudget(width)
+
+
+_BUDGETS = {w: BitBudget(w) for w in WIDTHS}
+
+
+# ---------------------------------------------------------------------------
+# exact maxima of wide arrays
+
+
+@jit
+def _argmax_abs(arr, col_start, col_stop):
+    """(row, col) of the largest |arr[row, col]| over columns [col_start, col_stop)."""
+    best_r, best_c = 0, col_start
+    for r in range(arr.shape[0]):
+        for c in range(col_start, col_stop):
+            if wide_abs_greater_at(arr, r, c, arr, best_r, best_c):
+                best_r, best_c = r, c
+    return best_r, best_c
+
+
+@jit
+def _first_zero_normal(planes):
+    """Index of the first plane with a = b = c = 0, or -1."""
+    for r in range(planes.shape[0]):
+        if wide_sign_at(planes, r, 0) == 0 and wide_sign_at(planes, r, 1) == 0 and wide_sign_at(planes, r, 2) == 0:
+            return r
+    return -1
+
+
+def _max_abs_int64(points: np.ndarray) -> int:
+    """Exact max |value| of an int64 array as a Python int (|-2**63| included)."""
+    if points.size == 0:
+        return 0
+    return max(int(points.max()), -int(points.min()))
+
+
+def _max_abs(arr: np.ndarray, col_start: int, col_stop: int) -> tuple[int, int]:
+    """Exact max |value| over the given columns of a 2-D wide array, and the row it is in."""
+    if arr.shape[0] == 0:
+        return 0, -1
+    r, c = _argmax_abs(arr, col_start, col_stop)
+    return abs(int(from_wide(arr[r : r + 1, c])[0])), int(r)
+
+
+def check_planes(planes: np.ndarray, name: str = "planes") -> tuple[int, int]:
+    """Check ``(n, 4)`` wide planes against their width's budget; return (N, D).
+
+    Raises :class:`PrecisionError` if the planes together break a bound of
+    :meth:`BitBudget.plane_violations` and :class:`GeometryError` for a zero normal.
+    """
+    b = budget(width_of(planes))
+    zero = int(_first_zero_normal(planes)) if planes.shape[0] else -1
+    if zero >= 0:
+        raise GeometryError(f"{name}[{zero}] has a zero normal (a = b = c = 0): it is not a plane")
+    N, rn = _max_abs(planes, 0, 3)
+    D, rd = _max_abs(planes, 3, 4)
+    problems = b.plane_violations(N, D)
+    if problems:
+        raise PrecisionError(
+            f"{name} exceed the {b.width}-bit budget with N = max|a|,|b|,|c| = {N} ({name}[{rn}]) "
+            f"and D = max|d| = {D} ({name}[{rd}]): " + "; ".join(problems)
+            + ". Use a wider width or smaller coefficients (csgnb.exact.quantize)."
+        )
+    return N, D
+
+
+def check_mesh_points(points: np.ndarray, width: int, name: str = "points") -> int:
+    """Check ``(n, 3) int64`` vertices against the mesh budget of eq. 8; return max |coordinate|."""
+    b = budget(width)
+    if points.size == 0:
+        return 0
+    V = _max_abs_int64(points)
+    if V > b.max_mesh_coordinate:
+        row = int(np.argmax(np.any((points == V) | (points == -V), axis=1)))
+        raise PrecisionError(
+            f"{name}[{row}] has a coordinate of magnitude {V}, above the {b.width}-bit mesh budget "
+            f"V <= {b.max_mesh_coordinate} (48·8⁴·V⁹ < 2**{b.width - 1}, eq. 8). "
+            f"Quantize to a coarser grid (csgnb.exact.quantize) or use a wider width."
+        )
+    return V
+
+
+def check_points_against_planes(points: np.ndarray, planes: np.ndarray) -> None:
+    """Check that every ``x·s`` of wide homogeneous ``points`` against ``planes`` fits the width.
+
+    Conservative for arbitrary points: (|x1|+|x2|+|x3|)·N + |x4|·D < 2**(b-1) with
+    column-wise maxima.
+    """
+    b = budget(width_of(planes))
+    N, _ = _max_abs(planes, 0, 3)
+    D, _ = _max_abs(planes, 3, 4)
+    X = [_max_abs(points, c, c + 1)[0] for c in range(4)]
+    bound = (X[0] + X[1] + X[2]) * N + X[3] * D
+    if bound >= b.limit:
+        raise PrecisionError(
+            f"classifying these points against these planes can exceed {b.width} bits: "
+            f"(|x1|+|x2|+|x3|)·N + |x4|·D = {bound} must be < 2**{b.width - 1} "
+            f"(max |x_i| = {X}, N = {N}, D = {D}). Use a wider width."
+        )
+
+
+def check_integer_points_against_planes(points: np.ndarray, planes: np.ndarray) -> None:
+    """Check that ``n·v + d`` of ``(n, 3) int64`` points and wide planes fits: 3·V·N + D < 2**(b-1)."""
+    b = budget(width_of(planes))
+    V = _max_abs_int64(points)
+    N, _ = _max_abs(planes, 0, 3)
+    D, _ = _max_abs(planes, 3, 4)
+    bound = 3 * V * N + D
+    if bound >= b.limit:
+        raise PrecisionError(
+            f"signed distances of these points to these planes can exceed {b.width} bits: "
+            f"3·V·N + D = {bound} must be < 2**{b.width - 1} (V = {V}, N = {N}, D = {D}). "
+            f"Use a wider width."
+        )

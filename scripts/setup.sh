@@ -1,0 +1,52 @@
+#!/usr/bin/env bash
+# Shared set-up for demo.sh, test.sh and lab.sh: sourced, never run on its own.
+# Creates .venv, installs csgnb with its dev extras, installs the system libraries
+# headless VTK rendering needs (EGL + Mesa's software driver) and exports the
+# environment that makes pyvista render off-screen and notebooks run reproducibly.
+set -euo pipefail
+
+ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+cd "$ROOT"
+
+PYTHON="${PYTHON:-python3}"
+APT_PACKAGES=(libegl1 libgl1-mesa-dri)
+
+missing_apt=()
+for pkg in "${APT_PACKAGES[@]}"; do
+    dpkg -s "$pkg" >/dev/null 2>&1 || missing_apt+=("$pkg")
+done
+if [ "${#missing_apt[@]}" -gt 0 ]; then
+    if [ "$(id -u)" = "0" ]; then
+        echo "csgnb setup: installing ${missing_apt[*]} (headless rendering) with apt-get"
+        export DEBIAN_FRONTEND=noninteractive
+        apt-get update -qq
+        apt-get install -y -qq --no-install-recommends "${missing_apt[@]}" >/dev/null
+    else
+        echo "csgnb setup: headless rendering needs the Debian packages: ${missing_apt[*]}" >&2
+        echo "  run as root:  apt-get install -y --no-install-recommends ${missing_apt[*]}" >&2
+        exit 1
+    fi
+fi
+
+if [ ! -x .venv/bin/python ]; then
+    echo "csgnb setup: creating .venv with $($PYTHON --version)"
+    "$PYTHON" -m venv .venv
+fi
+# Reinstall only when the package metadata changed since the last install.
+stamp=.venv/.csgnb-installed
+if [ ! -f "$stamp" ] || [ pyproject.toml -nt "$stamp" ]; then
+    echo "csgnb setup: pip install -e .[dev] (first time: a few minutes)"
+    .venv/bin/python -m pip install -q --upgrade pip
+    .venv/bin/python -m pip install -q -e ".[dev]"
+    touch "$stamp"
+fi
+
+export PATH="$ROOT/.venv/bin:$PATH"
+# Headless VTK through EGL (software llvmpipe); the variable must always be set,
+# otherwise VTK prints a timestamped X-server warning that breaks output checks.
+export VTK_DEFAULT_OPENGL_WINDOW=vtkEGLRenderWindow
+export PYVISTA_OFF_SCREEN=true
+export PYVISTA_JUPYTER_BACKEND=static
+export MPLBACKEND=Agg
+export PYTHONHASHSEED=0
+export NUMBA_CACHE_DIR="$ROOT/.numba_cache"
