@@ -21,6 +21,7 @@ from __future__ import annotations
 import functools
 import hashlib
 import os
+import warnings
 from pathlib import Path
 
 import numba
@@ -51,13 +52,21 @@ PACKAGE_SOURCE_HASH: str = _package_source_hash()
 
 def _install_package_cache_locator() -> None:
     """Put a locator keyed on :data:`PACKAGE_SOURCE_HASH` first in numba's list, for csgnb files only."""
-    try:
-        from numba.core import config
-        from numba.core.caching import InTreeCacheLocator, _CacheImpl
-    except ImportError:  # a numba without these names: fall back to its per-file keys
+    from numba.core import caching, config
+
+    # numba renamed these from private to public names over its versions.
+    impl = getattr(caching, "CacheImpl", None) or getattr(caching, "_CacheImpl", None)
+    base = getattr(caching, "InTreeCacheLocator", None) or getattr(caching, "_InTreeCacheLocator", None)
+    if impl is None or base is None:
+        warnings.warn(
+            "csgnb: this numba has no cache-locator hooks; cached kernels are keyed per file, "
+            "so clear NUMBA_CACHE_DIR after editing csgnb sources",
+            RuntimeWarning,
+            stacklevel=2,
+        )
         return
 
-    class PackageCacheLocator(InTreeCacheLocator):
+    class PackageCacheLocator(base):
         def __init__(self, py_func, py_file):
             super().__init__(py_func, py_file)
             if config.CACHE_DIR:  # honour NUMBA_CACHE_DIR like numba's own locator
@@ -74,8 +83,8 @@ def _install_package_cache_locator() -> None:
                 inside = False
             return super().from_function(py_func, py_file) if inside else None
 
-    if not any(c.__name__ == "PackageCacheLocator" for c in _CacheImpl._locator_classes):
-        _CacheImpl._locator_classes.insert(0, PackageCacheLocator)
+    if not any(c.__name__ == "PackageCacheLocator" for c in impl._locator_classes):
+        impl._locator_classes.insert(0, PackageCacheLocator)
 
 
 _install_package_cache_locator()

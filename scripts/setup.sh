@@ -47,6 +47,5 @@ export PATH="$ROOT/.venv/bin:$PATH"
 export VTK_DEFAULT_OPENGL_WINDOW=vtkEGLRenderWindow
 export PYVISTA_OFF_SCREEN=true
 export PYVISTA_JUPYTER_BACKEND=static
-export MPLBACKEND=Agg
 export PYTHONHASHSEED=0
 export NUMBA_CACHE_DIR="$ROOT/.numba_cache"

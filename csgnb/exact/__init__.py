@@ -17,6 +17,7 @@ from .budgets import BitBudget, budget, integer_root
 from .predicates import (
     are_planes_parallel,
     classify_vertex,
+    homogeneous_points,
     intersect_3_planes,
     plane_from_points,
     points_equal,
@@ -34,6 +35,7 @@ __all__ = [
     "budget",
     "classify_vertex",
     "from_wide",
+    "homogeneous_points",
     "integer_root",
     "intersect_3_planes",
     "is_wide",

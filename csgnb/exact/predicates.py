@@ -47,9 +47,10 @@ from .intrinsics import (
     wide_to_float_at,
     wide_to_int64_at,
 )
-from .wide import wide_dtype, width_of
+from .wide import to_wide, wide_dtype, width_of
 
 __all__ = [
+    "homogeneous_points",
     "plane_from_points",
     "are_planes_parallel",
     "signed_distance",
@@ -222,6 +223,13 @@ def _squeeze(result: np.ndarray, *inputs) -> np.ndarray:
 
 # ---------------------------------------------------------------------------
 # public API
+
+
+def homogeneous_points(points, width: int = 256) -> np.ndarray:
+    """Return integer points ``(n, 3) int64`` as homogeneous wide points ``(n, 4)`` with x4 = 1."""
+    P = _rows(points, 3, "points", wide=False)
+    out = np.concatenate([P, np.ones((P.shape[0], 1), np.int64)], axis=1)
+    return _squeeze(to_wide(out, width), points)
 
 
 def plane_from_points(p, q, r, *, width: int = 256, canonical: bool = True) -> np.ndarray:

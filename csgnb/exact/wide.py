@@ -75,7 +75,8 @@ def to_wide(values, width: int) -> np.ndarray:
     """
     dtype = wide_dtype(width)
     k = width // 64
-    arr = np.asarray(values)
+    # Lists go through object arrays: numpy would turn ints beyond 64 bits into floats.
+    arr = values if isinstance(values, np.ndarray) else np.array(values, dtype=object)
     if arr.dtype.kind in "iu" and arr.dtype.itemsize <= 8:
         # Fast path: sign-extend 64-bit integers limb by limb, no Python loop.
         out = np.zeros(arr.shape, dtype)

@@ -1,0 +1,330 @@
+"""The exact predicates against Python ints and Fractions, at every width and at the budget edges."""
+
+from fractions import Fraction
+
+import numpy as np
+import pytest
+from hypothesis import assume, given
+from hypothesis import strategies as st
+
+from csgnb import GeometryError, PrecisionError, exact
+from csgnb.exact import budget, integer_root
+
+from .exact_reference import cross, det3, side, sign, solve_3_planes
+
+WIDTHS = exact.WIDTHS
+widths = st.sampled_from(WIDTHS)
+
+
+def coefficient(bound: int):
+    """Integers in [-bound, bound] with the extremes and small values over-represented."""
+    small = st.integers(-3, 3).filter(lambda v: abs(v) <= bound)
+    return st.one_of(st.just(bound), st.just(-bound), small, st.integers(-bound, bound))
+
+
+@st.composite
+def budget_bounds(draw, width):
+    """(N, D): a normal bound and the largest offset bound the width allows with it, or less."""
+    limit = budget(width).limit
+    n_max = integer_root((limit - 1) // 16, 3)
+    N = draw(st.one_of(st.just(1), st.just(n_max), st.integers(1, 64), st.integers(1, n_max)))
+    d_max = (limit - 1) // (16 * N**3)
+    D = draw(st.one_of(st.just(d_max), st.integers(0, d_max)))
+    return N, D
+
+
+@st.composite
+def planes(draw, width, count, bounds=None):
+    N, D = bounds if bounds is not None else draw(budget_bounds(width))
+    rows = []
+    for _ in range(count):
+        normal = draw(st.lists(coefficient(N), min_size=3, max_size=3).filter(any))
+        rows.append(normal + [draw(coefficient(D))])
+    return rows
+
+
+def as_ints(arr):
+    return [int(v) for v in exact.from_wide(arr).reshape(-1)]
+
+
+# ---------------------------------------------------------------------------
+# wide storage
+
+
+@given(width=widths, data=st.data())
+def test_wide_roundtrip_at_the_extremes(width, data):
+    lo, hi = -(1 << (width - 1)), (1 << (width - 1)) - 1
+    values = data.draw(st.lists(st.one_of(st.just(lo), st.just(hi), st.integers(lo, hi)), min_size=1, max_size=8))
+    arr = exact.to_wide(values, width)
+    assert arr["limbs"].shape == (len(values), width // 64)
+    assert as_ints(arr) == values
+
+
+@pytest.mark.parametrize("width", WIDTHS)
+def test_to_wide_refuses_values_outside_the_width(width):
+    with pytest.raises(PrecisionError, match=rf"2\*\*{width - 1}"):
+        exact.to_wide([1 << (width - 1)], width)
+    with pytest.raises(PrecisionError):
+        exact.to_wide([-(1 << (width - 1)) - 1], width)
+
+
+def test_int64_fast_path_matches_python_ints():
+    values = np.array([0, 1, -1, np.iinfo(np.int64).max, np.iinfo(np.int64).min, -12345])
+    for width in WIDTHS:
+        assert as_ints(exact.to_wide(values, width)) == [int(v) for v in values]
+
+
+# ---------------------------------------------------------------------------
+# intersect_3_planes and to_double_position
+
+
+@given(width=widths, data=st.data())
+def test_intersect_3_planes_is_the_cramer_solution(width, data):
+    p, q, r = data.draw(planes(width, 3))
+    expected = solve_3_planes(p, q, r)
+    wide = exact.to_wide([p, q, r], width)
+    if expected is None:
+        with pytest.raises(GeometryError, match="linearly dependent"):
+            exact.intersect_3_planes(wide[0], wide[1], wide[2])
+        return
+    x = as_ints(exact.intersect_3_planes(wide[0], wide[1], wide[2]))
+    assert x[3] == -det3([p[:3], q[:3], r[:3]])
+    assert [Fraction(x[i], x[3]) for i in range(3)] == expected
+    for plane in (p, q, r):  # the point lies on all three planes
+        assert sum(a * b for a, b in zip(x, plane, strict=True)) == 0
+    doubles = exact.to_double_position(exact.to_wide(x, width))
+    assert doubles.tolist() == [float(c) for c in expected]
+
+
+@given(width=widths, data=st.data())
+def test_to_double_position_is_correctly_rounded(width, data):
+    lo, hi = -(1 << (width - 1)), (1 << (width - 1)) - 1
+    x = data.draw(st.lists(st.integers(lo, hi), min_size=3, max_size=3))
+    w = data.draw(st.one_of(st.integers(lo, hi), st.integers(-5, 5)).filter(bool))
+    out = exact.to_double_position(exact.to_wide(x + [w], width))
+    assert out.tolist() == [float(Fraction(v, w)) for v in x]
+
+
+@pytest.mark.parametrize("width", WIDTHS)
+def test_to_double_position_rounds_ties_to_even(width):
+    rows, expected = [], []
+    for k in (0, 3, 40, width - 60):
+        for mantissa in (2**53 + 1, 2**53 + 3, 2**54 - 1):  # odd 54-bit numbers: exact ties
+            for denominator in (1, 3, -7):
+                rows.append([mantissa * denominator * 2**k, -mantissa * denominator, 0, denominator])
+                expected.append([float(Fraction(v, denominator)) for v in rows[-1][:3]])
+    out = exact.to_double_position(exact.to_wide(rows, width))
+    assert out.tolist() == expected
+
+
+@pytest.mark.parametrize("width", WIDTHS)
+def test_points_at_infinity_have_no_position(width):
+    with pytest.raises(GeometryError, match="x4 = 0"):
+        exact.to_double_position(exact.to_wide([[1, 2, 3, 0]], width))
+
+
+# ---------------------------------------------------------------------------
+# classify_vertex
+
+
+@given(width=widths, data=st.data())
+def test_classify_vertex_matches_fraction_arithmetic(width, data):
+    p, q, r, s = data.draw(planes(width, 4, bounds=data.draw(budget_bounds(width))))
+    point = solve_3_planes(p, q, r)
+    assume(point is not None)
+    wide = exact.to_wide([p, q, r, s], width)
+    x = exact.intersect_3_planes(wide[0], wide[1], wide[2])
+    assert exact.classify_vertex(x, wide[3]) == side(point, s)
+    # Negative w: the same point scaled by -1 classifies the same.
+    negated = exact.to_wide([-v for v in as_ints(x)], width)
+    assert exact.classify_vertex(negated, wide[3]) == side(point, s)
+    # Exactly on the planes it was built from.
+    assert exact.classify_vertex(x, wide[:3]).tolist() == [0, 0, 0]
+
+
+@pytest.mark.parametrize("width", WIDTHS)
+def test_classify_vertex_in_bulk_and_on_combinations_of_planes(width):
+    rng = np.random.default_rng(width)
+    N = 1000
+    rows_p, rows_q, rows_r, rows_s, expected = [], [], [], [], []
+    while len(expected) < 500:
+        p, q, r = (list(map(int, rng.integers(-N, N + 1, 4))) for _ in range(3))
+        point = solve_3_planes(p, q, r)
+        if point is None:
+            continue
+        if len(expected) % 3 == 0:  # a plane through the point: a combination of p, q, r
+            a, b = (int(v) for v in rng.integers(-5, 6, 2))
+            s = [a * u + b * v for u, v in zip(p, q, strict=True)]
+            if not any(s[:3]):
+                continue
+        else:
+            s = list(map(int, rng.integers(-N, N + 1, 4)))
+        rows_p.append(p), rows_q.append(q), rows_r.append(r), rows_s.append(s)
+        expected.append(side(point, s))
+    P, Q, R, S = (exact.to_wide(rows, width) for rows in (rows_p, rows_q, rows_r, rows_s))
+    x = exact.intersect_3_planes(P, Q, R)
+    got = exact.classify_vertex(x, S)
+    assert got.tolist() == expected
+    assert 0 in expected and 1 in expected and -1 in expected
+
+
+@pytest.mark.parametrize("width", WIDTHS)
+def test_classification_at_the_hadamard_extreme(width):
+    """The largest determinant the budget admits, 16·N³·D, is classified exactly."""
+    limit = budget(width).limit
+    H = [[1, 1, 1, 1], [1, -1, 1, -1], [1, 1, -1, -1], [1, -1, -1, 1]]  # |det| = 16
+    for N in (1, 7, integer_root((limit - 1) // 16, 3)):
+        D = (limit - 1) // (16 * N**3)
+        rows = [[h[0] * N, h[1] * N, h[2] * N, h[3] * D] for h in H]
+        s, p, q, r = rows
+        wide = exact.to_wide(rows, width)
+        x = exact.intersect_3_planes(wide[1], wide[2], wide[3])
+        dot = sum(a * b for a, b in zip(as_ints(x), s, strict=True))
+        assert abs(dot) == 16 * N**3 * D  # the extreme value itself
+        assert exact.classify_vertex(x, wide[0]) == side(solve_3_planes(p, q, r), s)
+
+
+# ---------------------------------------------------------------------------
+# plane_from_points, signed_distance, are_planes_parallel, points_equal
+
+
+@st.composite
+def mesh_points(draw, width, count):
+    V = budget(width).max_mesh_coordinate
+    coord = st.one_of(st.just(V), st.just(-V), st.integers(-V, V), st.integers(-2, 2))
+    return [[draw(coord) for _ in range(3)] for _ in range(count)]
+
+
+@given(width=widths, data=st.data())
+def test_plane_from_points_matches_the_cross_product(width, data):
+    p, q, r = data.draw(mesh_points(width, 3))
+    n = cross([b - a for a, b in zip(p, q, strict=True)], [c - a for a, c in zip(p, r, strict=True)])
+    if not any(n):
+        with pytest.raises(GeometryError, match="collinear"):
+            exact.plane_from_points(p, q, r, width=width)
+        return
+    raw = as_ints(exact.plane_from_points(p, q, r, width=width, canonical=False))
+    assert raw == n + [-sum(a * b for a, b in zip(n, p, strict=True))]
+    g = np.gcd.reduce([abs(v) for v in n])
+    canon = as_ints(exact.plane_from_points(p, q, r, width=width))
+    assert canon == [v // int(g) for v in raw]
+    # The plane passes through its points, and the budget makes it a valid plane for every predicate.
+    planes_ = exact.to_wide([canon], width)
+    assert [int(v) for v in exact.from_wide(exact.signed_distance([p, q, r], planes_))] == [0, 0, 0]
+
+
+@pytest.mark.parametrize("width", WIDTHS)
+def test_mesh_budget_edge(width):
+    V = budget(width).max_mesh_coordinate
+    p, q, r = [-V, -V, -V], [V, -V, V], [-V, V, V]
+    plane = exact.plane_from_points(p, q, r, width=width, canonical=False)
+    assert as_ints(plane)[3] == -sum(a * b for a, b in zip(as_ints(plane)[:3], p, strict=True))
+    with pytest.raises(PrecisionError, match=f"V <= {V}"):
+        exact.plane_from_points([V + 1, 0, 0], q, r, width=width)
+
+
+@given(width=widths, data=st.data())
+def test_signed_distance_is_the_plane_equation(width, data):
+    (plane,) = data.draw(planes(width, 1))
+    N, D = max(abs(v) for v in plane[:3]), abs(plane[3])
+    v_max = min((budget(width).limit - 1 - D) // (3 * N), 2**62)
+    v = data.draw(st.lists(st.integers(-v_max, v_max), min_size=3, max_size=3))
+    got = exact.signed_distance(np.array([v], dtype=np.int64), exact.to_wide([plane], width))
+    assert int(exact.from_wide(got)[0]) == sum(a * b for a, b in zip(v, plane[:3], strict=True)) + plane[3]
+
+
+@given(width=widths, data=st.data())
+def test_are_planes_parallel_is_a_zero_cross_product(width, data):
+    p, q = data.draw(planes(width, 2, bounds=(1000, 1000)))
+    k = data.draw(st.sampled_from([1, -1, 3, -7]))
+    scaled = [k * v for v in p[:3]] + [q[3]]
+    wide = exact.to_wide([p, q, scaled], width)
+    assert bool(exact.are_planes_parallel(wide[0], wide[1])) == (not any(cross(p[:3], q[:3])))
+    assert exact.are_planes_parallel(wide[0], wide[2])
+
+
+@given(width=widths, data=st.data())
+def test_points_equal_is_projective_equality(width, data):
+    lo, hi = -(1 << (width - 3)), (1 << (width - 3)) - 1
+    x = data.draw(st.lists(st.integers(lo, hi), min_size=4, max_size=4).filter(lambda v: v[3] != 0))
+    k = data.draw(st.sampled_from([1, -1, 2, -3]))
+    delta = data.draw(st.lists(st.integers(-1, 1), min_size=4, max_size=4))
+    y = [k * v + d for v, d in zip(x, delta, strict=True)]
+    assume(y[3] != 0)
+    same = all(Fraction(x[i], x[3]) == Fraction(y[i], y[3]) for i in range(3))
+    assert bool(exact.points_equal(exact.to_wide(x, width), exact.to_wide(y, width))) == same
+    assert exact.points_equal(exact.to_wide(x, width), exact.to_wide([-2 * v for v in x], width))
+
+
+# ---------------------------------------------------------------------------
+# budgets
+
+
+@pytest.mark.parametrize("width", WIDTHS)
+def test_plane_budget_edge_is_exact(width):
+    limit = budget(width).limit
+    for N in (1, 5):
+        D = (limit - 1) // (16 * N**3)
+        ok = exact.to_wide([[N, 0, 0, D], [0, 1, 0, 0], [0, 0, 1, 0]], width)
+        exact.intersect_3_planes(ok[0], ok[1], ok[2])  # accepted at the edge
+        bad = exact.to_wide([[N, 0, 0, D + 1], [0, 1, 0, 0], [0, 0, 1, 0]], width)
+        with pytest.raises(PrecisionError, match=rf"16·N³·D = {16 * N**3 * (D + 1)}, which must be < 2\*\*{width - 1}"):
+            exact.intersect_3_planes(bad[0], bad[1], bad[2])
+
+
+@pytest.mark.parametrize("width", WIDTHS)
+def test_zero_offsets_are_bounded_by_the_3x3_determinant(width):
+    limit = budget(width).limit
+    # With d = 0 everywhere only |x4| <= 3^(3/2) N^3 binds: 27 N^6 < limit^2.
+    N = integer_root((limit**2 - 1) // 27, 6)
+    exact.intersect_3_planes(*exact.to_wide([[N, 0, 0, 0], [0, N, 0, 0], [0, 0, N, 0]], width))
+    with pytest.raises(PrecisionError, match="3x3 determinant x4"):
+        exact.intersect_3_planes(*exact.to_wide([[N + 1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0]], width))
+
+
+@pytest.mark.parametrize("width", WIDTHS)
+def test_classify_refuses_points_that_could_overflow(width):
+    limit = budget(width).limit
+    x = exact.to_wide([[limit // 2, limit // 2, 0, 1]], width)
+    with pytest.raises(PrecisionError, match=r"\(\|x1\|\+\|x2\|\+\|x3\|\)·N \+ \|x4\|·D"):
+        exact.classify_vertex(x, exact.to_wide([1, 1, 0, 0], width))
+
+
+def test_zero_normal_is_not_a_plane():
+    with pytest.raises(GeometryError, match="zero normal"):
+        exact.classify_vertex(exact.to_wide([1, 2, 3, 1], 128), exact.to_wide([0, 0, 0, 5], 128))
+
+
+def test_mixed_widths_are_refused():
+    with pytest.raises(ValueError, match="different widths"):
+        exact.classify_vertex(exact.to_wide([1, 2, 3, 1], 128), exact.to_wide([1, 0, 0, 5], 256))
+
+
+@pytest.mark.parametrize("width", WIDTHS)
+def test_budget_numbers_follow_eq_7_to_9(width):
+    b = budget(width)
+    V = b.max_mesh_coordinate
+    assert 48 * 8**4 * V**9 < 2 ** (width - 1) <= 48 * 8**4 * (V + 1) ** 9  # eq. 8, tight
+    assert abs(V / (0.239 * 2 ** (width / 9)) - 1) < 0.01  # eq. 9
+    n = 1000
+    v = b.max_vertex_coordinate(n)
+    assert 48 * n**4 * v < 2 ** (width - 1) <= 48 * n**4 * (v + 1)  # eq. 7
+    assert b.max_mesh_normal == 8 * V**2 and b.max_mesh_offset == 24 * V**3
+    if width == 256:
+        assert 8.72e7 < V < 8.74e7  # "positions smaller than 8.73·10^7" (paper §3.2)
+
+
+@given(value=st.integers(0, 2**300), k=st.integers(1, 12))
+def test_integer_root_is_exact(value, k):
+    r = integer_root(value, k)
+    assert r**k <= value < (r + 1) ** k
+
+
+def test_broadcasting_and_shapes():
+    planes_ = exact.to_wide([[1, 0, 0, -1], [0, 1, 0, -2], [0, 0, 1, -3], [1, 1, 1, -6]], 192)
+    x = exact.intersect_3_planes(planes_[0], planes_[1], planes_[2])
+    assert x.shape == (4,)
+    assert exact.classify_vertex(x[None], planes_).tolist() == [0, 0, 0, 0]
+    with pytest.raises(ValueError, match="cannot broadcast"):
+        exact.classify_vertex(np.stack([x, x, x]), planes_[:2])
+    assert sign(-5) == -1
