@@ -148,14 +148,13 @@ _BUDGETS = {w: BitBudget(w) for w in WIDTHS}
 
 
 @jit
-def _argmax_abs(arr, col_start, col_stop):
-    """(row, col) of the largest |arr[row, col]| over columns [col_start, col_stop)."""
-    best_r, best_c = 0, col_start
-    for r in range(arr.shape[0]):
-        for c in range(col_start, col_stop):
-            if wide_abs_greater_at(arr, r, c, arr, best_r, best_c):
-                best_r, best_c = r, c
-    return best_r, best_c
+def _column_argmax_abs(arr, best):
+    """Row of the largest |arr[row, col]| of every column, in one pass, into ``best`` ((ncols,) int64)."""
+    best[:] = 0
+    for r in range(1, arr.shape[0]):
+        for c in range(arr.shape[1]):
+            if wide_abs_greater_at(arr, r, c, arr, best[c], c):
+                best[c] = r
 
 
 @jit
@@ -174,12 +173,21 @@ def _max_abs_int64(points: np.ndarray) -> int:
     return max(int(points.max()), -int(points.min()))
 
 
-def _max_abs(arr: np.ndarray, col_start: int, col_stop: int) -> tuple[int, int]:
-    """Exact max |value| over the given columns of a 2-D wide array, and the row it is in."""
+def _column_max_abs(arr: np.ndarray) -> list[tuple[int, int]]:
+    """Exact (max |value|, row) of every column of a 2-D wide array, as Python ints."""
     if arr.shape[0] == 0:
-        return 0, -1
-    r, c = _argmax_abs(arr, col_start, col_stop)
-    return abs(int(from_wide(arr[r : r + 1, c])[0])), int(r)
+        return [(0, -1)] * arr.shape[1]
+    rows = np.empty(arr.shape[1], np.int64)
+    _column_argmax_abs(arr, rows)
+    return [(abs(int(from_wide(arr[r : r + 1, c])[0])), int(r)) for c, r in enumerate(rows)]
+
+
+def _plane_maxima(planes: np.ndarray) -> tuple[int, int, int, int]:
+    """(N, row of N, D, row of D) of ``(n, 4)`` wide planes."""
+    cols = _column_max_abs(planes)
+    N, rn = max(cols[:3])
+    D, rd = cols[3]
+    return N, rn, D, rd
 
 
 def check_planes(planes: np.ndarray, name: str = "planes") -> tuple[int, int]:
@@ -192,8 +200,7 @@ def check_planes(planes: np.ndarray, name: str = "planes") -> tuple[int, int]:
     zero = int(_first_zero_normal(planes)) if planes.shape[0] else -1
     if zero >= 0:
         raise GeometryError(f"{name}[{zero}] has a zero normal (a = b = c = 0): it is not a plane")
-    N, rn = _max_abs(planes, 0, 3)
-    D, rd = _max_abs(planes, 3, 4)
+    N, rn, D, rd = _plane_maxima(planes)
     problems = b.plane_violations(N, D)
     if problems:
         raise PrecisionError(
@@ -227,9 +234,8 @@ def check_points_against_planes(points: np.ndarray, planes: np.ndarray) -> None:
     column-wise maxima.
     """
     b = budget(width_of(planes))
-    N, _ = _max_abs(planes, 0, 3)
-    D, _ = _max_abs(planes, 3, 4)
-    X = [_max_abs(points, c, c + 1)[0] for c in range(4)]
+    N, _, D, _ = _plane_maxima(planes)
+    X = [m for m, _ in _column_max_abs(points)]
     bound = (X[0] + X[1] + X[2]) * N + X[3] * D
     if bound >= b.limit:
         raise PrecisionError(
@@ -243,8 +249,7 @@ def check_integer_points_against_planes(points: np.ndarray, planes: np.ndarray) 
     """Check that ``n·v + d`` of ``(n, 3) int64`` points and wide planes fits: 3·V·N + D < 2**(b-1)."""
     b = budget(width_of(planes))
     V = _max_abs_int64(points)
-    N, _ = _max_abs(planes, 0, 3)
-    D, _ = _max_abs(planes, 3, 4)
+    N, _, D, _ = _plane_maxima(planes)
     bound = 3 * V * N + D
     if bound >= b.limit:
         raise PrecisionError(
