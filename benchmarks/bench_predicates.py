@@ -201,7 +201,8 @@ def main(argv=None) -> dict:
 
     print(f"Exact predicates, {n} elements per operation, best of {args.repeat}; cycles at {clock:.2f} GHz")
     print("(kernel figures; 'api' adds the bit-budget checks of the public functions)\n")
-    header = f"{'operation':<20}" + "".join(f"{w + 'b':>9}" for w in ("128", "192", "256")) + f"{'python':>10}{'paper 256b':>12}{'speed-up vs py':>16}{'api 256b':>10}"
+    header = f"{'operation':<20}" + "".join(f"{w + 'b':>9}" for w in ("128", "192", "256"))
+    header += f"{'python':>10}{'paper 256b':>12}{'speed-up vs py':>16}{'api 256b':>10}"
     print(header)
     print("-" * len(header))
     for op in ops:

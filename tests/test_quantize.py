@@ -12,7 +12,10 @@ from csgnb.exact import budget, quantize
 finite = st.floats(-1e6, 1e6, allow_nan=False, allow_infinity=False)
 
 
-@given(width=st.sampled_from(exact.WIDTHS), pts=arrays(np.float64, st.tuples(st.integers(1, 20), st.just(3)), elements=finite))
+point_arrays = arrays(np.float64, st.tuples(st.integers(1, 20), st.just(3)), elements=finite)
+
+
+@given(width=st.sampled_from(exact.WIDTHS), pts=point_arrays)
 def test_quantize_stays_in_budget_and_maps_back(width, pts):
     grid, q = quantize(pts, width)
     assert grid.dtype == np.int64

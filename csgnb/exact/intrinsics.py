@@ -151,14 +151,16 @@ def _to_double(builder, v):
     T = v.type
     W = T.width
     magnitude = _abs(builder, v)
-    lz = builder.call(_bit_count_intrinsic(builder, "llvm.ctlz", T), [magnitude, ir.Constant(ir.IntType(1), 0)])
+    ctlz = _bit_count_intrinsic(builder, "llvm.ctlz", T)
+    lz = builder.call(ctlz, [magnitude, ir.Constant(ir.IntType(1), 0)])
     norm = builder.shl(magnitude, lz)
     top = builder.trunc(builder.lshr(norm, ir.Constant(T, W - 64)), _I64)
     sticky = builder.icmp_unsigned("!=", builder.trunc(norm, ir.IntType(W - 64)), ir.Constant(ir.IntType(W - 64), 0))
     top = builder.or_(top, builder.zext(sticky, _I64))
     f = builder.uitofp(top, ir.DoubleType())
     exponent = builder.sub(ir.Constant(_I64, W - 64), builder.trunc(lz, _I64))  # in [-63, W - 64]
-    scale = builder.bitcast(builder.shl(builder.add(exponent, ir.Constant(_I64, 1023)), ir.Constant(_I64, 52)), ir.DoubleType())
+    biased = builder.add(exponent, ir.Constant(_I64, 1023))  # 2**exponent built from its IEEE bits
+    scale = builder.bitcast(builder.shl(biased, ir.Constant(_I64, 52)), ir.DoubleType())
     f = builder.fmul(f, scale)
     f = builder.select(builder.icmp_signed("<", v, ir.Constant(T, 0)), builder.fneg(f), f)
     return builder.select(builder.icmp_signed("==", v, ir.Constant(T, 0)), ir.Constant(ir.DoubleType(), 0.0), f)

@@ -104,6 +104,8 @@ def quantize(vertices, width: int = 256, *, max_coordinate: int | None = None) -
         scale = 1.0
     else:
         # Largest power of two with half_extent * scale <= max_coordinate (rounding stays inside).
-        scale = 2.0 ** np.floor(np.log2((max_coordinate - 1) / half_extent))
+        # log2 of each term separately: their quotient overflows for subnormal extents.
+        exponent = np.floor(np.log2(max(max_coordinate - 1, 1)) - np.log2(half_extent))
+        scale = float(np.ldexp(1.0, int(np.clip(exponent, -1000, 1000))))
     q = Quantization(scale=float(scale), offset=offset, width=width, max_coordinate=max_coordinate)
     return q.to_grid(pts), q
