@@ -29,7 +29,7 @@ def test_environment_yml_lists_the_same_packages_as_pyproject():
 def test_ci_runs_the_readme_test_command_and_nothing_else():
     ci = (ROOT / ".ci" / "run").read_text()
     commands = [line for line in ci.splitlines() if line.strip() and not line.startswith("#")]
-    assert commands[-1].strip() == "exec bash scripts/test.sh"
+    assert commands[-1].strip() == "exec bash ./scripts/test.sh"
     assert "bash scripts/test.sh" in (ROOT / "README.md").read_text()
 
 
