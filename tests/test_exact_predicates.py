@@ -10,7 +10,7 @@ from hypothesis import strategies as st
 from csgnb import GeometryError, PrecisionError, exact
 from csgnb.exact import budget, integer_root
 
-from .exact_reference import cross, det3, side, sign, solve_3_planes
+from .exact_reference import cross, det3, side, solve_3_planes
 
 WIDTHS = exact.WIDTHS
 widths = st.sampled_from(WIDTHS)
@@ -327,4 +327,3 @@ def test_broadcasting_and_shapes():
     assert exact.classify_vertex(x[None], planes_).tolist() == [0, 0, 0, 0]
     with pytest.raises(ValueError, match="cannot broadcast"):
         exact.classify_vertex(np.stack([x, x, x]), planes_[:2])
-    assert sign(-5) == -1
