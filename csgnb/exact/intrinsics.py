@@ -37,6 +37,7 @@ __all__ = [
     "signed_distance_into",
     "planes_parallel_at",
     "points_equal_at",
+    "compare_plane_values_at",
     "wide_sign_at",
     "wide_to_float_at",
     "wide_to_int64_at",
@@ -348,6 +349,31 @@ def points_equal_at(typingctx, X, i, Y, j):
         return result
 
     return types.boolean(X, i, Y, j), codegen
+
+
+@intrinsic
+def compare_plane_values_at(typingctx, X, iu, iv, S, j):
+    """Sign of f(u) - f(v) where f(x) = (x·s) / x4 for points ``X[iu]``, ``X[iv]`` and plane ``S[j]``.
+
+    f is the plane's signed distance times |n| at the Cartesian point, so this
+    orders two homogeneous points by distance to the plane -- what edge descent
+    needs. The dot products are final values bounded by the classification budget;
+    the cross products ``(x_u·s)·x4_v`` are formed at twice the width. Returns int8.
+    """
+    bits = _same_width("compare_plane_values_at", X, S)
+    T = ir.IntType(bits)
+    T2 = ir.IntType(2 * bits)
+
+    def codegen(context, builder, sig, args):
+        xu = _load_row(context, builder, sig.args[0], args[0], args[1], sig.args[1], T, 4)
+        xv = _load_row(context, builder, sig.args[0], args[0], args[2], sig.args[2], T, 4)
+        s = _load_row(context, builder, sig.args[3], args[3], args[4], sig.args[4], T, 4)
+        du = builder.sext(_dot(builder, xu, s), T2)
+        dv = builder.sext(_dot(builder, xv, s), T2)
+        diff = builder.sub(builder.mul(du, builder.sext(xv[3], T2)), builder.mul(dv, builder.sext(xu[3], T2)))
+        return builder.mul(builder.mul(_sign(builder, diff), _sign(builder, xu[3])), _sign(builder, xv[3]))
+
+    return types.int8(X, iu, iv, S, j), codegen
 
 
 # ---------------------------------------------------------------------------

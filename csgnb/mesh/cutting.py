@@ -1,0 +1,415 @@
+"""In-place exact cutting of a convex polytope by a plane: edge descent + marching (paper §3.3).
+
+``cut`` splits the polytope of a cell handle into its negative and positive parts,
+in place, each closed by a new face on the cutting plane (Figure 3):
+
+1. *Edge descent* from the handle's vertex: move to the neighbour that is strictly
+   closer to the plane (exact comparison of (x·s)/x4, :func:`compare_plane_values_at`)
+   until a vertex on the far side of the plane is seen. A linear function on a convex
+   polytope has no local minima, so a vertex without a closer neighbour is the global
+   minimum: the plane then has no *proper* intersection (one part would have zero
+   volume) and the polytope is left unchanged.
+2. *Marching* around the cut from an on-plane vertex: at each on-plane vertex, the
+   neighbours' signs form one negative and one non-negative block (convexity); the
+   face between them is either split (Figure 4a: walk it to the far crossing, split
+   that edge) by a diagonal on the plane, or bounded by an existing on-plane edge.
+   This visits only the faces the plane crosses.
+3. The loop of on-plane vertices is duplicated, half-edges on the positive side are
+   re-attached to the copies, and two cap faces close both parts: the negative part's
+   cap lies on the plane as given, the positive part's on its flip.
+
+Only vertices next to the path are classified (cached per cut in ``vmark``), and new
+vertices are built once per crossed edge by ``intersect_3_planes`` of the edge's two
+faces and the cutting plane. The naive baseline (:func:`cut_naive`) classifies every
+vertex first, then marches the same way.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .._jit import jit
+from ..errors import GeometryError
+from ..exact.intrinsics import classify_at, compare_plane_values_at, intersect_into
+from .halfedge import (
+    FACE,
+    HE,
+    N_CLASSIFY,
+    N_CONSTRUCT,
+    NEXT,
+    NF,
+    NH,
+    NV,
+    OPP,
+    PLANE,
+    STAMP,
+    TWIN,
+    VERT,
+    MeshStore,
+    _cell_halfedges,
+    _dest,
+    _new_stamp,
+    _plane_row,
+    _rot,
+)
+
+__all__ = ["CutResult", "cut", "cut_naive", "CUT_PROPER", "CUT_ERROR"]
+
+CUT_PROPER = 2
+"""Status of a cut that split the polytope into two parts of non-zero volume."""
+
+CUT_ERROR = -9
+"""Status of a cut that found an inconsistent mesh (never expected; reported, not hidden)."""
+
+# Capacity a cut may need, per face of the polytope (plus 2): new vertices <= 2 per
+# loop vertex, half-edges <= 6 per loop edge, faces <= 1 per split face + 2 caps.
+VERTICES_PER_FACE, HALFEDGES_PER_FACE, FACES_PER_FACE = 2, 6, 1
+
+
+@jit
+def _side(palette, vx, vmark, counts, v, s):
+    """Cached exact side (-1, 0, +1) of vertex ``v`` against palette plane ``s`` in this cut."""
+    stamp = counts[STAMP]
+    m = vmark[v]
+    if (m >> 2) == stamp:
+        return (m & 3) - 1
+    side = np.int64(classify_at(vx, v, palette, s))
+    vmark[v] = stamp * 4 + side + 1
+    counts[N_CLASSIFY] += 1
+    return side
+
+
+@jit
+def _mark_on_plane(vmark, counts, v):
+    vmark[v] = counts[STAMP] * 4 + 1
+
+
+@jit
+def _descend(palette, vx, he, vmark, counts, h0, s):
+    """Edge descent. Returns (kind, value):
+
+    kind 1: ``value`` is a half-edge from a vertex strictly on one side to one strictly
+    on the other (a crossing edge); kind 2: ``value`` is an outgoing half-edge of an
+    on-plane vertex with neighbours on both sides; kind 0: no proper intersection,
+    ``value`` is the side (+1/-1) the polytope lies on.
+    """
+    v = he[h0, VERT]
+    hv = h0
+    sv = _side(palette, vx, vmark, counts, v, s)
+    if sv == 0:
+        pos = False
+        neg = False
+        h = hv
+        while True:
+            su = _side(palette, vx, vmark, counts, _dest(he, h), s)
+            pos = pos or su > 0
+            neg = neg or su < 0
+            h = _rot(he, h)
+            if h == hv:
+                break
+        if pos and neg:
+            return 2, hv
+        return 0, 1 if pos else -1
+    sign0 = sv
+    while True:
+        best = -1
+        h = hv
+        while True:
+            u = _dest(he, h)
+            su = _side(palette, vx, vmark, counts, u, s)
+            if su == -sign0:
+                if sv != 0:
+                    return 1, h
+                return 2, hv
+            # Strictly closer to the plane: sign0 * (f(u) - f(v)) < 0.
+            if sign0 * compare_plane_values_at(vx, u, v, palette, s) < 0:
+                if best < 0 or sign0 * compare_plane_values_at(vx, u, _dest(he, best), palette, s) < 0:
+                    best = h
+            h = _rot(he, h)
+            if h == hv:
+                break
+        if best < 0:
+            # A global minimum of sign0 * f on the polytope, at distance >= 0.
+            return 0, sign0
+        v = _dest(he, best)
+        hv = he[best, TWIN]  # runs from the new v back: an outgoing half-edge of v
+        sv = _side(palette, vx, vmark, counts, v, s)
+
+
+@jit
+def _split_edge(palette, vx, he, fc, vmark, counts, h, s):
+    """Insert the crossing point of edge ``h`` with plane ``s``; return the new vertex.
+
+    Afterwards ``h`` ends at the new vertex and ``he[h, NEXT]`` starts there; the
+    twin edge is split the same way.
+    """
+    t = he[h, TWIN]
+    w = counts[NV]
+    counts[NV] += 1
+    intersect_into(palette, _plane_row(fc, he[h, FACE]), palette, _plane_row(fc, he[t, FACE]), palette, s, vx, w)
+    counts[N_CONSTRUCT] += 1
+    _mark_on_plane(vmark, counts, w)
+    h2 = counts[NH]
+    t2 = h2 + 1
+    counts[NH] += 2
+    he[h2, NEXT] = he[h, NEXT]
+    he[h2, TWIN] = t
+    he[h2, VERT] = w
+    he[h2, FACE] = he[h, FACE]
+    he[t2, NEXT] = he[t, NEXT]
+    he[t2, TWIN] = h
+    he[t2, VERT] = w
+    he[t2, FACE] = he[t, FACE]
+    he[h, NEXT] = h2
+    he[h, TWIN] = t2
+    he[t, NEXT] = t2
+    he[t, TWIN] = h2
+    return w
+
+
+@jit
+def _march_and_separate(palette, vx, he, fc, vmark, counts, loop_v, loop_h, z0, hz0, s, opp_neg, opp_pos):
+    """Marching and separation from on-plane vertex ``z0`` (outgoing half-edge ``hz0``).
+
+    Returns (negative cap half-edge, positive cap half-edge), or (-1, -1) on an
+    inconsistent mesh.
+    """
+    n = 0
+    z = z0
+    hz = hz0
+    while True:
+        # The transition, rotating around z, from a negative neighbour to a non-negative one.
+        h = hz
+        found = False
+        for _ in range(he.shape[0]):
+            if (_side(palette, vx, vmark, counts, _dest(he, h), s) < 0
+                    and _side(palette, vx, vmark, counts, _dest(he, _rot(he, h)), s) >= 0):
+                found = True
+                break
+            h = _rot(he, h)
+            if h == hz:
+                break
+        if not found:
+            return -1, -1
+        r = _rot(he, h)  # z -> b, in the face G between the two neighbours
+        b = _dest(he, r)
+        if _side(palette, vx, vmark, counts, b, s) == 0:
+            loop_h[n] = r  # an on-plane edge already: no face to split (Figure 4, last sentence)
+            znext = b
+        else:
+            # Walk G from b to its other on-plane point (Figure 4a: split an edge there).
+            e = r
+            while _side(palette, vx, vmark, counts, _dest(he, e), s) > 0:
+                e = he[e, NEXT]
+            if _side(palette, vx, vmark, counts, _dest(he, e), s) < 0:
+                _split_edge(palette, vx, he, fc, vmark, counts, e, s)
+            w = _dest(he, e)
+            g = he[r, FACE]
+            prev_r = he[h, TWIN]
+            d1 = counts[NH]
+            d2 = d1 + 1
+            counts[NH] += 2
+            g_plus = counts[NF]
+            counts[NF] += 1
+            he[d1, NEXT] = r
+            he[d1, TWIN] = d2
+            he[d1, VERT] = w
+            he[d1, FACE] = g_plus
+            he[d2, NEXT] = he[e, NEXT]
+            he[d2, TWIN] = d1
+            he[d2, VERT] = z
+            he[d2, FACE] = g
+            he[e, NEXT] = d1
+            he[prev_r, NEXT] = d2
+            k = r
+            while k != d1:
+                he[k, FACE] = g_plus
+                k = he[k, NEXT]
+            fc[g_plus, PLANE] = fc[g, PLANE]
+            fc[g_plus, HE] = r
+            fc[g_plus, OPP] = fc[g, OPP]
+            fc[g, HE] = d2
+            loop_h[n] = d2
+            znext = w
+        loop_v[n] = z
+        n += 1
+        if znext == z0:
+            break
+        if n >= loop_v.shape[0]:
+            return -1, -1
+        z = znext
+        hz = he[loop_h[n - 1], TWIN]
+    # Separation: copy the loop vertices for the positive part and re-attach its half-edges.
+    base_v = counts[NV]
+    counts[NV] += n
+    for i in range(n):
+        zc = base_v + i
+        for c in range(4):
+            vx[zc, c] = vx[loop_v[i], c]
+        _mark_on_plane(vmark, counts, zc)
+    for i in range(n):
+        stop = he[loop_h[i - 1 if i > 0 else n - 1], TWIN]
+        h = _rot(he, loop_h[i])
+        while True:
+            he[h, VERT] = base_v + i
+            if h == stop:
+                break
+            h = _rot(he, h)
+    # Two caps: M_i (negative part, z_{i+1} -> z_i) and P_i (positive part, z_i' -> z_{i+1}').
+    base_m = counts[NH]
+    base_p = base_m + n
+    counts[NH] += 2 * n
+    f_neg = counts[NF]
+    f_pos = f_neg + 1
+    counts[NF] += 2
+    for i in range(n):
+        ell = loop_h[i]
+        t = he[ell, TWIN]
+        nxt = i + 1 if i + 1 < n else 0
+        prv = i - 1 if i > 0 else n - 1
+        m = base_m + i
+        p = base_p + i
+        he[m, NEXT] = base_m + prv
+        he[m, TWIN] = ell
+        he[m, VERT] = loop_v[nxt]
+        he[m, FACE] = f_neg
+        he[p, NEXT] = base_p + nxt
+        he[p, TWIN] = t
+        he[p, VERT] = base_v + i
+        he[p, FACE] = f_pos
+        he[ell, TWIN] = m
+        he[t, TWIN] = p
+    fc[f_neg, PLANE] = s
+    fc[f_neg, HE] = base_m
+    fc[f_neg, OPP] = opp_neg
+    fc[f_pos, PLANE] = ~s
+    fc[f_pos, HE] = base_p
+    fc[f_pos, OPP] = opp_pos
+    return base_m, base_p
+
+
+@jit
+def _cut_kernel(palette, vx, he, fc, vmark, counts, loop_v, loop_h, h0, s, opp_neg, opp_pos):
+    """Cut the polytope of ``h0`` by palette plane ``s`` (edge descent + marching).
+
+    Returns (status, a, b): status CUT_PROPER with the negative and positive parts'
+    handles a, b; status 0 with a = the side (+1/-1) when the plane does not cut
+    properly (mesh unchanged); CUT_ERROR on an inconsistent mesh. The caller must
+    have reserved capacity for (faces + 2) * (2, 6, 1) new vertices, half-edges, faces.
+    """
+    _new_stamp(counts)
+    kind, value = _descend(palette, vx, he, vmark, counts, h0, s)
+    if kind == 0:
+        return 0, value, -1
+    if kind == 1:
+        z0 = _split_edge(palette, vx, he, fc, vmark, counts, value, s)
+        hz = he[value, NEXT]
+    else:
+        z0 = he[value, VERT]
+        hz = value
+    a, b = _march_and_separate(palette, vx, he, fc, vmark, counts, loop_v, loop_h, z0, hz, s, opp_neg, opp_pos)
+    if a < 0:
+        return CUT_ERROR, -1, -1
+    return CUT_PROPER, a, b
+
+
+@jit
+def _cut_naive_kernel(palette, vx, he, fc, vmark, hmark, counts, loop_v, loop_h, work, h0, s, opp_neg, opp_pos):
+    """The baseline: classify every vertex of the polytope, then march as :func:`_cut_kernel`."""
+    nh = _cell_halfedges(he, hmark, counts, h0, work)
+    _new_stamp(counts)
+    pos = False
+    neg = False
+    zero_h = -1
+    cross_h = -1
+    for i in range(nh):
+        h = work[i]
+        sv = _side(palette, vx, vmark, counts, he[h, VERT], s)
+        pos = pos or sv > 0
+        neg = neg or sv < 0
+        if sv == 0:
+            zero_h = h
+        elif sv > 0 and cross_h < 0:
+            if _side(palette, vx, vmark, counts, _dest(he, h), s) < 0:
+                cross_h = h
+    if not (pos and neg):
+        return 0, 1 if pos else -1, -1
+    if zero_h >= 0:
+        z0 = he[zero_h, VERT]
+        hz = zero_h
+    else:
+        z0 = _split_edge(palette, vx, he, fc, vmark, counts, cross_h, s)
+        hz = he[cross_h, NEXT]
+    a, b = _march_and_separate(palette, vx, he, fc, vmark, counts, loop_v, loop_h, z0, hz, s, opp_neg, opp_pos)
+    if a < 0:
+        return CUT_ERROR, -1, -1
+    return CUT_PROPER, a, b
+
+
+@dataclass(frozen=True)
+class CutResult:
+    """Outcome of :func:`cut`.
+
+    ``proper`` is True when both parts have non-zero volume; then ``negative`` and
+    ``positive`` are the parts' cell handles. Otherwise the polytope is unchanged,
+    ``side`` says on which side of the plane it lies (+1/-1), and the handle of the
+    whole polytope is returned in the part of that side.
+    """
+
+    proper: bool
+    negative: int
+    positive: int
+    side: int
+    classifications: int
+    constructions: int
+
+
+def _count_faces(store: MeshStore, cell: int) -> int:
+    return len({int(store.he[h, FACE]) for h in store.cell_halfedges(cell)})
+
+
+def cut(store: MeshStore, cell: int, plane: int, *, opp_negative: int = -1, opp_positive: int = -1,
+        naive: bool = False) -> CutResult:
+    """Cut the polytope ``cell`` of ``store`` by palette plane ``plane``, in place.
+
+    Parameters
+    ----------
+    store : MeshStore
+    cell : int
+        Any half-edge of the polytope; descent starts at its origin vertex.
+    plane : int
+        Palette row of the cutting plane (add planes with :meth:`MeshStore.add_planes`).
+    opp_negative, opp_positive : int
+        ``OPP`` annotations of the two new cap faces (the BSP node on the other side).
+    naive : bool
+        Use the classify-every-vertex baseline instead of edge descent.
+
+    Returns
+    -------
+    CutResult
+    """
+    if not 0 <= plane < int(store.counts[6]):
+        raise GeometryError(f"plane {plane} is not a palette row (the palette has {int(store.counts[6])} planes)")
+    if not 0 <= cell < int(store.counts[NH]):
+        raise GeometryError(f"cell {cell} is not a half-edge of the store")
+    faces = _count_faces(store, cell) + 2
+    store.reserve(VERTICES_PER_FACE * faces, HALFEDGES_PER_FACE * faces + 2, FACES_PER_FACE * faces + 2)
+    loop_v = np.empty(faces, np.int64)
+    loop_h = np.empty(faces, np.int64)
+    before = store.counts[[N_CLASSIFY, N_CONSTRUCT]].copy()
+    if naive:
+        work = np.empty(int(store.counts[NH]), np.int32)
+        status, a, b = _cut_naive_kernel(store.palette, store.vx, store.he, store.fc, store.vmark, store.hmark,
+                                         store.counts, loop_v, loop_h, work, cell, plane, opp_negative, opp_positive)
+    else:
+        status, a, b = _cut_kernel(store.palette, store.vx, store.he, store.fc, store.vmark, store.counts,
+                                   loop_v, loop_h, cell, plane, opp_negative, opp_positive)
+    n_cls, n_con = (int(x) for x in store.counts[[N_CLASSIFY, N_CONSTRUCT]] - before)
+    if status == CUT_ERROR:
+        raise GeometryError("cutting found an inconsistent half-edge mesh (a bug: please report it)")
+    if status == CUT_PROPER:
+        return CutResult(True, int(a), int(b), 0, n_cls, n_con)
+    side = int(a)
+    return CutResult(False, cell if side < 0 else -1, cell if side > 0 else -1, side, n_cls, n_con)

@@ -1,0 +1,362 @@
+"""Convex polytopes as a flat half-edge store with exact homogeneous vertices (paper §3.3).
+
+Many convex polytopes live in one :class:`MeshStore`; a polytope is named by any of
+its half-edges (a *cell handle*). Cutting (:mod:`csgnb.mesh.cutting`) splits a
+polytope in place into two, so handles of other polytopes stay valid.
+
+Arrays (``int32`` unless noted; rows ``[:counts[NV]]`` etc. are in use):
+
+* ``palette`` ``(m, 4)`` wide -- the exact planes every face refers to;
+* ``vx`` ``(V, 4)`` wide -- homogeneous vertices (x1, x2, x3, x4) as built by
+  ``intersect_3_planes``, never rounded; the point is (x1, x2, x3) / x4;
+* ``he`` ``(H, 4)`` -- half-edge columns ``NEXT`` (next half-edge of the face,
+  counter-clockwise seen from outside), ``TWIN``, ``VERT`` (origin vertex), ``FACE``;
+* ``fc`` ``(F, 3)`` -- face columns ``PLANE`` (palette row ``k``, or ``~k`` when the
+  face's outward normal is the row's negated normal), ``HE`` (one of its half-edges),
+  ``OPP`` (the BSP node on the other side of the face, ``-1`` outside the domain);
+* ``vmark`` ``(V,)`` int64 -- classification cache: ``stamp * 4 + side + 1`` of the
+  cut that last classified the vertex;
+* ``hmark`` ``(H,)`` int64 -- traversal stamps;
+* ``counts`` int64 -- ``NV, NH, NF`` (rows in use), ``STAMP`` (cut counter),
+  ``N_CLASSIFY``, ``N_CONSTRUCT`` (statistics), ``NP`` (palette rows in use).
+
+Faces are outward: the polytope lies on the negative side of every face plane.
+"""
+
+from __future__ import annotations
+
+from fractions import Fraction
+
+import numpy as np
+
+from .._jit import jit
+from ..errors import GeometryError
+from ..exact.budgets import check_planes
+from ..exact.intrinsics import classify_at, intersect_into
+from ..exact.predicates import to_double_position
+from ..exact.wide import from_wide, is_wide, to_wide, wide_dtype, width_of
+
+__all__ = ["MeshStore", "NEXT", "TWIN", "VERT", "FACE", "PLANE", "HE", "OPP"]
+
+NEXT, TWIN, VERT, FACE = 0, 1, 2, 3
+PLANE, HE, OPP = 0, 1, 2
+NV, NH, NF, STAMP, N_CLASSIFY, N_CONSTRUCT, NP = 0, 1, 2, 3, 4, 5, 6
+
+# A cube: vertex k has coordinates (k & 1, k >> 1 & 1, k >> 2 & 1) in {lo, hi};
+# faces listed counter-clockwise seen from outside, with the palette row of their plane.
+_CUBE_FACES = (
+    (0, (0, 4, 6, 2)),  # x = lo, plane (-1, 0, 0, lo)
+    (1, (1, 3, 7, 5)),  # x = hi, plane (1, 0, 0, -hi)
+    (2, (0, 1, 5, 4)),  # y = lo
+    (3, (2, 6, 7, 3)),  # y = hi
+    (4, (0, 2, 3, 1)),  # z = lo
+    (5, (4, 5, 7, 6)),  # z = hi
+)
+
+
+def box_planes(lo, hi, width: int) -> np.ndarray:
+    """Return the six outward planes of the box ``[lo, hi]`` (integer corners) as a ``(6, 4)`` wide array.
+
+    Row order: x = lo, x = hi, y = lo, y = hi, z = lo, z = hi.
+    """
+    lo = [int(v) for v in np.asarray(lo).reshape(3)]
+    hi = [int(v) for v in np.asarray(hi).reshape(3)]
+    if any(a >= b for a, b in zip(lo, hi, strict=True)):
+        raise GeometryError(f"box needs lo < hi in every coordinate, got lo={lo}, hi={hi}")
+    rows = []
+    for axis in range(3):
+        n = [0, 0, 0]
+        n[axis] = -1
+        rows.append([*n, lo[axis]])
+        n = [0, 0, 0]
+        n[axis] = 1
+        rows.append([*n, -hi[axis]])
+    return to_wide(rows, width)
+
+
+@jit
+def _rot(he, h):
+    """The next outgoing half-edge around the origin of ``h``."""
+    return he[he[h, TWIN], NEXT]
+
+
+@jit
+def _dest(he, h):
+    return he[he[h, NEXT], VERT]
+
+
+@jit
+def _plane_row(fc, f):
+    p = fc[f, PLANE]
+    return p if p >= 0 else ~p
+
+
+@jit
+def _new_stamp(counts):
+    counts[STAMP] += 1
+    return counts[STAMP]
+
+
+@jit
+def _cell_halfedges(he, hmark, counts, h0, out):
+    """Write every half-edge of the polytope of ``h0`` into ``out``; return how many."""
+    stamp = _new_stamp(counts)
+    n = 0
+    out[0] = h0
+    hmark[h0] = stamp
+    n = 1
+    i = 0
+    while i < n:
+        h = out[i]
+        i += 1
+        for g in (he[h, NEXT], he[h, TWIN]):
+            if hmark[g] != stamp:
+                hmark[g] = stamp
+                out[n] = g
+                n += 1
+    return n
+
+
+class MeshStore:
+    """Flat storage for many exact convex polytopes (see the module docstring).
+
+    Parameters
+    ----------
+    palette : (m, 4) wide
+        Planes the polytopes' faces and cuts refer to; more can be added with
+        :meth:`add_planes`. All planes together must stay within the budget of
+        their width (checked).
+    capacity : int
+        Initial number of vertex rows; the store grows as needed.
+    """
+
+    def __init__(self, palette: np.ndarray, capacity: int = 1024) -> None:
+        if not (is_wide(palette) and palette.ndim == 2 and palette.shape[1] == 4):
+            raise GeometryError(f"palette must be an (m, 4) wide array of planes, got shape {np.shape(palette)}")
+        self.width = width_of(palette)
+        capacity = max(int(capacity), 64)
+        self.palette = np.zeros((max(2 * palette.shape[0], 16), 4), wide_dtype(self.width))
+        self.vx = np.zeros((capacity, 4), wide_dtype(self.width))
+        self.he = np.full((4 * capacity, 4), -1, np.int32)
+        self.fc = np.full((2 * capacity, 3), -1, np.int32)
+        self.vmark = np.zeros(capacity, np.int64)
+        self.hmark = np.zeros(4 * capacity, np.int64)
+        self.counts = np.zeros(8, np.int64)
+        self.add_planes(palette)
+
+    # -- capacity -----------------------------------------------------------
+
+    def reserve(self, vertices: int, halfedges: int, faces: int) -> None:
+        """Make room for at least this many *more* vertices, half-edges and faces."""
+        nv, nh, nf = (int(c) for c in self.counts[:3])
+        if nv + vertices > self.vx.shape[0]:
+            size = max(2 * self.vx.shape[0], nv + vertices)
+            self.vx = _grown(self.vx, size)
+            self.vmark = _grown(self.vmark, size)
+        if nh + halfedges > self.he.shape[0]:
+            size = max(2 * self.he.shape[0], nh + halfedges)
+            self.he = _grown(self.he, size, -1)
+            self.hmark = _grown(self.hmark, size)
+        if nf + faces > self.fc.shape[0]:
+            self.fc = _grown(self.fc, max(2 * self.fc.shape[0], nf + faces), -1)
+
+    def add_planes(self, planes: np.ndarray) -> np.ndarray:
+        """Append ``(k, 4)`` wide planes to the palette; return their rows ``(k,) int64``."""
+        planes = np.atleast_2d(planes)
+        if width_of(planes) != self.width:
+            raise GeometryError(f"planes are {width_of(planes)}-bit but the store is {self.width}-bit")
+        np_ = int(self.counts[NP])
+        if planes.shape[0]:
+            check_planes(np.concatenate([self.palette[:np_], planes]), "palette")
+        if np_ + planes.shape[0] > self.palette.shape[0]:
+            self.palette = _grown(self.palette, max(2 * self.palette.shape[0], np_ + planes.shape[0]))
+        self.palette[np_ : np_ + planes.shape[0]] = planes
+        self.counts[NP] = np_ + planes.shape[0]
+        return np.arange(np_, np_ + planes.shape[0])
+
+    @property
+    def planes(self) -> np.ndarray:
+        """The palette rows in use, ``(m, 4)`` wide (a view)."""
+        return self.palette[: int(self.counts[NP])]
+
+    # -- construction -------------------------------------------------------
+
+    def add_box(self, lo, hi, opp: int = -1) -> int:
+        """Add the box ``[lo, hi]`` (integer corners) as a polytope; return its cell handle.
+
+        The six box planes are appended to the palette; every face gets ``opp``.
+        """
+        rows = self.add_planes(box_planes(lo, hi, self.width))
+        nv, nh, nf = (int(c) for c in self.counts[:3])
+        self.reserve(8, 24, 6)
+        pal = self.palette
+        for k in range(8):
+            # Vertex k lies on one plane per axis: lo (even row) or hi (odd row).
+            px, py, pz = (rows[2 * axis + ((k >> axis) & 1)] for axis in range(3))
+            _intersect_rows(pal, px, py, pz, self.vx, nv + k)
+        index = {}
+        h = nh
+        for f, (plane_offset, cycle) in enumerate(_CUBE_FACES):
+            self.fc[nf + f] = (rows[plane_offset], h, opp)
+            for i in range(4):
+                a, b = cycle[i], cycle[(i + 1) % 4]
+                self.he[h + i, NEXT] = h + (i + 1) % 4
+                self.he[h + i, VERT] = nv + a
+                self.he[h + i, FACE] = nf + f
+                index[a, b] = h + i
+            h += 4
+        for (a, b), e in index.items():
+            self.he[e, TWIN] = index[b, a]
+        self.counts[:3] = (nv + 8, nh + 24, nf + 6)
+        return nh
+
+    # -- inspection ---------------------------------------------------------
+
+    def cell_halfedges(self, cell: int) -> np.ndarray:
+        """Return the half-edges ``(k,) int32`` of the polytope named by ``cell``."""
+        out = np.empty(int(self.counts[NH]), np.int32)
+        n = _cell_halfedges(self.he, self.hmark, self.counts, int(cell), out)
+        return out[:n]
+
+    def cell_faces(self, cell: int) -> list[list[int]]:
+        """Return the faces of a polytope as lists of half-edges, counter-clockwise from outside."""
+        faces: dict[int, list[int]] = {}
+        for h in self.cell_halfedges(cell):
+            f = int(self.he[h, FACE])
+            if f in faces:
+                continue
+            cycle, g = [], int(self.fc[f, HE])
+            while True:
+                cycle.append(g)
+                g = int(self.he[g, NEXT])
+                if g == cycle[0]:
+                    break
+                if len(cycle) > self.he.shape[0]:
+                    raise GeometryError(f"face {f} does not close: the half-edge structure is corrupt")
+            faces[f] = cycle
+        return list(faces.values())
+
+    def cell_vertices(self, cell: int) -> np.ndarray:
+        """Return the vertex rows ``(k,) int64`` of a polytope, sorted."""
+        return np.unique(self.he[self.cell_halfedges(cell), VERT].astype(np.int64))
+
+    def face_polygons(self, cell: int) -> tuple[list[int], list[list[int]]]:
+        """Return (face ids, vertex rows per face) of a polytope, counter-clockwise from outside."""
+        faces = self.cell_faces(cell)
+        return [int(self.he[c[0], FACE]) for c in faces], [[int(self.he[h, VERT]) for h in c] for c in faces]
+
+    def exact_vertices(self, rows) -> list[tuple[Fraction, Fraction, Fraction]]:
+        """Return the Cartesian positions of vertex ``rows`` as exact Fractions."""
+        ints = from_wide(self.vx[np.asarray(rows, np.int64)])
+        return [tuple(Fraction(int(x[i]), int(x[3])) for i in range(3)) for x in ints]
+
+    def positions(self, rows) -> np.ndarray:
+        """Return the positions of vertex ``rows`` correctly rounded to doubles, ``(k, 3) float64``."""
+        return to_double_position(self.vx[np.asarray(rows, np.int64)])
+
+    def exact_volume(self, cell: int) -> Fraction:
+        """Return the exact volume of a polytope as a Fraction (divergence theorem over its faces)."""
+        _, polys = self.face_polygons(cell)
+        rows = sorted({v for p in polys for v in p})
+        pos = dict(zip(rows, self.exact_vertices(rows), strict=True))
+        return polygons_volume([[pos[v] for v in p] for p in polys])
+
+    def to_polydata(self, cells):
+        """Return the polytopes ``cells`` as one pyvista ``PolyData`` (float positions, for display).
+
+        Cell data ``"cell"`` says which polytope a face belongs to, ``"plane"`` its palette row.
+        """
+        import pyvista as pv
+
+        cells = [int(c) for c in np.atleast_1d(cells)]
+        points, faces, owner, planes = [], [], [], []
+        base = 0
+        for k, cell in enumerate(cells):
+            fids, polys = self.face_polygons(cell)
+            rows = sorted({v for p in polys for v in p})
+            where = {v: base + i for i, v in enumerate(rows)}
+            points.append(self.positions(rows))
+            for f, p in zip(fids, polys, strict=True):
+                faces.append([len(p), *(where[v] for v in p)])
+                owner.append(k)
+                plane = int(self.fc[f, PLANE])
+                planes.append(plane if plane >= 0 else ~plane)
+            base += len(rows)
+        mesh = pv.PolyData(np.concatenate(points), np.concatenate(faces))
+        mesh.cell_data["cell"] = np.asarray(owner)
+        mesh.cell_data["plane"] = np.asarray(planes)
+        return mesh
+
+    def check_cell(self, cell: int) -> None:
+        """Raise :class:`GeometryError` unless the polytope is a closed, strictly convex, consistent mesh.
+
+        Checked exactly: twins pair up with opposite directions; every face has >= 3
+        vertices, all on its plane; every vertex of the polytope lies on or inside every
+        face plane; adjacent faces have different planes; every vertex has degree >= 3.
+        """
+        hs = self.cell_halfedges(cell)
+        he = self.he
+        for h in hs:
+            t = he[h, TWIN]
+            if he[t, TWIN] != h or he[he[t, NEXT], VERT] != he[h, VERT] or he[he[h, NEXT], VERT] != he[t, VERT]:
+                raise GeometryError(f"half-edge {h} and its twin {t} do not run in opposite directions")
+            if he[h, FACE] == he[t, FACE]:
+                raise GeometryError(f"half-edge {h} has its twin in the same face")
+            if _plane_row(self.fc, he[h, FACE]) == _plane_row(self.fc, he[t, FACE]):
+                raise GeometryError(f"faces {he[h, FACE]} and {he[t, FACE]} are adjacent and coplanar")
+        fids, polys = self.face_polygons(cell)
+        verts = np.unique([v for p in polys for v in p])
+        degree = {int(v): 0 for v in verts}
+        for h in hs:
+            degree[int(he[h, VERT])] += 1
+        low = [v for v, d in degree.items() if d < 3]
+        if low:
+            raise GeometryError(f"vertices {low[:5]} have degree < 3")
+        for f, p in zip(fids, polys, strict=True):
+            if len(p) < 3 or len(set(p)) != len(p):
+                raise GeometryError(f"face {f} has vertices {p}")
+            row = _plane_row(self.fc, f)
+            flip = -1 if self.fc[f, PLANE] < 0 else 1
+            sides = _classify_rows(self.vx, verts, self.palette, row) * flip
+            on = set(int(v) for v in verts[sides == 0])
+            if not set(p) <= on:
+                raise GeometryError(f"face {f} has vertices off its plane")
+            if np.any(sides > 0):
+                raise GeometryError(f"the polytope is not convex: a vertex lies outside face {f}")
+
+
+def polygons_volume(polygons) -> Fraction:
+    """Return the exact signed volume enclosed by closed, outward polygons of Fraction points."""
+    total = Fraction(0)
+    for poly in polygons:
+        a = poly[0]
+        for b, c in zip(poly[1:-1], poly[2:], strict=True):
+            total += (
+                a[0] * (b[1] * c[2] - b[2] * c[1])
+                - a[1] * (b[0] * c[2] - b[2] * c[0])
+                + a[2] * (b[0] * c[1] - b[1] * c[0])
+            )
+    return total / 6
+
+
+@jit
+def _intersect_rows(palette, p, q, r, vx, out_row):
+    intersect_into(palette, p, palette, q, palette, r, vx, out_row)
+
+
+@jit
+def _classify_rows_kernel(vx, rows, palette, plane, out):
+    for i in range(rows.shape[0]):
+        out[i] = classify_at(vx, rows[i], palette, plane)
+
+
+def _classify_rows(vx, rows, palette, plane) -> np.ndarray:
+    out = np.empty(len(rows), np.int8)
+    _classify_rows_kernel(vx, np.asarray(rows, np.int64), palette, int(plane), out)
+    return out.astype(np.int64)
+
+
+def _grown(arr: np.ndarray, rows: int, fill=0) -> np.ndarray:
+    out = np.zeros((rows,) + arr.shape[1:], arr.dtype) if fill == 0 else np.full((rows,) + arr.shape[1:], fill, arr.dtype)
+    out[: arr.shape[0]] = arr
+    return out
