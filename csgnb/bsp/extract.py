@@ -23,7 +23,7 @@ import numpy as np
 from .._jit import jit
 from ..errors import GeometryError
 from ..exact.intrinsics import classify_at, intersect_into
-from ..mesh.cutting import CUT_PROPER, _cut_kernel
+from ..mesh.cutting import CUT_PROPER, _cut_kernel, _cut_naive_kernel
 from ..mesh.halfedge import FACE, HE, NEXT, NF, NH, NV, OPP, PLANE, TWIN, VERT, MeshStore, _dest, _plane_row
 from .surface import BoundarySurface, assemble_surface
 from .tree import OUT, BSPTree
@@ -36,13 +36,17 @@ _NODE, _HANDLE, _FACE_BOUND = 0, 1, 2
 
 
 @jit
-def _cells_kernel(palette, vx, he, fc, vmark, counts, loop_v, loop_h, plane, neg, pos, label, stack, state, cells):
+def _cells_kernel(palette, vx, he, fc, vmark, vdot, hmark, counts, loop_v, loop_h, plane, neg, pos, label, stack, state,
+                  cells, naive):
     """Cut the box cell down the tree; record (leaf, handle) of every **in** leaf reached.
 
     ``stack`` rows are (node, cell handle, bound on the cell's face count); ``state`` is
     (stack size, cells recorded). Returns 0 when done, 1 when an array is too small
     (nothing of the pending step done; grow and call again), -1 on an inconsistent mesh.
+    ``naive`` uses the classify-every-vertex cut (the baseline of Figure 9).
     """
+    no_path = np.zeros(1, np.int64)
+    work = np.empty(he.shape[0] if naive else 1, np.int32)
     while state[0] > 0:
         top = state[0] - 1
         node = stack[top, _NODE]
@@ -62,8 +66,14 @@ def _cells_kernel(palette, vx, he, fc, vmark, counts, loop_v, loop_h, plane, neg
                 or counts[NF] + need + 2 > fc.shape[0] or top + 2 > stack.shape[0] or need > loop_v.shape[0]):
             return _NEED_MORE_ROOM
         # The caps face the other child: the negative part's cap looks into pos[node].
-        status, a, b = _cut_kernel(palette, vx, he, fc, vmark, counts, loop_v, loop_h, h, plane[node],
-                                   pos[node], neg[node])
+        if naive:
+            if work.shape[0] < he.shape[0]:
+                return _NEED_MORE_ROOM  # the caller grew the store: restart to size the work array
+            status, a, b = _cut_naive_kernel(palette, vx, he, fc, vmark, vdot, hmark, counts, loop_v, loop_h, work, h,
+                                             plane[node], pos[node], neg[node])
+        else:
+            status, a, b = _cut_kernel(palette, vx, he, fc, vmark, vdot, counts, loop_v, loop_h, h, plane[node],
+                                       pos[node], neg[node], no_path)
         if status == CUT_PROPER:
             stack[top, _NODE] = pos[node]
             stack[top, _HANDLE] = b
@@ -274,8 +284,11 @@ def _grow(arr: np.ndarray, fill: int = 0) -> np.ndarray:
     return out
 
 
-def extract_cells(tree: BSPTree, lo, hi, *, capacity: int = 1024) -> tuple[MeshStore, np.ndarray]:
+def extract_cells(tree: BSPTree, lo, hi, *, capacity: int = 1024, naive: bool = False
+                  ) -> tuple[MeshStore, np.ndarray]:
     """Return the convex cells of the **in** leaves of ``tree`` inside the box ``[lo, hi]``.
+
+    ``naive=True`` cuts with the classify-every-vertex baseline instead of edge descent.
 
     Returns (store, cells): ``cells`` is ``(k, 2) int64`` rows of (leaf node, cell
     handle into ``store``). Out leaves are dropped; cells of zero volume never occur
@@ -290,8 +303,9 @@ def extract_cells(tree: BSPTree, lo, hi, *, capacity: int = 1024) -> tuple[MeshS
     loop_v = np.empty(64, np.int64)
     loop_h = np.empty(64, np.int64)
     while True:
-        status = _cells_kernel(store.palette, store.vx, store.he, store.fc, store.vmark, store.counts, loop_v, loop_h,
-                               tree.plane, tree.neg, tree.pos, tree.label, stack, state, cells)
+        status = _cells_kernel(store.palette, store.vx, store.he, store.fc, store.vmark, store.vdot, store.hmark,
+                               store.counts, loop_v, loop_h, tree.plane, tree.neg, tree.pos, tree.label, stack, state,
+                               cells, naive)
         if status == _DONE:
             return store, cells[: state[1]]
         if status == _FAILED:

@@ -70,24 +70,27 @@ def _classify_points_kernel(plane, neg, pos, label, palette, points, out):
 @jit
 def _depths_kernel(neg, pos, plane, depth):
     # Nodes are stored parents-before-children in every tree csgnb builds, but a
-    # user-supplied tree need not be: walk from the root with an explicit stack.
+    # user-supplied tree need not be: walk from the root with an explicit stack and
+    # return how many distinct nodes are reachable (-1 if a node is reached twice).
+    seen = np.zeros(neg.shape[0], np.bool_)
     stack = np.empty(neg.shape[0] + 1, np.int32)
     stack[0] = 0
     depth[0] = 0
     top = 1
-    seen = 0
+    count = 0
     while top > 0:
         top -= 1
         node = stack[top]
-        seen += 1
-        if seen > neg.shape[0]:
-            return -1  # a node is reachable twice: not a tree
+        if seen[node]:
+            return -1
+        seen[node] = True
+        count += 1
         if plane[node] >= 0:
             for child in (neg[node], pos[node]):
                 depth[child] = depth[node] + 1
                 stack[top] = child
                 top += 1
-    return seen
+    return count
 
 
 @dataclass(frozen=True)
@@ -138,7 +141,7 @@ class BSPTree:
     # -- construction -------------------------------------------------------
 
     @classmethod
-    def leaf(cls, palette: np.ndarray, label: int = OUT) -> "BSPTree":
+    def leaf(cls, palette: np.ndarray, label: int = OUT) -> BSPTree:
         """Return the one-leaf BSP labelled ``label`` over ``palette``."""
         one = np.array([-1], np.int32)
         return cls(palette, one, one.copy(), one.copy(), np.array([label], np.int32))

@@ -38,6 +38,8 @@ __all__ = [
     "planes_parallel_at",
     "points_equal_at",
     "compare_plane_values_at",
+    "plane_value_into",
+    "compare_cached_values_at",
     "wide_sign_at",
     "wide_to_float_at",
     "wide_to_int64_at",
@@ -374,6 +376,50 @@ def compare_plane_values_at(typingctx, X, iu, iv, S, j):
         return builder.mul(builder.mul(_sign(builder, diff), _sign(builder, xu[3])), _sign(builder, xv[3]))
 
     return types.int8(X, iu, iv, S, j), codegen
+
+
+@intrinsic
+def plane_value_into(typingctx, X, i, S, j, out, io):
+    """Store x·s of point ``X[i]`` and plane ``S[j]`` into the 1-D wide ``out[io]``; return the side.
+
+    The side is sign(x·s)·sign(x4) as in :func:`classify_at`; keeping x·s lets later
+    distance comparisons (:func:`compare_cached_values_at`) skip the dot product.
+    """
+    bits = _same_width("plane_value_into", X, S, out)
+    T = ir.IntType(bits)
+
+    def codegen(context, builder, sig, args):
+        x = _load_row(context, builder, sig.args[0], args[0], args[1], sig.args[1], T, 4)
+        s = _load_row(context, builder, sig.args[2], args[2], args[3], sig.args[3], T, 4)
+        dot = _dot(builder, x, s)
+        _store_row(context, builder, sig.args[4], args[4], args[5], sig.args[5], T, [dot])
+        return builder.mul(_sign(builder, dot), _sign(builder, x[3]))
+
+    return types.int8(X, i, S, j, out, io), codegen
+
+
+@intrinsic
+def compare_cached_values_at(typingctx, D, iu, iv, X):
+    """Sign of D[iu]/X[iu, 3] - D[iv]/X[iv, 3]: :func:`compare_plane_values_at` from stored dot products.
+
+    ``D`` is the 1-D wide array :func:`plane_value_into` filled; products at twice the width.
+    """
+    bits = _same_width("compare_cached_values_at", D, X)
+    T = ir.IntType(bits)
+    T2 = ir.IntType(2 * bits)
+
+    def codegen(context, builder, sig, args):
+        du = _load_row(context, builder, sig.args[0], args[0], args[1], sig.args[1], T, 1)[0]
+        dv = _load_row(context, builder, sig.args[0], args[0], args[2], sig.args[2], T, 1)[0]
+        base_u = _row_pointer(context, builder, sig.args[3], args[3], args[1], sig.args[1])
+        base_v = _row_pointer(context, builder, sig.args[3], args[3], args[2], sig.args[2])
+        wu = _load(builder, base_u, 3, T)
+        wv = _load(builder, base_v, 3, T)
+        diff = builder.sub(builder.mul(builder.sext(du, T2), builder.sext(wv, T2)),
+                           builder.mul(builder.sext(dv, T2), builder.sext(wu, T2)))
+        return builder.mul(builder.mul(_sign(builder, diff), _sign(builder, wu)), _sign(builder, wv))
+
+    return types.int8(D, iu, iv, X), codegen
 
 
 # ---------------------------------------------------------------------------

@@ -4,7 +4,8 @@
 in place, each closed by a new face on the cutting plane (Figure 3):
 
 1. *Edge descent* from the handle's vertex: move to the neighbour that is strictly
-   closer to the plane (exact comparison of (x·s)/x4, :func:`compare_plane_values_at`)
+   closer to the plane (exact comparison of (x·s)/x4 from the dot products cached by the
+   classification, :func:`compare_cached_values_at`)
    until a vertex on the far side of the plane is seen. A linear function on a convex
    polytope has no local minima, so a vertex without a closer neighbour is the global
    minimum: the plane then has no *proper* intersection (one part would have zero
@@ -32,7 +33,7 @@ import numpy as np
 
 from .._jit import jit
 from ..errors import GeometryError
-from ..exact.intrinsics import classify_at, compare_plane_values_at, intersect_into
+from ..exact.intrinsics import compare_cached_values_at, intersect_into, plane_value_into
 from .halfedge import (
     FACE,
     HE,
@@ -41,6 +42,7 @@ from .halfedge import (
     NEXT,
     NF,
     NH,
+    NP,
     NV,
     OPP,
     PLANE,
@@ -55,7 +57,7 @@ from .halfedge import (
     _rot,
 )
 
-__all__ = ["CutResult", "cut", "cut_naive", "CUT_PROPER", "CUT_ERROR"]
+__all__ = ["CutResult", "cut", "CUT_PROPER", "CUT_ERROR"]
 
 CUT_PROPER = 2
 """Status of a cut that split the polytope into two parts of non-zero volume."""
@@ -69,25 +71,32 @@ VERTICES_PER_FACE, HALFEDGES_PER_FACE, FACES_PER_FACE = 2, 6, 1
 
 
 @jit
-def _side(palette, vx, vmark, counts, v, s):
+def _side(palette, vx, vmark, vdot, counts, v, s):
     """Cached exact side (-1, 0, +1) of vertex ``v`` against palette plane ``s`` in this cut."""
     stamp = counts[STAMP]
     m = vmark[v]
     if (m >> 2) == stamp:
         return (m & 3) - 1
-    side = np.int64(classify_at(vx, v, palette, s))
+    side = np.int64(plane_value_into(vx, v, palette, s, vdot, v))
     vmark[v] = stamp * 4 + side + 1
     counts[N_CLASSIFY] += 1
     return side
 
 
 @jit
-def _mark_on_plane(vmark, counts, v):
+def _mark_on_plane(vmark, vdot, counts, v):
     vmark[v] = counts[STAMP] * 4 + 1
 
 
 @jit
-def _descend(palette, vx, he, vmark, counts, h0, s):
+def _record(path, v):
+    if path[0] + 1 < path.shape[0]:
+        path[0] += 1
+        path[path[0]] = v
+
+
+@jit
+def _descend(palette, vx, he, vmark, vdot, counts, h0, s, path):
     """Edge descent. Returns (kind, value):
 
     kind 1: ``value`` is a half-edge from a vertex strictly on one side to one strictly
@@ -97,13 +106,14 @@ def _descend(palette, vx, he, vmark, counts, h0, s):
     """
     v = he[h0, VERT]
     hv = h0
-    sv = _side(palette, vx, vmark, counts, v, s)
+    _record(path, v)
+    sv = _side(palette, vx, vmark, vdot, counts, v, s)
     if sv == 0:
         pos = False
         neg = False
         h = hv
         while True:
-            su = _side(palette, vx, vmark, counts, _dest(he, h), s)
+            su = _side(palette, vx, vmark, vdot, counts, _dest(he, h), s)
             pos = pos or su > 0
             neg = neg or su < 0
             h = _rot(he, h)
@@ -115,17 +125,25 @@ def _descend(palette, vx, he, vmark, counts, h0, s):
     sign0 = sv
     while True:
         best = -1
+        best_side = 1
         h = hv
         while True:
             u = _dest(he, h)
-            su = _side(palette, vx, vmark, counts, u, s)
+            su = _side(palette, vx, vmark, vdot, counts, u, s)
             if su == -sign0:
                 if sv != 0:
                     return 1, h
                 return 2, hv
-            # Strictly closer to the plane: sign0 * (f(u) - f(v)) < 0.
-            if sign0 * compare_plane_values_at(vx, u, v, palette, s) < 0:
-                if best < 0 or sign0 * compare_plane_values_at(vx, u, _dest(he, best), palette, s) < 0:
+            # Strictly closer to the plane: sign0 * (f(u) - f(v)) < 0. Both sides are known
+            # here, so their dot products are cached in vdot; an on-plane u (f = 0) is the closest.
+            if sv == 0:
+                pass  # f(v) = 0 and no neighbour across: nothing is strictly closer
+            elif su == 0:
+                if best < 0 or best_side != 0:
+                    best = h
+                    best_side = 0
+            elif best_side != 0 and sign0 * compare_cached_values_at(vdot, u, v, vx) < 0:
+                if best < 0 or sign0 * compare_cached_values_at(vdot, u, _dest(he, best), vx) < 0:
                     best = h
             h = _rot(he, h)
             if h == hv:
@@ -135,11 +153,12 @@ def _descend(palette, vx, he, vmark, counts, h0, s):
             return 0, sign0
         v = _dest(he, best)
         hv = he[best, TWIN]  # runs from the new v back: an outgoing half-edge of v
-        sv = _side(palette, vx, vmark, counts, v, s)
+        _record(path, v)
+        sv = _side(palette, vx, vmark, vdot, counts, v, s)
 
 
 @jit
-def _split_edge(palette, vx, he, fc, vmark, counts, h, s):
+def _split_edge(palette, vx, he, fc, vmark, vdot, counts, h, s):
     """Insert the crossing point of edge ``h`` with plane ``s``; return the new vertex.
 
     Afterwards ``h`` ends at the new vertex and ``he[h, NEXT]`` starts there; the
@@ -150,7 +169,7 @@ def _split_edge(palette, vx, he, fc, vmark, counts, h, s):
     counts[NV] += 1
     intersect_into(palette, _plane_row(fc, he[h, FACE]), palette, _plane_row(fc, he[t, FACE]), palette, s, vx, w)
     counts[N_CONSTRUCT] += 1
-    _mark_on_plane(vmark, counts, w)
+    _mark_on_plane(vmark, vdot, counts, w)
     h2 = counts[NH]
     t2 = h2 + 1
     counts[NH] += 2
@@ -170,7 +189,7 @@ def _split_edge(palette, vx, he, fc, vmark, counts, h, s):
 
 
 @jit
-def _march_and_separate(palette, vx, he, fc, vmark, counts, loop_v, loop_h, z0, hz0, s, opp_neg, opp_pos):
+def _march_and_separate(palette, vx, he, fc, vmark, vdot, counts, loop_v, loop_h, z0, hz0, s, opp_neg, opp_pos):
     """Marching and separation from on-plane vertex ``z0`` (outgoing half-edge ``hz0``).
 
     Returns (negative cap half-edge, positive cap half-edge), or (-1, -1) on an
@@ -184,8 +203,8 @@ def _march_and_separate(palette, vx, he, fc, vmark, counts, loop_v, loop_h, z0, 
         h = hz
         found = False
         for _ in range(he.shape[0]):
-            if (_side(palette, vx, vmark, counts, _dest(he, h), s) < 0
-                    and _side(palette, vx, vmark, counts, _dest(he, _rot(he, h)), s) >= 0):
+            if (_side(palette, vx, vmark, vdot, counts, _dest(he, h), s) < 0
+                    and _side(palette, vx, vmark, vdot, counts, _dest(he, _rot(he, h)), s) >= 0):
                 found = True
                 break
             h = _rot(he, h)
@@ -195,16 +214,16 @@ def _march_and_separate(palette, vx, he, fc, vmark, counts, loop_v, loop_h, z0, 
             return -1, -1
         r = _rot(he, h)  # z -> b, in the face G between the two neighbours
         b = _dest(he, r)
-        if _side(palette, vx, vmark, counts, b, s) == 0:
+        if _side(palette, vx, vmark, vdot, counts, b, s) == 0:
             loop_h[n] = r  # an on-plane edge already: no face to split (Figure 4, last sentence)
             znext = b
         else:
             # Walk G from b to its other on-plane point (Figure 4a: split an edge there).
             e = r
-            while _side(palette, vx, vmark, counts, _dest(he, e), s) > 0:
+            while _side(palette, vx, vmark, vdot, counts, _dest(he, e), s) > 0:
                 e = he[e, NEXT]
-            if _side(palette, vx, vmark, counts, _dest(he, e), s) < 0:
-                _split_edge(palette, vx, he, fc, vmark, counts, e, s)
+            if _side(palette, vx, vmark, vdot, counts, _dest(he, e), s) < 0:
+                _split_edge(palette, vx, he, fc, vmark, vdot, counts, e, s)
             w = _dest(he, e)
             g = he[r, FACE]
             prev_r = he[h, TWIN]
@@ -248,7 +267,7 @@ def _march_and_separate(palette, vx, he, fc, vmark, counts, loop_v, loop_h, z0, 
         zc = base_v + i
         for c in range(4):
             vx[zc, c] = vx[loop_v[i], c]
-        _mark_on_plane(vmark, counts, zc)
+        _mark_on_plane(vmark, vdot, counts, zc)
     for i in range(n):
         stop = he[loop_h[i - 1 if i > 0 else n - 1], TWIN]
         h = _rot(he, loop_h[i])
@@ -291,32 +310,33 @@ def _march_and_separate(palette, vx, he, fc, vmark, counts, loop_v, loop_h, z0, 
 
 
 @jit
-def _cut_kernel(palette, vx, he, fc, vmark, counts, loop_v, loop_h, h0, s, opp_neg, opp_pos):
+def _cut_kernel(palette, vx, he, fc, vmark, vdot, counts, loop_v, loop_h, h0, s, opp_neg, opp_pos, path):
     """Cut the polytope of ``h0`` by palette plane ``s`` (edge descent + marching).
 
     Returns (status, a, b): status CUT_PROPER with the negative and positive parts'
     handles a, b; status 0 with a = the side (+1/-1) when the plane does not cut
     properly (mesh unchanged); CUT_ERROR on an inconsistent mesh. The caller must
     have reserved capacity for (faces + 2) * (2, 6, 1) new vertices, half-edges, faces.
+    ``path`` records the descent's vertices when longer than 1 (``path[0]`` = count).
     """
     _new_stamp(counts)
-    kind, value = _descend(palette, vx, he, vmark, counts, h0, s)
+    kind, value = _descend(palette, vx, he, vmark, vdot, counts, h0, s, path)
     if kind == 0:
         return 0, value, -1
     if kind == 1:
-        z0 = _split_edge(palette, vx, he, fc, vmark, counts, value, s)
+        z0 = _split_edge(palette, vx, he, fc, vmark, vdot, counts, value, s)
         hz = he[value, NEXT]
     else:
         z0 = he[value, VERT]
         hz = value
-    a, b = _march_and_separate(palette, vx, he, fc, vmark, counts, loop_v, loop_h, z0, hz, s, opp_neg, opp_pos)
+    a, b = _march_and_separate(palette, vx, he, fc, vmark, vdot, counts, loop_v, loop_h, z0, hz, s, opp_neg, opp_pos)
     if a < 0:
         return CUT_ERROR, -1, -1
     return CUT_PROPER, a, b
 
 
 @jit
-def _cut_naive_kernel(palette, vx, he, fc, vmark, hmark, counts, loop_v, loop_h, work, h0, s, opp_neg, opp_pos):
+def _cut_naive_kernel(palette, vx, he, fc, vmark, vdot, hmark, counts, loop_v, loop_h, work, h0, s, opp_neg, opp_pos):
     """The baseline: classify every vertex of the polytope, then march as :func:`_cut_kernel`."""
     nh = _cell_halfedges(he, hmark, counts, h0, work)
     _new_stamp(counts)
@@ -326,13 +346,13 @@ def _cut_naive_kernel(palette, vx, he, fc, vmark, hmark, counts, loop_v, loop_h,
     cross_h = -1
     for i in range(nh):
         h = work[i]
-        sv = _side(palette, vx, vmark, counts, he[h, VERT], s)
+        sv = _side(palette, vx, vmark, vdot, counts, he[h, VERT], s)
         pos = pos or sv > 0
         neg = neg or sv < 0
         if sv == 0:
             zero_h = h
         elif sv > 0 and cross_h < 0:
-            if _side(palette, vx, vmark, counts, _dest(he, h), s) < 0:
+            if _side(palette, vx, vmark, vdot, counts, _dest(he, h), s) < 0:
                 cross_h = h
     if not (pos and neg):
         return 0, 1 if pos else -1, -1
@@ -340,9 +360,9 @@ def _cut_naive_kernel(palette, vx, he, fc, vmark, hmark, counts, loop_v, loop_h,
         z0 = he[zero_h, VERT]
         hz = zero_h
     else:
-        z0 = _split_edge(palette, vx, he, fc, vmark, counts, cross_h, s)
+        z0 = _split_edge(palette, vx, he, fc, vmark, vdot, counts, cross_h, s)
         hz = he[cross_h, NEXT]
-    a, b = _march_and_separate(palette, vx, he, fc, vmark, counts, loop_v, loop_h, z0, hz, s, opp_neg, opp_pos)
+    a, b = _march_and_separate(palette, vx, he, fc, vmark, vdot, counts, loop_v, loop_h, z0, hz, s, opp_neg, opp_pos)
     if a < 0:
         return CUT_ERROR, -1, -1
     return CUT_PROPER, a, b
@@ -353,9 +373,14 @@ class CutResult:
     """Outcome of :func:`cut`.
 
     ``proper`` is True when both parts have non-zero volume; then ``negative`` and
-    ``positive`` are the parts' cell handles. Otherwise the polytope is unchanged,
-    ``side`` says on which side of the plane it lies (+1/-1), and the handle of the
-    whole polytope is returned in the part of that side.
+    ``positive`` are the parts' cell handles (each a half-edge of its cap face on the
+    cutting plane). Otherwise the polytope is unchanged, ``side`` says on which side
+    of the plane it lies (+1/-1), and the whole polytope's handle is returned as the
+    part of that side.
+
+    ``classifications`` and ``constructions`` count exact vertex classifications and
+    new vertices built; ``descent`` lists the vertex rows edge descent visited and
+    ``classified`` every vertex row classified during this cut (for pictures).
     """
 
     proper: bool
@@ -364,6 +389,8 @@ class CutResult:
     side: int
     classifications: int
     constructions: int
+    descent: tuple[int, ...] = ()
+    classified: tuple[int, ...] = ()
 
 
 def _count_faces(store: MeshStore, cell: int) -> int:
@@ -390,26 +417,33 @@ def cut(store: MeshStore, cell: int, plane: int, *, opp_negative: int = -1, opp_
     -------
     CutResult
     """
-    if not 0 <= plane < int(store.counts[6]):
-        raise GeometryError(f"plane {plane} is not a palette row (the palette has {int(store.counts[6])} planes)")
+    n_planes = int(store.counts[NP])
+    if not 0 <= plane < n_planes:
+        raise GeometryError(f"plane {plane} is not a palette row (the palette has {n_planes} planes)")
     if not 0 <= cell < int(store.counts[NH]):
         raise GeometryError(f"cell {cell} is not a half-edge of the store")
     faces = _count_faces(store, cell) + 2
     store.reserve(VERTICES_PER_FACE * faces, HALFEDGES_PER_FACE * faces + 2, FACES_PER_FACE * faces + 2)
     loop_v = np.empty(faces, np.int64)
     loop_h = np.empty(faces, np.int64)
+    path = np.zeros(int(store.counts[NV]) + 2, np.int64)
     before = store.counts[[N_CLASSIFY, N_CONSTRUCT]].copy()
+    nv_before = int(store.counts[NV])
     if naive:
         work = np.empty(int(store.counts[NH]), np.int32)
-        status, a, b = _cut_naive_kernel(store.palette, store.vx, store.he, store.fc, store.vmark, store.hmark,
-                                         store.counts, loop_v, loop_h, work, cell, plane, opp_negative, opp_positive)
+        status, a, b = _cut_naive_kernel(store.palette, store.vx, store.he, store.fc, store.vmark, store.vdot,
+                                         store.hmark, store.counts, loop_v, loop_h, work, cell, plane, opp_negative,
+                                         opp_positive)
     else:
-        status, a, b = _cut_kernel(store.palette, store.vx, store.he, store.fc, store.vmark, store.counts,
-                                   loop_v, loop_h, cell, plane, opp_negative, opp_positive)
+        status, a, b = _cut_kernel(store.palette, store.vx, store.he, store.fc, store.vmark, store.vdot, store.counts,
+                                   loop_v, loop_h, cell, plane, opp_negative, opp_positive, path)
     n_cls, n_con = (int(x) for x in store.counts[[N_CLASSIFY, N_CONSTRUCT]] - before)
     if status == CUT_ERROR:
         raise GeometryError("cutting found an inconsistent half-edge mesh (a bug: please report it)")
+    classified = tuple(int(v) for v in np.flatnonzero((store.vmark[:nv_before] >> 2) == store.counts[STAMP]))
+    descent = tuple(int(v) for v in path[1 : 1 + path[0]])
     if status == CUT_PROPER:
-        return CutResult(True, int(a), int(b), 0, n_cls, n_con)
+        return CutResult(True, int(a), int(b), 0, n_cls, n_con, descent, classified)
     side = int(a)
-    return CutResult(False, cell if side < 0 else -1, cell if side > 0 else -1, side, n_cls, n_con)
+    return CutResult(False, cell if side < 0 else -1, cell if side > 0 else -1, side, n_cls, n_con, descent,
+                     classified)

@@ -16,6 +16,8 @@ Arrays (``int32`` unless noted; rows ``[:counts[NV]]`` etc. are in use):
   ``OPP`` (the BSP node on the other side of the face, ``-1`` outside the domain);
 * ``vmark`` ``(V,)`` int64 -- classification cache: ``stamp * 4 + side + 1`` of the
   cut that last classified the vertex;
+* ``vdot`` ``(V,)`` wide -- x·s of the vertex with the cut plane that classified it
+  (valid with its ``vmark`` stamp), for exact distance comparisons;
 * ``hmark`` ``(H,)`` int64 -- traversal stamps;
 * ``counts`` int64 -- ``NV, NH, NF`` (rows in use), ``STAMP`` (cut counter),
   ``N_CLASSIFY``, ``N_CONSTRUCT`` (statistics), ``NP`` (palette rows in use).
@@ -140,6 +142,7 @@ class MeshStore:
         self.he = np.full((4 * capacity, 4), -1, np.int32)
         self.fc = np.full((2 * capacity, 3), -1, np.int32)
         self.vmark = np.zeros(capacity, np.int64)
+        self.vdot = np.zeros(capacity, wide_dtype(self.width))
         self.hmark = np.zeros(4 * capacity, np.int64)
         self.counts = np.zeros(8, np.int64)
         self.add_planes(palette)
@@ -153,6 +156,7 @@ class MeshStore:
             size = max(2 * self.vx.shape[0], nv + vertices)
             self.vx = _grown(self.vx, size)
             self.vmark = _grown(self.vmark, size)
+            self.vdot = _grown(self.vdot, size)
         if nh + halfedges > self.he.shape[0]:
             size = max(2 * self.he.shape[0], nh + halfedges)
             self.he = _grown(self.he, size, -1)
@@ -357,6 +361,6 @@ def _classify_rows(vx, rows, palette, plane) -> np.ndarray:
 
 
 def _grown(arr: np.ndarray, rows: int, fill=0) -> np.ndarray:
-    out = np.zeros((rows,) + arr.shape[1:], arr.dtype) if fill == 0 else np.full((rows,) + arr.shape[1:], fill, arr.dtype)
+    out = np.full((rows,) + arr.shape[1:], fill, arr.dtype) if fill else np.zeros((rows,) + arr.shape[1:], arr.dtype)
     out[: arr.shape[0]] = arr
     return out

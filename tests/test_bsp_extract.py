@@ -1,0 +1,189 @@
+"""Boundary extraction of random BSPs, checked exactly with Python Fractions.
+
+For random trees (paper §4.3) the extracted surface must be closed (every edge used as
+often in each direction), free of T-junctions (no surface vertex strictly inside an
+edge), enclose exactly the volume of the in-cells, and the in-cells must be the leaf
+cells the tree says (a point inside each classifies to its label, walking the tree with
+Fractions). Solid and complement together fill the box exactly.
+"""
+
+from __future__ import annotations
+
+from fractions import Fraction
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from csgnb import GeometryError, PrecisionError
+from csgnb.bsp.extract import extract_boundary, extract_cells
+from csgnb.bsp.random_tree import random_bsp
+from csgnb.bsp.scenes import tangent_plane_bsp
+from csgnb.bsp.tree import BSPTree
+from csgnb.exact import from_wide, to_wide
+
+EXTENT = 32
+LO, HI = [-EXTENT] * 3, [EXTENT] * 3
+
+
+def classify_fraction(tree: BSPTree, point) -> int:
+    """The label of the leaf containing ``point`` (Fractions), strictly inside a cell."""
+    planes = [[int(x) for x in row] for row in from_wide(tree.palette)]
+    node = 0
+    while tree.plane[node] >= 0:
+        a, b, c, d = planes[tree.plane[node]]
+        v = a * point[0] + b * point[1] + c * point[2] + d
+        assert v != 0, "an interior point lies on a splitting plane"
+        node = tree.neg[node] if v < 0 else tree.pos[node]
+    return int(tree.label[node])
+
+
+def t_junctions(surface) -> list[tuple[int, int, int]]:
+    """(a, b, v): surface vertex v strictly inside edge (a, b); exact, with a float prefilter."""
+    pos = surface.exact_positions()
+    fpos = surface.positions()
+    found = []
+    for poly in surface.polygons():
+        for a, b in zip(poly, np.roll(poly, -1), strict=True):
+            lo = np.minimum(fpos[a], fpos[b]) - 1e-9
+            hi = np.maximum(fpos[a], fpos[b]) + 1e-9
+            near = np.flatnonzero(np.all((fpos >= lo) & (fpos <= hi), axis=1))
+            pa, pb = pos[a], pos[b]
+            d = [pb[i] - pa[i] for i in range(3)]
+            for v in near:
+                if v in (a, b):
+                    continue
+                e = [pos[v][i] - pa[i] for i in range(3)]
+                cross = (d[1] * e[2] - d[2] * e[1], d[2] * e[0] - d[0] * e[2], d[0] * e[1] - d[1] * e[0])
+                if any(cross):
+                    continue
+                t = sum(d[i] * e[i] for i in range(3)) / sum(d[i] * d[i] for i in range(3))
+                if 0 < t < 1:
+                    found.append((int(a), int(b), int(v)))
+    return found
+
+
+def check_extraction(tree: BSPTree) -> None:
+    ex = extract_boundary(tree, LO, HI)
+    s = ex.surface
+    cell_volume = {}
+    for node, handle in ex.cells:
+        ex.store.check_cell(int(handle))
+        verts = ex.store.exact_vertices(ex.store.cell_vertices(int(handle)))
+        centre = [sum(p[i] for p in verts) / len(verts) for i in range(3)]
+        label = int(tree.label[node])
+        assert classify_fraction(tree, centre) == label
+        cell_volume[label] = cell_volume.get(label, 0) + ex.store.exact_volume(int(handle))
+    assert s.is_closed()
+    for label, volume in cell_volume.items():
+        assert s.is_closed(label)
+        assert s.exact_volume(label) == volume
+    assert not t_junctions(s)
+    return ex
+
+
+@settings(deadline=None, max_examples=30)
+@given(n_inner=st.integers(0, 24), seed=st.integers(0, 2**32 - 1))
+def test_random_bsp_extraction_is_closed_conforming_and_exact(n_inner, seed):
+    tree = random_bsp(n_inner, seed=seed, extent=EXTENT, max_normal=5)
+    check_extraction(tree)
+
+
+@settings(deadline=None, max_examples=10)
+@given(n_inner=st.integers(1, 16), seed=st.integers(0, 2**32 - 1))
+def test_multi_material_surfaces_close_per_material(n_inner, seed):
+    tree = random_bsp(n_inner, seed=seed, extent=EXTENT, max_normal=4, materials=3, p_in=0.7)
+    check_extraction(tree)
+
+
+@settings(deadline=None, max_examples=15)
+@given(n_inner=st.integers(0, 24), seed=st.integers(0, 2**32 - 1))
+def test_solid_and_complement_fill_the_box(n_inner, seed):
+    tree = random_bsp(n_inner, seed=seed, extent=EXTENT, max_normal=5)
+    inner = tree.plane >= 0
+    flipped = BSPTree(tree.palette, tree.plane, tree.neg, tree.pos, np.where(inner, -1, 1 - np.minimum(tree.label, 1)))
+    v_in = extract_boundary(tree, LO, HI).surface.exact_volume()
+    v_out = extract_boundary(flipped, LO, HI).surface.exact_volume()
+    assert v_in + v_out == (2 * EXTENT) ** 3
+
+
+@pytest.mark.slow
+@settings(deadline=None, max_examples=200)
+@given(n_inner=st.integers(0, 120), seed=st.integers(0, 2**32 - 1))
+def test_random_bsp_extraction_long(n_inner, seed):
+    check_extraction(random_bsp(n_inner, seed=seed, extent=EXTENT, max_normal=7))
+
+
+def cube_tree(lo: int, hi: int) -> BSPTree:
+    """The cube [lo, hi]^3 as a chain of six planes, inside = negative side."""
+    rows = []
+    for axis in range(3):
+        for sign, bound in ((1, hi), (-1, lo)):
+            n = [0, 0, 0]
+            n[axis] = sign
+            rows.append([*n, -sign * bound])
+    k = len(rows)
+    plane = list(range(k)) + [-1] * (k + 1)
+    neg = list(range(1, k + 1)) + [-1] * (k + 1)
+    pos = [k + 1 + i for i in range(k)] + [-1] * (k + 1)
+    label = [-1] * k + [1] + [0] * k
+    return BSPTree(to_wide(rows, 128), np.array(plane), np.array(neg), np.array(pos), np.array(label))
+
+
+def test_cube_extracts_six_squares():
+    ex = check_extraction(cube_tree(-3, 5))
+    s = ex.surface
+    assert s.n_polygons == 6 and s.n_vertices == 8
+    assert s.exact_volume() == 8**3
+    assert s.is_manifold()
+    assert sorted(map(tuple, s.positions().tolist()))[0] == (-3.0, -3.0, -3.0)
+
+
+def test_box_clips_the_solid():
+    # The cube reaches beyond the box: the box faces close it.
+    ex = check_extraction(cube_tree(-3, 50))
+    assert ex.surface.exact_volume() == (EXTENT + 3) ** 3
+
+
+def test_touching_cells_give_non_manifold_but_closed_edges():
+    # Two cells meeting along one edge: x < 0 & y < 0 and x > 0 & y > 0.
+    rows = [[1, 0, 0, 0], [0, 1, 0, 0]]
+    plane = [0, 1, 1, -1, -1, -1, -1]
+    neg = [1, 3, 5, -1, -1, -1, -1]
+    pos = [2, 4, 6, -1, -1, -1, -1]
+    label = [-1, -1, -1, 1, 0, 0, 1]
+    tree = BSPTree(to_wide(rows, 128), np.array(plane), np.array(neg), np.array(pos), np.array(label))
+    s = check_extraction(tree).surface
+    assert s.is_closed() and not s.is_manifold()
+    assert s.exact_volume() == 2 * (EXTENT * EXTENT * 2 * EXTENT)
+
+
+def test_tangent_sphere_polytope():
+    tree = tangent_plane_bsp(60, radius=1000, normal_scale=200)
+    ex = extract_boundary(tree, [-2000] * 3, [2000] * 3)
+    s = ex.surface
+    assert s.n_polygons == 60 and s.is_manifold()
+    (_, handle), = ex.cells
+    assert s.exact_volume() == ex.store.exact_volume(int(handle))
+    r = np.linalg.norm(s.positions(), axis=1)
+    assert r.min() >= 1000 - 1 and s.exact_volume() > Fraction(4, 3) * 3 * 1000**3
+
+
+def test_polydata_view():
+    pd = extract_boundary(cube_tree(0, 4), LO, HI).surface.to_polydata()
+    assert pd.n_cells == 12 and pd.n_points == 8
+    assert np.isclose(pd.volume, 64.0)
+
+
+def test_bad_input():
+    tree = cube_tree(0, 4)
+    with pytest.raises(GeometryError, match="lo < hi"):
+        extract_boundary(tree, [0, 0, 0], [0, 4, 4])
+    with pytest.raises(PrecisionError):
+        extract_boundary(tree, [-(1 << 124)] * 3, [1 << 124] * 3)
+    with pytest.raises(GeometryError, match="tree"):
+        BSPTree(tree.palette, np.array([0, -1, -1]), np.array([1, -1, -1]), np.array([1, -1, -1]),
+                np.array([-1, 1, 0]))
+    cells = extract_cells(BSPTree.leaf(tree.palette, 0), LO, HI)[1]
+    assert cells.shape == (0, 2)
