@@ -28,7 +28,7 @@ from ..mesh.halfedge import FACE, HE, NEXT, NF, NH, NV, OPP, PLANE, TWIN, VERT, 
 from .surface import BoundarySurface, assemble_surface
 from .tree import OUT, BSPTree
 
-__all__ = ["Extraction", "extract_boundary", "extract_cells"]
+__all__ = ["Extraction", "boundary_pieces", "extract_boundary", "extract_cells"]
 
 _NEED_MORE_ROOM, _DONE, _FAILED = 1, 0, -1
 # Cell-stack columns.
@@ -322,25 +322,16 @@ def extract_cells(tree: BSPTree, lo, hi, *, capacity: int = 1024, naive: bool = 
             cells = _grow(cells)
 
 
-def extract_boundary(tree: BSPTree, lo, hi) -> Extraction:
-    """Return the exact boundary of the solid ``tree`` represents inside the box ``[lo, hi]``.
+def boundary_pieces(tree: BSPTree, store: MeshStore, cells: np.ndarray):
+    """Clip the faces of the in-cells ``cells`` (rows (leaf, handle)) against their opposite subtrees.
 
-    Parameters
-    ----------
-    tree : BSPTree
-    lo, hi : (3,) int
-        Integer box corners; the box planes join the palette, so they must fit the
-        tree's bit budget. Space outside the box counts as **out**.
-
-    Returns
-    -------
-    Extraction
-        The cells, and ``surface``: closed, conforming, exact polygons (see
-        :class:`~csgnb.bsp.surface.BoundarySurface`), ``surface.to_polydata()`` for display.
+    Returns the raw boundary pieces (palette, vertices, edge planes, polygons) that
+    :func:`~csgnb.bsp.surface.assemble_surface` merges; see :func:`_boundary_kernel`.
     """
-    store, cells = extract_cells(tree, lo, hi)
     faces, face_label = [], []
     for node, handle in cells:
+        if tree.label[node] == OUT:
+            continue
         hs = store.cell_halfedges(int(handle))
         fids = np.unique(store.he[hs, FACE])
         faces.append(fids)
@@ -371,5 +362,25 @@ def extract_boundary(tree: BSPTree, lo, hi) -> Extraction:
         if out_counts[1] + pieces.shape[0] >= out_poly.shape[0]:
             out_poly = _grow(out_poly)
     nv, npoly = (int(c) for c in out_counts)
-    surface = assemble_surface(store.planes.copy(), out_vx[:nv], out_edge[:nv], out_poly[:npoly])
+    return store.planes.copy(), out_vx[:nv], out_edge[:nv], out_poly[:npoly]
+
+
+def extract_boundary(tree: BSPTree, lo, hi) -> Extraction:
+    """Return the exact boundary of the solid ``tree`` represents inside the box ``[lo, hi]``.
+
+    Parameters
+    ----------
+    tree : BSPTree
+    lo, hi : (3,) int
+        Integer box corners; the box planes join the palette, so they must fit the
+        tree's bit budget. Space outside the box counts as **out**.
+
+    Returns
+    -------
+    Extraction
+        The cells, and ``surface``: closed, conforming, exact polygons (see
+        :class:`~csgnb.bsp.surface.BoundarySurface`), ``surface.to_polydata()`` for display.
+    """
+    store, cells = extract_cells(tree, lo, hi)
+    surface = assemble_surface(*boundary_pieces(tree, store, cells))
     return Extraction(tree, store, cells, surface)
