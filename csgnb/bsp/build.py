@@ -1,0 +1,564 @@
+"""Polygon soup → BSP import (paper §3.6), and the mesh validation in front of it.
+
+:func:`bsp_from_polygons` inserts plane-based faces (:mod:`csgnb.bsp.polygon`) one by
+one, in a seeded random order, into a BSP that starts as one **out** leaf:
+
+* a face that reaches a leaf turns it into an inner node split by the face's
+  supporting plane; the child behind the face (the inside) is **in**, the child in
+  front **out**;
+* at an inner node the face is split exactly by the node's plane and each piece
+  descends its own side; a face on one side (touching the plane allowed) descends
+  that side; a face coplanar with the node's plane is discarded (the node already
+  separates the two sides there).
+
+No plane is created: every node plane is a face's support and every vertex a triple
+of palette planes, so the import is exact and within the palette's bit budget.
+
+:func:`bsp_from_mesh` first checks that an integer triangle mesh bounds a solid —
+within the budget, no degenerate faces, closed, edge-manifold, consistently and
+outwardly oriented, not self-intersecting — and raises an error naming the first
+defect it finds.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .._jit import jit
+from ..errors import GeometryError
+from ..exact.budgets import check_mesh_points
+from ..exact.intrinsics import plane_from_points_into, signed_distance_into, wide_sign_at
+from ..exact.wide import wide_dtype
+from .polygon import PolygonSet, _checked_vertices, copy_point, polygons_from_triangles, split_polygon
+from .tree import OUT, BSPTree
+
+__all__ = ["bsp_from_polygons", "bsp_from_mesh", "validate_mesh"]
+
+
+# ---------------------------------------------------------------------------
+# the insertion loop
+
+
+@jit
+def _build_kernel(palette, support, offsets, edges, verts, order, label,
+                  plane, neg, pos, lab, a_edges, a_verts, sides, st_node, st_start, st_k):
+    """Insert polygons ``order[0], order[1], ...`` into a BSP; return the node count or a negative code.
+
+    Node arrays ``plane, neg, pos, lab`` have a capacity; polygon pieces live in a
+    stack-ordered arena (``a_edges``, ``a_verts``, vertices cached so that a split
+    computes only its two new points); ``st_*`` is the work stack of pieces still to
+    insert, ``(node, start, k)``. Returns -1 / -2 / -3 when the node arrays / the arena
+    / the stack are full (the caller grows that one and starts again).
+
+    Arena discipline: a piece at rows [start, start + k) that is split writes its
+    positive piece at start + k and its negative piece at start + 2k + 1; the positive
+    one is pushed, the negative one processed at once. Stack entries thus lie at
+    increasing rows, and everything above a popped entry is dead.
+    """
+    cap_nodes = plane.shape[0]
+    cap_arena = a_edges.shape[0]
+    cap_stack = st_node.shape[0]
+    plane[0] = -1
+    neg[0] = -1
+    pos[0] = -1
+    lab[0] = 0
+    n_nodes = 1
+    for f in order:
+        s = support[f]
+        row = s if s >= 0 else -s - 1
+        e0 = offsets[f]
+        k = offsets[f + 1] - e0
+        if 3 * k + 2 > cap_arena:
+            return -2
+        for j in range(k):
+            a_edges[j] = edges[e0 + j]
+            copy_point(verts, e0 + j, a_verts, j)
+        st_node[0] = 0
+        st_start[0] = 0
+        st_k[0] = k
+        top = 1
+        while top > 0:
+            top -= 1
+            node = st_node[top]
+            start = st_start[top]
+            k = st_k[top]
+            while True:
+                if plane[node] < 0:  # a leaf: the piece's support splits it
+                    if n_nodes + 2 > cap_nodes:
+                        return -1
+                    inside = n_nodes if s >= 0 else n_nodes + 1
+                    outside = n_nodes + 1 if s >= 0 else n_nodes
+                    plane[node] = row
+                    lab[node] = -1
+                    # The polygon faces outward: behind its (possibly flipped) support is inside.
+                    neg[node] = inside if s >= 0 else outside
+                    pos[node] = outside if s >= 0 else inside
+                    for c in (inside, outside):
+                        plane[c] = -1
+                        neg[c] = -1
+                        pos[c] = -1
+                    lab[inside] = label
+                    lab[outside] = 0
+                    n_nodes += 2
+                    break
+                o_pos = start + k
+                o_neg = start + 2 * k + 1
+                if o_neg + k + 1 > cap_arena:
+                    return -2
+                side, k_neg, k_pos = split_polygon(palette, row, plane[node], a_edges, a_verts, start, k, sides,
+                                                   o_neg, o_pos)
+                if side == 0:
+                    break  # coplanar with the node's plane: discarded
+                if side < 0:
+                    node = neg[node]
+                elif side == 1:
+                    node = pos[node]
+                else:
+                    if top >= cap_stack:
+                        return -3
+                    st_node[top] = pos[node]
+                    st_start[top] = o_pos
+                    st_k[top] = k_pos
+                    top += 1
+                    node = neg[node]
+                    start = o_neg
+                    k = k_neg
+    return n_nodes
+
+
+def _initial_capacities(n_polygons: int, max_size: int) -> tuple[int, int, int]:
+    """Starting sizes of the node arrays, the piece arena and the work stack (doubled when too small)."""
+    return 4 * n_polygons + 16, 64 * max_size + 4096, 256
+
+
+def bsp_from_polygons(palette: np.ndarray, polygons: PolygonSet, *, seed: int = 0, label: int = 1) -> BSPTree:
+    """Return the BSP of the solid bounded by outward-facing plane-based polygons (paper §3.6).
+
+    Faces are inserted in the order of a permutation drawn from
+    ``numpy.random.default_rng(seed)``; the tree depends on the seed, the solid it
+    represents does not.
+
+    Parameters
+    ----------
+    palette : (p, 4) wide
+        Planes within the width's budget.
+    polygons : PolygonSet
+        Convex faces, each facing out of the solid (the solid lies behind its
+        support, on the negative side of the support as flipped by the sign).
+        Together they must bound the solid: closed and non-self-intersecting
+        (:func:`bsp_from_mesh` checks this for triangle meshes; here it is assumed).
+    seed : int
+    label : int
+        Label of the inside leaves (>= 1; the outside is 0).
+
+    Returns
+    -------
+    BSPTree
+        Node planes are supports; a node whose face's support is stored flipped
+        (``~row``) has its **in** child on the positive side of that palette row.
+        The palette is reduced to the rows the nodes use (in first-use order).
+    """
+    if int(label) < 1:
+        raise GeometryError(f"label must be >= 1 (0 is out), got {label}")
+    verts = _checked_vertices(palette, polygons)
+    palette = np.ascontiguousarray(palette)
+    n = len(polygons)
+    if n == 0:
+        return BSPTree.leaf(palette[:0], OUT)
+    order = np.random.default_rng(seed).permutation(n).astype(np.int32)
+    cap_nodes, cap_arena, cap_stack = _initial_capacities(n, int(polygons.sizes.max()))
+    while True:
+        plane, neg, pos, lab = (np.empty(cap_nodes, np.int32) for _ in range(4))
+        a_edges = np.empty(cap_arena, np.int32)
+        a_verts = np.empty((cap_arena, 4), palette.dtype)
+        sides = np.empty(cap_arena, np.int8)
+        st = [np.empty(cap_stack, np.int32) for _ in range(3)]
+        count = int(_build_kernel(palette, polygons.support, polygons.offsets, polygons.edges, verts, order,
+                                  int(label), plane, neg, pos, lab, a_edges, a_verts, sides, *st))
+        if count >= 0:
+            break
+        if count == -1:
+            cap_nodes *= 2
+        elif count == -2:
+            cap_arena *= 2
+        else:
+            cap_stack *= 2
+    plane, neg, pos, lab = plane[:count], neg[:count], pos[:count], lab[:count]
+    inner = plane >= 0
+    used, first = np.unique(plane[inner], return_index=True)
+    used = used[np.argsort(first, kind="stable")]
+    remap = np.full(palette.shape[0], -1, np.int32)
+    remap[used] = np.arange(used.shape[0], dtype=np.int32)
+    plane = np.where(inner, remap[np.maximum(plane, 0)], -1).astype(np.int32)
+    return BSPTree(np.ascontiguousarray(palette[used]), plane, neg, pos, lab)
+
+
+# ---------------------------------------------------------------------------
+# exact triangle-triangle tests (integer vertices within the mesh budget)
+
+
+@jit
+def _orient3d(V, a, b, c, d, pl, sd):
+    """Sign of det[b - a, c - a, d - a] for rows of ``V`` ((n, 3) int64).
+
+    Computed as n·d + w of the plane (n, w) through a, b, c. Within any width's mesh
+    budget (|coordinate| <= 87 298 202) |n| <= 8 V^2, |w| <= 24 V^3 and the value
+    <= 48 V^3 < 2^127, so the 128-bit scratch ``pl``, ``sd`` is always exact.
+    """
+    plane_from_points_into(V, a, V, b, V, c, pl, 0)
+    signed_distance_into(V, d, pl, 0, sd, 0)
+    return wide_sign_at(sd, 0, 0)
+
+
+@jit
+def _orient2d(V, a, b, c, ax):
+    """Sign of the orientation of rows a, b, c of ``V`` projected along axis ``ax`` (int64: |value| <= 8 V^2)."""
+    u = 1 if ax == 0 else 0
+    v = 1 if ax == 2 else 2
+    det = (V[b, u] - V[a, u]) * (V[c, v] - V[a, v]) - (V[b, v] - V[a, v]) * (V[c, u] - V[a, u])
+    if det > 0:
+        return 1
+    return -1 if det < 0 else 0
+
+
+@jit
+def _dominant_axis(V, p, q, r):
+    """Axis of the largest |coefficient| of (q - p) x (r - p): the projection that keeps the triangle's area."""
+    x1, y1, z1 = V[q, 0] - V[p, 0], V[q, 1] - V[p, 1], V[q, 2] - V[p, 2]
+    x2, y2, z2 = V[r, 0] - V[p, 0], V[r, 1] - V[p, 1], V[r, 2] - V[p, 2]
+    n0 = abs(y1 * z2 - z1 * y2)
+    n1 = abs(z1 * x2 - x1 * z2)
+    n2 = abs(x1 * y2 - y1 * x2)
+    if n0 >= n1 and n0 >= n2:
+        return 0
+    return 1 if n1 >= n2 else 2
+
+
+@jit
+def _on_segment_2d(V, a, b, c, ax):
+    """For c collinear with a, b (projected): whether c lies on the closed segment [a, b]."""
+    for t in range(3):
+        if t != ax and not (min(V[a, t], V[b, t]) <= V[c, t] <= max(V[a, t], V[b, t])):
+            return False
+    return True
+
+
+@jit
+def _segments_meet_2d(V, a, b, c, d, ax):
+    d1 = _orient2d(V, a, b, c, ax)
+    d2 = _orient2d(V, a, b, d, ax)
+    d3 = _orient2d(V, c, d, a, ax)
+    d4 = _orient2d(V, c, d, b, ax)
+    if d1 * d2 < 0 and d3 * d4 < 0:
+        return True
+    return ((d1 == 0 and _on_segment_2d(V, a, b, c, ax)) or (d2 == 0 and _on_segment_2d(V, a, b, d, ax))
+            or (d3 == 0 and _on_segment_2d(V, c, d, a, ax)) or (d4 == 0 and _on_segment_2d(V, c, d, b, ax)))
+
+
+@jit
+def _in_triangle_2d(V, x, p, q, r, ax):
+    s1 = _orient2d(V, p, q, x, ax)
+    s2 = _orient2d(V, q, r, x, ax)
+    s3 = _orient2d(V, r, p, x, ax)
+    return not ((s1 < 0 or s2 < 0 or s3 < 0) and (s1 > 0 or s2 > 0 or s3 > 0))
+
+
+@jit
+def _segment_meets_triangle(V, a, b, p, q, r, pl, sd):
+    """Whether the closed segment [a, b] and the closed triangle (p, q, r) share a point (exact)."""
+    oa = _orient3d(V, p, q, r, a, pl, sd)
+    ob = _orient3d(V, p, q, r, b, pl, sd)
+    if oa == ob and oa != 0:
+        return False
+    if oa == 0 and ob == 0:  # in the triangle's plane: decide in a projection that keeps incidences
+        ax = _dominant_axis(V, p, q, r)
+        if _in_triangle_2d(V, a, p, q, r, ax) or _in_triangle_2d(V, b, p, q, r, ax):
+            return True
+        return (_segments_meet_2d(V, a, b, p, q, ax) or _segments_meet_2d(V, a, b, q, r, ax)
+                or _segments_meet_2d(V, a, b, r, p, ax))
+    # The segment meets the plane in one point; the line ab passes through the closed
+    # triangle iff its sides against the three edge lines (Plücker) never disagree.
+    s1 = _orient3d(V, a, b, p, q, pl, sd)
+    s2 = _orient3d(V, a, b, q, r, pl, sd)
+    s3 = _orient3d(V, a, b, r, p, pl, sd)
+    return not ((s1 > 0 or s2 > 0 or s3 > 0) and (s1 < 0 or s2 < 0 or s3 < 0))
+
+
+@jit
+def _triangles_overlap(V, T, i, j, pl, sd):
+    """Whether faces i and j of a manifold mesh meet beyond the vertices and edge they share.
+
+    * no shared vertex: any common point. The intersection of two triangles, if
+      not empty, contains a point on an edge of one of them (an endpoint of the
+      intersection segment, or a vertex in the coplanar case), so six
+      segment-triangle tests decide it;
+    * one shared vertex v: they meet elsewhere iff the edge opposite v of one meets
+      the other (near v both are cones from v; a common direction reaches the
+      opposite edge of the shorter triangle inside the longer one);
+    * a shared edge: only coplanar triangles folded onto the same side of it overlap.
+    """
+    shared = 0
+    for s in range(3):
+        for t in range(3):
+            if T[i, s] == T[j, t]:
+                shared += 1
+    if shared == 0:
+        for s in range(3):
+            a, b = T[i, s], T[i, (s + 1) % 3]
+            if _segment_meets_triangle(V, a, b, T[j, 0], T[j, 1], T[j, 2], pl, sd):
+                return True
+            a, b = T[j, s], T[j, (s + 1) % 3]
+            if _segment_meets_triangle(V, a, b, T[i, 0], T[i, 1], T[i, 2], pl, sd):
+                return True
+        return False
+    if shared == 1:
+        si = 0
+        tj = 0
+        for s in range(3):
+            for t in range(3):
+                if T[i, s] == T[j, t]:
+                    si, tj = s, t
+        if _segment_meets_triangle(V, T[i, (si + 1) % 3], T[i, (si + 2) % 3], T[j, 0], T[j, 1], T[j, 2], pl, sd):
+            return True
+        return _segment_meets_triangle(V, T[j, (tj + 1) % 3], T[j, (tj + 2) % 3], T[i, 0], T[i, 1], T[i, 2], pl, sd)
+    if shared == 2:
+        ci = -1
+        cj = -1
+        for s in range(3):
+            if T[i, s] != T[j, 0] and T[i, s] != T[j, 1] and T[i, s] != T[j, 2]:
+                ci = s
+            if T[j, s] != T[i, 0] and T[j, s] != T[i, 1] and T[j, s] != T[i, 2]:
+                cj = s
+        u, w = T[i, (ci + 1) % 3], T[i, (ci + 2) % 3]
+        if _orient3d(V, u, w, T[i, ci], T[j, cj], pl, sd) != 0:
+            return False
+        ax = _dominant_axis(V, T[i, 0], T[i, 1], T[i, 2])
+        return _orient2d(V, u, w, T[i, ci], ax) == _orient2d(V, u, w, T[j, cj], ax)
+    return True  # the same three vertices twice
+
+
+@jit
+def _fill_cells(lo_cell, hi_cell, G0, G1, keys, ids):
+    t = 0
+    for i in range(lo_cell.shape[0]):
+        for z in range(lo_cell[i, 2], hi_cell[i, 2] + 1):
+            for y in range(lo_cell[i, 1], hi_cell[i, 1] + 1):
+                for x in range(lo_cell[i, 0], hi_cell[i, 0] + 1):
+                    keys[t] = x + G0 * (y + G1 * z)
+                    ids[t] = i
+                    t += 1
+
+
+@jit
+def _first_overlap(V, T, lo, hi, origin, h, G0, G1, keys, ids, pl, sd, found):
+    """Scan each grid cell's triangle pairs; store the first overlapping pair in ``found``.
+
+    A pair is tested only in the cell holding the lower corner of the intersection of
+    their bounding boxes, so each pair is tested once.
+    """
+    n = keys.shape[0]
+    g = 0
+    while g < n:
+        e = g
+        while e < n and keys[e] == keys[g]:
+            e += 1
+        for x in range(g, e):
+            i = ids[x]
+            for y in range(x + 1, e):
+                j = ids[y]
+                key = 0
+                disjoint = False
+                for c in range(3):
+                    low = max(lo[i, c], lo[j, c])
+                    if low > min(hi[i, c], hi[j, c]):
+                        disjoint = True
+                    cell = (low - origin[c]) // h
+                    key += cell * (1 if c == 0 else (G0 if c == 1 else G0 * G1))
+                if disjoint or key != keys[g]:
+                    continue
+                if _triangles_overlap(V, T, i, j, pl, sd):
+                    found[0] = min(i, j)
+                    found[1] = max(i, j)
+                    return
+        g = e
+
+
+def _first_self_intersection(V: np.ndarray, T: np.ndarray) -> tuple[int, int] | None:
+    """The first pair of faces that overlap (by a uniform grid of bounding boxes), or None."""
+    n = T.shape[0]
+    corners = V[T]  # (n, 3, 3)
+    lo, hi = corners.min(axis=1), corners.max(axis=1)
+    origin = lo.min(axis=0)
+    extent = hi.max(axis=0) - origin
+    # Cells about the size of a typical face: O(1) faces per cell on a surface.
+    h = max(1, int(np.ceil((hi - lo).max(axis=1).mean())))
+    while True:
+        G = extent // h + 1
+        lo_cell, hi_cell = (lo - origin) // h, (hi - origin) // h
+        total = int(np.prod(hi_cell - lo_cell + 1, axis=1).sum())
+        if (G.astype(float).prod() < 2.0**62 and total <= 16 * n + 64) or G.max() == 1:
+            break
+        h *= 2
+    keys = np.empty(total, np.int64)
+    ids = np.empty(total, np.int64)
+    _fill_cells(lo_cell, hi_cell, int(G[0]), int(G[1]), keys, ids)
+    order = np.argsort(keys, kind="stable")
+    pl = np.empty((1, 4), wide_dtype(128))
+    sd = np.empty(1, wide_dtype(128))
+    found = np.array([-1, -1], np.int64)
+    _first_overlap(np.ascontiguousarray(V), np.ascontiguousarray(T), lo, hi, origin, h, int(G[0]), int(G[1]),
+                   keys[order], ids[order], pl, sd, found)
+    return None if found[0] < 0 else (int(found[0]), int(found[1]))
+
+
+# ---------------------------------------------------------------------------
+# validation
+
+
+def _describe_edge(first_index, V, a: int, b: int) -> str:
+    return f"({int(first_index[a])}, {int(first_index[b])}) from {V[a].tolist()} to {V[b].tolist()}"
+
+
+def validate_mesh(vertices, faces, width: int = 128) -> tuple[np.ndarray, np.ndarray]:
+    """Check that an integer triangle mesh bounds a solid; return it welded: ``(vertices, faces)``.
+
+    Vertices at equal positions are merged first (a triangle soup with repeated
+    corners is fine). Then, in this order, the mesh must be: integer ``(n, 3)`` /
+    ``(m, 3)`` arrays with valid indices; within the mesh budget of ``width``; free
+    of degenerate faces; closed (every edge has an opposite half-edge); edge-manifold
+    (two faces per edge); consistently oriented; outward (positive exact volume);
+    free of self-intersections (exact tests between faces whose bounding boxes
+    overlap, including touching faces and coplanar faces folded over a shared edge).
+
+    Returns
+    -------
+    vertices : (v, 3) int64
+        The distinct positions.
+    faces : (m, 3) int64
+        Indices into them.
+
+    Raises
+    ------
+    PrecisionError
+        A coordinate exceeds ``budget(width).max_mesh_coordinate``.
+    GeometryError
+        Any other defect; the message names the faces or edge concerned.
+    """
+    V = np.asarray(vertices)
+    F = np.asarray(faces)
+    if V.ndim != 2 or V.shape[1] != 3:
+        raise GeometryError(f"vertices must have shape (n, 3), got {V.shape}")
+    if V.dtype.kind not in "iu":
+        raise GeometryError(
+            f"vertices must be integers (int64), got dtype {V.dtype}; quantize float meshes with csgnb.exact.quantize"
+        )
+    if F.ndim != 2 or F.shape[1] != 3:
+        raise GeometryError(f"faces must have shape (m, 3) (triangles), got {F.shape}")
+    if F.dtype.kind not in "iu":
+        raise GeometryError(f"faces must be integer vertex indices, got dtype {F.dtype}")
+    if V.dtype == np.uint64 and V.size and V.max() > np.iinfo(np.int64).max:
+        raise GeometryError("vertices have values beyond int64")
+    V = V.astype(np.int64)
+    F = F.astype(np.int64)
+    if F.shape[0] < 4:
+        raise GeometryError(f"a closed triangle mesh needs at least 4 faces, got {F.shape[0]}")
+    if F.min() < 0 or F.max() >= V.shape[0]:
+        bad = int(np.flatnonzero(((F < 0) | (F >= V.shape[0])).any(axis=1))[0])
+        raise GeometryError(f"face {bad} {F[bad].tolist()} has a vertex index outside 0 .. {V.shape[0] - 1}")
+    check_mesh_points(V, width, "vertices")
+
+    W, first_index, inverse = np.unique(V, axis=0, return_index=True, return_inverse=True)
+    T = inverse.reshape(-1)[F]
+    repeated = (T[:, 0] == T[:, 1]) | (T[:, 1] == T[:, 2]) | (T[:, 2] == T[:, 0])
+    normal = np.cross(W[T[:, 1]] - W[T[:, 0]], W[T[:, 2]] - W[T[:, 0]])  # fits int64 within the budget
+    degenerate = np.flatnonzero(repeated | ~normal.any(axis=1))
+    if degenerate.size:
+        f = int(degenerate[0])
+        raise GeometryError(
+            f"face {f} {F[f].tolist()} is degenerate: its corners {W[T[f]].tolist()} are collinear or repeated; "
+            "remove it"
+        )
+
+    # Half-edges (a -> b) of face f; an undirected edge must carry exactly one each way.
+    m = T.shape[0]
+    a = T.reshape(-1)
+    b = T[:, [1, 2, 0]].reshape(-1)
+    face = np.repeat(np.arange(m), 3)
+    key = np.minimum(a, b) * W.shape[0] + np.maximum(a, b)
+    order = np.argsort(key, kind="stable")
+    key, a, b, face = key[order], a[order], b[order], face[order]
+    starts = np.flatnonzero(np.r_[True, key[1:] != key[:-1]])
+    counts = np.diff(np.r_[starts, key.shape[0]])
+    if np.any(counts == 1):
+        s = int(starts[np.argmax(counts == 1)])
+        raise GeometryError(
+            f"the mesh is open: edge {_describe_edge(first_index, W, a[s], b[s])} of face {int(face[s])} has no "
+            "opposite half-edge (a hole or a crack; weld or fill it)"
+        )
+    if np.any(counts > 2):
+        g = int(np.argmax(counts > 2))
+        s, c = int(starts[g]), int(counts[g])
+        faces_on = sorted(int(x) for x in face[s : s + c])
+        raise GeometryError(
+            f"the mesh is not manifold: edge {_describe_edge(first_index, W, a[s], b[s])} is shared by {c} faces "
+            f"{faces_on}; split the solid into parts that meet in at most a vertex"
+        )
+    same = a[starts] == a[starts + 1]
+    if np.any(same):
+        s = int(starts[np.argmax(same)])
+        raise GeometryError(
+            f"the mesh is inconsistently oriented: faces {int(face[s])} and {int(face[s + 1])} run along their shared "
+            f"edge {_describe_edge(first_index, W, a[s], b[s])} in the same direction; reverse one of them"
+        )
+
+    # Six times the exact volume: sum of det(p, q, r) = p·(q x r) (q x r fits int64, the sum does not).
+    P, Q, R = W[T[:, 0]], W[T[:, 1]], W[T[:, 2]]
+    volume6 = int((P.astype(object) * np.cross(Q, R).astype(object)).sum())
+    if volume6 < 0:
+        raise GeometryError(
+            f"the mesh is oriented inward (its exact volume {volume6}/6 is negative); flip every face, "
+            "e.g. faces[:, ::-1]"
+        )
+    if volume6 == 0:
+        raise GeometryError("the mesh encloses zero volume (it is flat or folds back onto itself)")
+
+    pair = _first_self_intersection(W, T)
+    if pair is not None:
+        i, j = pair
+        raise GeometryError(
+            f"the mesh intersects itself: faces {i} {F[i].tolist()} and {j} {F[j].tolist()} "
+            f"(corners {W[T[i]].tolist()} and {W[T[j]].tolist()}) cross or touch away from the vertices and edge "
+            "they share"
+        )
+    return W, T
+
+
+def bsp_from_mesh(vertices, faces, *, width: int = 128, seed: int = 0, label: int = 1) -> BSPTree:
+    """Return the BSP of the solid bounded by a closed, outward-oriented integer triangle mesh.
+
+    Parameters
+    ----------
+    vertices : (n, 3) int64
+        Within the mesh budget of ``width`` (``csgnb.exact.budget(width).max_mesh_coordinate``;
+        quantize float meshes with :func:`csgnb.exact.quantize`).
+    faces : (m, 3) int
+        Triangles, counter-clockwise seen from outside.
+    width : {128, 192, 256}
+        Bit width of the predicates, and of the returned palette.
+    seed : int
+        Seed of the random insertion order.
+    label : int
+        Label of the solid's leaves (>= 1).
+
+    Returns
+    -------
+    BSPTree
+
+    Raises
+    ------
+    PrecisionError, GeometryError
+        See :func:`validate_mesh`.
+    """
+    W, T = validate_mesh(vertices, faces, width)
+    palette, polygons = polygons_from_triangles(W, T, width)
+    return bsp_from_polygons(palette, polygons, seed=seed, label=label)
