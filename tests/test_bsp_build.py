@@ -34,6 +34,10 @@ def box(lo, hi):
     return np.array(V, np.int64), np.array(_CUBE_FACES, np.int64)
 
 
+def inverted(mesh):
+    return mesh[0], mesh[1][:, ::-1].copy()
+
+
 def soup(*meshes):
     """Concatenate meshes without welding (validate_mesh welds equal positions)."""
     Vs, Fs, n = [], [], 0
@@ -76,6 +80,8 @@ SOLIDS = {
     "boxes-sharing-a-face (L)": voxels([(0, 0, 0), (1, 0, 0), (0, 0, 1)]),
     "staircase (faces on one plane facing both ways)": voxels([(0, 0, 0), (1, 0, 0), (1, 0, 1), (2, 0, 1)]),
     "boxes-touching-at-a-vertex": soup(box([0, 0, 0], [6, 6, 6]), box([6, 6, 6], [10, 9, 12])),
+    "hollow box (inward shell: a cavity)": soup(box([-4, -4, -4], [4, 4, 4]), inverted(box([-2, -1, -2], [2, 2, 1]))),
+    "two disjoint boxes": soup(box([0, 0, 0], [3, 3, 3]), box([5, 0, 1], [7, 2, 2])),
     "U": voxels([(0, 0, 0), (1, 0, 0), (2, 0, 0), (0, 1, 0), (2, 1, 0), (0, 0, 1), (1, 0, 1), (2, 0, 1)]),
 }
 

@@ -27,7 +27,7 @@ import numpy as np
 from .._jit import jit
 from ..errors import GeometryError
 from ..exact.budgets import check_mesh_points
-from ..exact.intrinsics import plane_from_points_into, signed_distance_into, wide_sign_at
+from ..exact.intrinsics import classify_at, plane_from_points_into, signed_distance_into, wide_sign_at
 from ..exact.wide import wide_dtype
 from .polygon import PolygonSet, _checked_vertices, copy_point, polygons_from_triangles, split_polygon
 from .tree import OUT, BSPTree
@@ -101,12 +101,25 @@ def _build_kernel(palette, support, offsets, edges, verts, order, label,
                     lab[outside] = 0
                     n_nodes += 2
                     break
-                o_pos = start + k
-                o_neg = start + 2 * k + 1
-                if o_neg + k + 1 > cap_arena:
-                    return -2
-                side, k_neg, k_pos = split_polygon(palette, row, plane[node], a_edges, a_verts, start, k, sides,
-                                                   o_neg, o_pos)
+                # Most visits pass a piece down one side: classify inline (an intrinsic, no
+                # call) and call the splitter, whose array arguments cost reference
+                # counting, only for proper splits.
+                q = plane[node]
+                has_neg = False
+                has_pos = False
+                for j in range(start, start + k):
+                    c = classify_at(a_verts, j, palette, q)
+                    if c < 0:
+                        has_neg = True
+                    elif c > 0:
+                        has_pos = True
+                side = 2 if has_neg and has_pos else (-1 if has_neg else (1 if has_pos else 0))
+                if side == 2:
+                    o_pos = start + k
+                    o_neg = start + 2 * k + 1
+                    if o_neg + k + 1 > cap_arena:
+                        return -2
+                    side, k_neg, k_pos = split_polygon(palette, row, q, a_edges, a_verts, start, k, sides, o_neg, o_pos)
                 if side == 0:
                     break  # coplanar with the node's plane: discarded
                 if side < 0:

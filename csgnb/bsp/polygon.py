@@ -175,11 +175,12 @@ def split_polygon(palette, support_row, plane, edges, verts, start, k, sides, o_
 
     Contract (exact; callable from numba):
 
-    * ``palette`` (p, 4) wide; ``support_row`` the support's palette row (``s`` or
-      ``~s``); ``plane`` a palette row; ``edges`` (cap,) int32 and ``verts`` (cap, 4)
-      wide (palette width) form the store, with the polygon's vertices already in
-      ``verts[start : start + k]`` (see :func:`polygon_vertices_into`);
-      ``sides`` (>= k,) int8 scratch, filled with the vertices' sides.
+    * ``palette`` (p, 4) wide; ``support_row`` the support's palette row (``s`` if
+      ``s >= 0`` else ``~s``: the facing does not matter here); ``plane`` a palette
+      row; ``edges`` (cap,) int32 and ``verts`` (cap, 4) wide (palette width) form
+      the store, with the polygon's vertices already in ``verts[start : start + k]``
+      (see :func:`polygon_vertices_into`); ``sides`` (>= k,) int8 scratch, filled
+      with the vertices' sides.
     * Returns ``(side, k_neg, k_pos)`` with ``side`` as in :func:`classify_polygon`.
       Only for ``side == 2`` is anything written: the negative piece at rows
       ``o_neg .. o_neg + k_neg - 1`` and the positive one at ``o_pos ..`` (edges and
@@ -188,7 +189,13 @@ def split_polygon(palette, support_row, plane, edges, verts, start, k, sides, o_
     * The caller keeps the regions ``[start, start + k)``, ``[o_neg, o_neg + k + 1)``
       and ``[o_pos, o_pos + k + 1)`` disjoint and within capacity.
     * Pieces keep the counter-clockwise order and the support; ``plane`` becomes one
-      edge of each. No piece has repeated vertices or fewer than three.
+      edge of each (the last one: a piece starts at the edge where it enters its
+      side). No piece has repeated vertices or fewer than three. Input vertices
+      are copied bit for bit; new ones are intersect(support, edge, plane).
+    * Cost: numba reference-counts array arguments of a call that is not inlined,
+      which outweighs a classification. Walks that mostly pass polygons down one
+      side should classify inline (``classify_at`` per vertex) and call this only
+      for proper splits (as :mod:`csgnb.bsp.build` does).
     """
     side = classify_polygon(palette, verts, start, k, plane, sides)
     if side != 2:
