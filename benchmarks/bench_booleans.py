@@ -3,10 +3,9 @@
 Random BSPs as in the paper's §4.3 (random points in a cube, the leaf there split along a
 random direction, random in/out labels), 1-200 nodes each, a random operation among
 union, intersection and difference. Each merge (mesh cutting, §3.5) is timed on one core;
-redundancy removal (extract + re-import, §3.7) is timed separately. Baselines in the same
-process: manifold3d and trimesh are mesh libraries and do not take BSPs, so the
-comparison row times manifold3d's Boolean on the same solids' extracted meshes when it is
-installed (``pip install -e .[bench]``).
+redundancy removal (extract + re-import, §3.7) is timed separately. There is no BSP
+baseline to run side by side (manifold3d and trimesh operate on meshes, not BSPs); the
+paper's figure is printed for comparison.
 
 Usage: ``python benchmarks/bench_booleans.py [--pairs 200] [--seed 0] [--json PATH]``.
 Target: >= 20 M output BSP nodes per second on one core (the paper reports 40-50 M).
