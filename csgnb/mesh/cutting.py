@@ -70,7 +70,10 @@ CUT_ERROR = -9
 VERTICES_PER_FACE, HALFEDGES_PER_FACE, FACES_PER_FACE = 2, 6, 1
 
 
-@jit
+# Kernels called per vertex or per cut are inlined at the numba IR level: a call that is
+# not inlined increfs and decrefs each of its many array arguments (measured: a slab cut
+# drops from 1.58 to 1.23 µs).
+@jit(inline="always")
 def _side(palette, vx, vmark, vdot, counts, v, s):
     """Cached exact side (-1, 0, +1) of vertex ``v`` against palette plane ``s`` in this cut."""
     stamp = counts[STAMP]
@@ -83,19 +86,19 @@ def _side(palette, vx, vmark, vdot, counts, v, s):
     return side
 
 
-@jit
+@jit(inline="always")
 def _mark_on_plane(vmark, vdot, counts, v):
     vmark[v] = counts[STAMP] * 4 + 1
 
 
-@jit
+@jit(inline="always")
 def _record(path, v):
     if path[0] + 1 < path.shape[0]:
         path[0] += 1
         path[path[0]] = v
 
 
-@jit
+@jit(inline="always")
 def _descend(palette, vx, he, vmark, vdot, counts, h0, s, path):
     """Edge descent. Returns (kind, value):
 
@@ -157,7 +160,7 @@ def _descend(palette, vx, he, vmark, vdot, counts, h0, s, path):
         sv = _side(palette, vx, vmark, vdot, counts, v, s)
 
 
-@jit
+@jit(inline="always")
 def _split_edge(palette, vx, he, fc, vmark, vdot, counts, h, s):
     """Insert the crossing point of edge ``h`` with plane ``s``; return the new vertex.
 
@@ -188,7 +191,7 @@ def _split_edge(palette, vx, he, fc, vmark, vdot, counts, h, s):
     return w
 
 
-@jit
+@jit(inline="always")
 def _march_and_separate(palette, vx, he, fc, vmark, vdot, counts, loop_v, loop_h, z0, hz0, s, opp_neg, opp_pos):
     """Marching and separation from on-plane vertex ``z0`` (outgoing half-edge ``hz0``).
 

@@ -76,24 +76,25 @@ def box_planes(lo, hi, width: int) -> np.ndarray:
     return to_wide(rows, width)
 
 
-@jit
+# Inlined: called per half-edge step inside the cutting kernels (see csgnb.mesh.cutting).
+@jit(inline="always")
 def _rot(he, h):
     """The next outgoing half-edge around the origin of ``h``."""
     return he[he[h, TWIN], NEXT]
 
 
-@jit
+@jit(inline="always")
 def _dest(he, h):
     return he[he[h, NEXT], VERT]
 
 
-@jit
+@jit(inline="always")
 def _plane_row(fc, f):
     p = fc[f, PLANE]
     return p if p >= 0 else ~p
 
 
-@jit
+@jit(inline="always")
 def _new_stamp(counts):
     counts[STAMP] += 1
     return counts[STAMP]
