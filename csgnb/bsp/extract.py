@@ -284,6 +284,22 @@ def _grow(arr: np.ndarray, fill: int = 0) -> np.ndarray:
     return out
 
 
+def _room_for_next_cut(store: MeshStore, stack: np.ndarray, bound_column: int, top: int, loop_v: np.ndarray,
+                       loop_h: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Grow what a resumable cutting kernel ran short of before cutting the cell on ``stack[top]``.
+
+    Returns (stack, loop_v, loop_h), each the old array or a larger one.
+    """
+    bound = int(stack[top, bound_column]) + 2
+    store.reserve(2 * bound, 6 * bound + 2, bound + 2)
+    if top + 2 > stack.shape[0]:
+        stack = _grow(stack)
+    if bound > loop_v.shape[0]:
+        loop_v = np.empty(2 * bound, np.int64)
+        loop_h = np.empty(2 * bound, np.int64)
+    return stack, loop_v, loop_h
+
+
 def extract_cells(tree: BSPTree, lo, hi, *, capacity: int = 1024, naive: bool = False
                   ) -> tuple[MeshStore, np.ndarray]:
     """Return the convex cells of the **in** leaves of ``tree`` inside the box ``[lo, hi]``.
@@ -310,14 +326,7 @@ def extract_cells(tree: BSPTree, lo, hi, *, capacity: int = 1024, naive: bool = 
             return store, cells[: state[1]]
         if status == _FAILED:
             raise GeometryError("cutting found an inconsistent half-edge mesh during extraction (a bug: please report)")
-        top = int(state[0]) - 1
-        bound = int(stack[top, _FACE_BOUND]) + 2
-        store.reserve(2 * bound, 6 * bound + 2, bound + 2)
-        if top + 2 > stack.shape[0]:
-            stack = _grow(stack)
-        if bound > loop_v.shape[0]:
-            loop_v = np.empty(2 * bound, np.int64)
-            loop_h = np.empty(2 * bound, np.int64)
+        stack, loop_v, loop_h = _room_for_next_cut(store, stack, _FACE_BOUND, int(state[0]) - 1, loop_v, loop_h)
         if state[1] >= cells.shape[0]:
             cells = _grow(cells)
 

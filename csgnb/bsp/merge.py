@@ -27,7 +27,7 @@ from ..exact.wide import width_of
 from ..mesh.cutting import CUT_PROPER, _cut_kernel
 from ..mesh.halfedge import NF, NH, NV, MeshStore
 from .build import bsp_from_polygons
-from .extract import _grow, boundary_pieces
+from .extract import _grow, _room_for_next_cut, boundary_pieces
 from .polygon import PolygonSet
 from .surface import BoundarySurface, assemble_surface
 from .tree import OUT, BSPTree
@@ -195,14 +195,7 @@ def merge(a: BSPTree, b: BSPTree, fn, lo, hi) -> MergeResult:
             break
         if status == _FAILED:
             raise GeometryError("cutting found an inconsistent half-edge mesh during a merge (a bug: please report)")
-        top = int(state[0]) - 1
-        bound = int(stack[top, _BOUND]) + 2
-        store.reserve(2 * bound, 6 * bound + 2, bound + 2)
-        if top + 2 > stack.shape[0]:
-            stack = _grow(stack)
-        if bound > loop_v.shape[0]:
-            loop_v = np.empty(2 * bound, np.int64)
-            loop_h = np.empty(2 * bound, np.int64)
+        stack, loop_v, loop_h = _room_for_next_cut(store, stack, _BOUND, int(state[0]) - 1, loop_v, loop_h)
         if state[1] + 2 > o_plane.shape[0]:
             o_plane, o_neg, o_pos, o_label = (_grow(x, -1) for x in (o_plane, o_neg, o_pos, o_label))
         if state[2] >= cells.shape[0]:
