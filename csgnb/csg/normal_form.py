@@ -1,0 +1,271 @@
+"""Disjunctive normal form of a CSG graph: a union of intersections of quadrics (eq. 17–18).
+
+``to_normal_form`` pushes complements to the leaves (De Morgan), composes the transforms along
+every root-to-leaf path and applies them to the leaf's matrix (``Q' = M⁻ᵀ Q M⁻¹``, eq. 17),
+duplicates shared sub-graphs per path and distributes intersections over unions, giving
+
+    S = ∪ᵢ ∩ⱼ Q_ij                                                    (eq. 18)
+
+Three simplifications keep the form small and the sampler well-posed:
+
+* a quadric repeated within a term is kept once (``A ∩ A = A``);
+* a term holding a surface with both orientations is dropped (``A ∩ ¬A`` has no interior);
+* a term that contains every quadric of another term is dropped (absorption, ``X ∪ (X ∩ Y) = X``).
+
+Surfaces are matched up to scale and sign with a relative tolerance (``SURFACE_TOLERANCE``):
+``surface[k]`` numbers the distinct surfaces and ``orientation[k]`` (±1) says whether quadric k
+equals its surface's representative or its complement. The relative distance of eq. 22 uses
+these to treat one surface reached through several terms (:mod:`csgnb.csg.distance`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from functools import cached_property
+
+import numpy as np
+
+from csgnb.csg.graph import Complement, Difference, Intersection, Leaf, Node, Transformed, Union, as_node
+from csgnb.errors import CsgnbError
+from csgnb.quadric.quadric import Quadric
+
+__all__ = ["NormalForm", "to_normal_form", "SURFACE_TOLERANCE", "quadric_coefficients"]
+
+#: Two quadrics are the same surface when their matrices, each scaled to max |entry| = 1, agree
+#: (up to sign) within this tolerance.
+SURFACE_TOLERANCE = 1e-12
+
+_UPPER = (np.array([0, 0, 0, 1, 1, 2]), np.array([0, 1, 2, 1, 2, 2]))
+
+
+def quadric_coefficients(quadrics) -> np.ndarray:
+    """Return the kernel layout of quadrics : (n, 12) float64.
+
+    Row k is ``(a00, a01, a02, a11, a12, a22, m0, m1, m2, c, λ_min, λ_max)`` with ``m = Q[:3, 3]``
+    (= -b) and λ the extreme eigenvalues of A: the 10 distinct matrix entries of §6's quadric
+    buffer plus what the conservative distance (eq. 12) needs.
+    """
+    qs = list(quadrics)
+    out = np.empty((len(qs), 12))
+    for k, q in enumerate(qs):
+        Q = q.matrix
+        out[k, :6] = Q[_UPPER]
+        out[k, 6:9] = Q[:3, 3]
+        out[k, 9] = Q[3, 3]
+        lam = q.eigenvalues
+        out[k, 10], out[k, 11] = lam[0], lam[-1]
+    return out
+
+
+@dataclass(frozen=True, eq=False)
+class NormalForm:
+    """A CSG object as a union of intersection terms of quadrics (eq. 18).
+
+    quadrics : tuple of Quadric, length n — term-major: term i holds
+        ``quadrics[term_start[i]:term_start[i + 1]]`` (transforms already applied).
+    term_start : (T + 1,) int64 — term offsets.
+    names : tuple of str or None — the leaf name each quadric came from.
+    surface : (n,) int64 — id of the geometric surface (equal up to scale and sign).
+    orientation : (n,) int8 — +1 if the quadric is its surface's representative, -1 if its complement.
+    """
+
+    quadrics: tuple[Quadric, ...]
+    term_start: np.ndarray
+    names: tuple[str | None, ...]
+    surface: np.ndarray
+    orientation: np.ndarray
+    _cache: dict = field(default_factory=dict, repr=False)
+
+    @property
+    def n_terms(self) -> int:
+        """Number of intersection terms T."""
+        return len(self.term_start) - 1
+
+    def __len__(self) -> int:
+        return len(self.quadrics)
+
+    @cached_property
+    def term_of(self) -> np.ndarray:
+        """Term index of each quadric : (n,) int64."""
+        return np.repeat(np.arange(self.n_terms, dtype=np.int64), np.diff(self.term_start))
+
+    @cached_property
+    def coefficients(self) -> np.ndarray:
+        """Kernel layout of the quadrics : (n, 12) float64 (see :func:`quadric_coefficients`)."""
+        c = quadric_coefficients(self.quadrics)
+        c.setflags(write=False)
+        return c
+
+    def term(self, i: int) -> np.ndarray:
+        """Return the quadric indices of term ``i`` : (m,) int64."""
+        return np.arange(self.term_start[i], self.term_start[i + 1], dtype=np.int64)
+
+    def terms(self) -> list[list[Quadric]]:
+        """Return the terms as lists of quadrics."""
+        return [list(self.quadrics[self.term_start[i] : self.term_start[i + 1]]) for i in range(self.n_terms)]
+
+    # -- evaluation ---------------------------------------------------------------------------
+    def signed_distance(self, points) -> np.ndarray:
+        """Return the conservative signed distance to the CSG surface, eq. 19 : (n,) float64."""
+        from csgnb.csg.distance import csg_distance
+
+        return csg_distance(self, points)
+
+    def relative_distance(self, index: int, points) -> np.ndarray:
+        """Return d_Qab(S, p) of eq. 22 for quadric ``index`` at ``points`` : (n,) float64."""
+        from csgnb.csg.distance import relative_distance
+
+        return relative_distance(self, index, points)
+
+    def classify(self, points) -> np.ndarray:
+        """Return -1 (inside), 0 (on a quadric that decides), +1 (outside) : (n,) int8.
+
+        The sign of ``minᵢ maxⱼ Q_ij(p)`` (quadric values, no tolerance).
+        """
+        from csgnb.csg.distance import csg_value
+
+        return np.sign(csg_value(self, points)).astype(np.int8)
+
+    def __repr__(self) -> str:
+        sizes = np.diff(self.term_start).tolist()
+        return f"NormalForm({len(self.quadrics)} quadrics in {self.n_terms} terms of sizes {sizes})"
+
+
+class _Registry:
+    """Distinct surfaces seen so far, matched up to scale and sign."""
+
+    def __init__(self) -> None:
+        self.vectors: list[np.ndarray] = []
+        self.quadric: dict[tuple[int, int], Quadric] = {}
+        self.name: dict[tuple[int, int], str | None] = {}
+
+    def key(self, q: Quadric, name: str | None) -> tuple[int, int]:
+        w = q.matrix[np.triu_indices(4)]
+        w = w / np.max(np.abs(w))
+        for sid, v in enumerate(self.vectors):
+            for orient in (1, -1):
+                if np.max(np.abs(orient * w - v)) <= SURFACE_TOLERANCE:
+                    k = (sid, orient)
+                    if k not in self.quadric:
+                        self.quadric[k] = q
+                        self.name[k] = name
+                    return k
+        self.vectors.append(w)
+        k = (len(self.vectors) - 1, 1)
+        self.quadric[k] = q
+        self.name[k] = name
+        return k
+
+
+Term = frozenset  # of (surface, orientation) keys
+
+
+def _simplify(terms: list[Term]) -> list[Term]:
+    """Drop empty-interior terms, duplicates and absorbed terms, keeping first-seen order."""
+    kept: list[Term] = []
+    for t in terms:
+        if any((s, -o) in t for s, o in t):
+            continue  # Q ∩ ¬Q
+        kept.append(t)
+    order = sorted(range(len(kept)), key=lambda i: (len(kept[i]), i))
+    survivors: list[int] = []
+    for i in order:
+        t = kept[i]
+        if any(kept[j] <= t for j in survivors):
+            continue
+        survivors.append(i)
+    return [kept[i] for i in sorted(survivors)]
+
+
+class _Converter:
+    def __init__(self, max_terms: int) -> None:
+        self.max_terms = max_terms
+        self.registry = _Registry()
+        self.memo: dict[tuple, list[Term]] = {}
+        self.leaf_memo: dict[tuple, tuple[int, int]] = {}
+
+    def _check(self, terms: list[Term]) -> list[Term]:
+        if len(terms) > self.max_terms:
+            raise CsgnbError(
+                f"the normal form exceeds {self.max_terms} terms (distributing intersections over unions "
+                "grows exponentially); simplify the graph or pass a larger max_terms"
+            )
+        return terms
+
+    def _product(self, factors: list[list[Term]]) -> list[Term]:
+        acc: list[Term] = [frozenset()]
+        for f in factors:
+            acc = self._check(_simplify([a | b for a in acc for b in f]))
+            if not acc:
+                break
+        return acc
+
+    def _sum(self, parts: list[list[Term]]) -> list[Term]:
+        return self._check(_simplify([t for p in parts for t in p]))
+
+    def convert(self, node: Node, M: np.ndarray | None, neg: bool) -> list[Term]:
+        mkey = None if M is None else M.tobytes()
+        key = (id(node), mkey, neg)
+        hit = self.memo.get(key)
+        if hit is not None:
+            return hit
+        if isinstance(node, Leaf):
+            lk = (id(node), mkey, neg)
+            k = self.leaf_memo.get(lk)
+            if k is None:
+                q = node.quadric if M is None else node.quadric.transformed(M)
+                k = self.registry.key(-q if neg else q, node.name)
+                self.leaf_memo[lk] = k
+            out = [frozenset([k])]
+        elif isinstance(node, Transformed):
+            out = self.convert(node.child, node.matrix if M is None else M @ node.matrix, neg)
+        elif isinstance(node, Complement):
+            out = self.convert(node.child, M, not neg)
+        elif isinstance(node, Union | Intersection):
+            parts = [self.convert(c, M, neg) for c in node.operands]
+            out = self._product(parts) if isinstance(node, Intersection) != neg else self._sum(parts)
+        elif isinstance(node, Difference):
+            parts = [self.convert(node.base, M, neg)] + [self.convert(s, M, not neg) for s in node.subtrahends]
+            out = self._sum(parts) if neg else self._product(parts)
+        else:
+            raise TypeError(f"unknown CSG node type {type(node).__name__}")
+        self.memo[key] = out  # ids are stable: the root keeps every node alive during the conversion
+        return out
+
+
+def to_normal_form(root, max_terms: int = 4096) -> NormalForm:
+    """Return the disjunctive normal form of a CSG graph (eq. 17–18).
+
+    Parameters
+    ----------
+    root : Node or Quadric
+        The graph (a bare quadric is one leaf).
+    max_terms : int
+        Limit on the number of terms; the conversion can grow exponentially with the depth of
+        alternating unions and intersections, and raises :class:`CsgnbError` beyond the limit.
+
+    Returns
+    -------
+    NormalForm
+        Possibly with zero terms (an empty object such as ``A ∩ ¬A``).
+    """
+    conv = _Converter(int(max_terms))
+    terms = conv.convert(as_node(root), None, False)
+    quadrics: list[Quadric] = []
+    names: list[str | None] = []
+    surface: list[int] = []
+    orientation: list[int] = []
+    starts = [0]
+    for t in terms:
+        for k in sorted(t):
+            quadrics.append(conv.registry.quadric[k])
+            names.append(conv.registry.name[k])
+            surface.append(k[0])
+            orientation.append(k[1])
+        starts.append(len(quadrics))
+    sid = np.array(surface, dtype=np.int64)
+    orient = np.array(orientation, dtype=np.int8)
+    ts = np.array(starts, dtype=np.int64)
+    for a in (sid, orient, ts):
+        a.setflags(write=False)
+    return NormalForm(tuple(quadrics), ts, tuple(names), sid, orient)

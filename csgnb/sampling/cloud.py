@@ -1,0 +1,203 @@
+"""The sampler's output: a point cloud with normals, quadric ids, radii and deduplicated clip sets.
+
+Layout follows the paper's renderer (§6): per sample a position, the index of its quadric in the
+normal form and a (start, count) slice of one *clip indirection buffer* that lists, once per
+distinct set, the quadrics of the sample's term that may cut its splat. ``quadric_buffer`` gives
+the matching *quadric buffer* (10 coefficients per quadric).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numba import types
+from numba.typed import Dict
+
+from csgnb._jit import jit
+from csgnb.csg.normal_form import NormalForm
+
+__all__ = ["SampleCloud", "SamplingStats", "SamplingTrace", "deduplicate_clip_sets"]
+
+
+@dataclass(frozen=True)
+class SamplingStats:
+    """Counters of one sampling run (the columns of the paper's Table 2).
+
+    samples : int — points emitted.
+    distance_queries : int — evaluations of d_Qab (eq. 22) at region corners.
+    clip_indices : int — length of the clip indirection buffer.
+    regions : int — triangles visited (basic-region pieces and their subdivisions).
+    unresolved : int — regions given up below the size floor (0 in normal use).
+    quadrics : int — quadrics of the normal form; sampled_quadrics : int — those with a task.
+    terms : int — terms of the normal form.
+    seconds : float — wall time of the whole run (normal form, bounds, regions, kernels, output).
+    """
+
+    samples: int
+    distance_queries: int
+    clip_indices: int
+    regions: int
+    unresolved: int
+    quadrics: int
+    sampled_quadrics: int
+    terms: int
+    seconds: float
+
+
+@dataclass(frozen=True)
+class SamplingTrace:
+    """What the adaptive subdivision did, for pictures (Figure 9) and checks.
+
+    Leaves (one row per final region): ``leaf_quadric``, ``leaf_plane``, ``leaf_sheet`` (±1),
+    ``leaf_triangle`` (t, 3, 2) plane coordinates, ``leaf_uv`` (1: sides are (u, v)-segments),
+    ``leaf_quadrant`` (t, 2), ``leaf_status`` (codes of ``kernel.STATUS``), ``leaf_depth``.
+    Distance evaluations: ``point_quadric``, ``point_plane``, ``point_sheet``, ``point_xy``
+    (e, 2) plane coordinates, ``point_world`` (e, 3), ``point_distance`` (e,) the value of d_Qab.
+    ``planes[(quadric, k)] = (origin (3,), frame (3, 3), alpha (3,))``.
+    """
+
+    leaf_quadric: np.ndarray
+    leaf_plane: np.ndarray
+    leaf_sheet: np.ndarray
+    leaf_triangle: np.ndarray
+    leaf_uv: np.ndarray
+    leaf_quadrant: np.ndarray
+    leaf_status: np.ndarray
+    leaf_depth: np.ndarray
+    point_quadric: np.ndarray
+    point_plane: np.ndarray
+    point_sheet: np.ndarray
+    point_xy: np.ndarray
+    point_world: np.ndarray
+    point_distance: np.ndarray
+    planes: dict
+
+
+@dataclass(frozen=True)
+class SampleCloud:
+    """Samples on a CSG surface.
+
+    positions : (n, 3) float64 — on the surface of quadric ``quadric_ids[i]``.
+    normals : (n, 3) float64 — unit outward normals of that quadric (eq. 4).
+    quadric_ids : (n,) int32 — index into ``normal_form.quadrics``.
+    radii : (n,) float64 — splat radius (the requested radius, or less with ``reduce_radius``).
+    clip_start, clip_count : (n,) int32 — slice of ``clip_indices`` holding the sample's clip set.
+    clip_indices : (k,) int32 — the clip indirection buffer (normal-form indices, each distinct
+        set stored once).
+    radius : float — the requested splat radius.
+    normal_form : NormalForm — what was sampled.
+    stats : SamplingStats; trace : SamplingTrace or None.
+
+    Guarantee (§4.2): every sample lies on the CSG surface, and every point of the CSG surface
+    (inside the bounds) has a sample on the same quadric within its radius.
+    """
+
+    positions: np.ndarray
+    normals: np.ndarray
+    quadric_ids: np.ndarray
+    radii: np.ndarray
+    clip_start: np.ndarray
+    clip_count: np.ndarray
+    clip_indices: np.ndarray
+    radius: float
+    normal_form: NormalForm
+    stats: SamplingStats
+    trace: SamplingTrace | None = None
+
+    def __len__(self) -> int:
+        return len(self.positions)
+
+    def clip_set(self, i: int) -> np.ndarray:
+        """Return the clip set of sample ``i`` : (c,) int32 normal-form indices."""
+        s = int(self.clip_start[i])
+        return self.clip_indices[s : s + int(self.clip_count[i])]
+
+    def quadric_buffer(self, dtype=np.float32) -> np.ndarray:
+        """Return the quadric buffer of §6 : (n_quadrics, 10) — a00 a01 a02 a03 a11 a12 a13 a22 a23 a33."""
+        iu = np.triu_indices(4)
+        return np.array([q.matrix[iu] for q in self.normal_form.quadrics], dtype=dtype).reshape(-1, 10)
+
+    def to_pyvista(self):
+        """Return a ``pyvista.PolyData`` point cloud with point data.
+
+        Point data: ``normals`` (n, 3), ``quadric_id``, ``radius``, ``clip_count``.
+        """
+        try:
+            import pyvista as pv
+        except ImportError as exc:  # pragma: no cover - pyvista is a dependency
+            raise ImportError("SampleCloud.to_pyvista needs pyvista: pip install pyvista") from exc
+        cloud = pv.PolyData(np.ascontiguousarray(self.positions))
+        cloud.point_data["normals"] = self.normals
+        cloud.point_data["quadric_id"] = self.quadric_ids
+        cloud.point_data["radius"] = self.radii
+        cloud.point_data["clip_count"] = self.clip_count
+        cloud.set_active_vectors("normals")
+        return cloud
+
+    def __repr__(self) -> str:
+        s = self.stats
+        return (
+            f"SampleCloud({s.samples} samples on {s.sampled_quadrics}/{s.quadrics} quadrics, radius {self.radius:g}, "
+            f"{s.distance_queries} distance queries, {s.clip_indices} clip indices)"
+        )
+
+
+@jit
+def _dedup_kernel(ptr, idx, start, count, buf):
+    """Store each distinct clip set once in ``buf``; returns the buffer length.
+
+    Sets are hashed (FNV-1a over their ascending indices) into a dict of buffer offsets and
+    compared element-wise, with linear probing on a hash collision.
+    """
+    offsets = Dict.empty(key_type=types.int64, value_type=types.int64)
+    lengths = Dict.empty(key_type=types.int64, value_type=types.int64)
+    nb = 0
+    for i in range(start.shape[0]):
+        a, b = ptr[i], ptr[i + 1]
+        c = b - a
+        count[i] = c
+        if c == 0:
+            start[i] = 0
+            continue
+        h = np.int64(-3750763034362895579)
+        for k in range(a, b):
+            h = (h ^ idx[k]) * np.int64(1099511628211)
+        h = h ^ c
+        while True:
+            if h in offsets:
+                s = offsets[h]
+                same = lengths[h] == c
+                if same:
+                    for k in range(c):
+                        if buf[s + k] != idx[a + k]:
+                            same = False
+                            break
+                if same:
+                    start[i] = s
+                    break
+                h += 1
+            else:
+                offsets[h] = nb
+                lengths[h] = c
+                for k in range(c):
+                    buf[nb + k] = idx[a + k]
+                start[i] = nb
+                nb += c
+                break
+    return nb
+
+
+def deduplicate_clip_sets(ptr: np.ndarray, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Return (start, count, buffer) with every distinct clip set stored once (§6).
+
+    ptr : (n + 1,) int64 and idx : (m,) int64 — sample i's set is ``idx[ptr[i]:ptr[i + 1]]``.
+    Returns start, count : (n,) int32 and buffer : (k,) int32.
+    """
+    n = len(ptr) - 1
+    start = np.empty(n, dtype=np.int64)
+    count = np.empty(n, dtype=np.int64)
+    buf = np.empty(max(len(idx), 1), dtype=np.int64)
+    nb = _dedup_kernel(np.ascontiguousarray(ptr, dtype=np.int64), np.ascontiguousarray(idx, dtype=np.int64),
+                       start, count, buf)
+    return start.astype(np.int32), count.astype(np.int32), buf[:nb].astype(np.int32)

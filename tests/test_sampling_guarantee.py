@@ -1,0 +1,226 @@
+"""The sampler's guarantee (§4.2), tested against the independent ray-casting reference.
+
+* every sample lies on its quadric (to float precision) and on the CSG surface (the graph's
+  first-order distance vanishes there);
+* coverage: every surface point found by ray casting the graph with 1D Booleans has a sample on
+  a quadric through it within the splat radius — on simple models and on models with features
+  thinner or smaller than the radius (Figure 15);
+* clip sets hold every quadric of the sample's term that reaches into its splat, and are stored
+  once each.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.spatial import cKDTree
+
+import csgnb.csg as csg
+from csgnb.quadric import elliptic_cone, elliptic_cylinder, signed_distance
+from csgnb.sampling import sample_csg
+from tests.test_csg_raycast import graph_first_order_distance, random_rays, ray_surface_points
+
+
+def _spheres():
+    A, B, C = csg.sphere((0, 0, 0), 1, "A"), csg.sphere((0.8, 0, 0), 1, "B"), csg.sphere((0.4, 0.9, 0), 0.6, "C")
+    return (A & B) | C, ((0.4, 0.3, 0.0), 1.8)
+
+
+def _capsule():
+    return csg.capsule((0, 0, 0), (1.5, 0.5, 0.2), 0.4), ((0.75, 0.25, 0.1), 1.4)
+
+
+def _plate():
+    plate = csg.box((0, 0, 0), (3, 2, 0.5))
+    holes = [csg.leaf(elliptic_cylinder((0.3, 0.3)).translated((0.7, 0.7, 0)), "hole"),
+             csg.leaf(elliptic_cone((0.4, 0.4)).translated((1.9, 1.1, -0.8)), "countersink"),
+             csg.leaf(elliptic_cylinder((0.12, 0.12)).transformed(csg.solids.frame_to_axis((0, 1.3, 0.25), (1, 0, 0))),
+                      "cross bore")]
+    boss = csg.cylinder((2.4, 0.5, 0.5), (2.4, 0.5, 0.9), 0.3, "boss")
+    return csg.difference(plate | boss, *holes), ((1.5, 1.0, 0.4), 2.0)
+
+
+def _shared():
+    """A ∩ (B ∪ C) becomes (A ∩ B) ∪ (A ∩ C): A's surface reaches the normal form twice."""
+    A = csg.sphere((0, 0, 0), 1.0, "A")
+    B = csg.box((-2, -2, -2), (0.3, 2, 2), "B")
+    C = csg.box((-0.2, -2, -2), (2, 0.4, 2), "C")
+    touching = csg.box((1.2, -0.5, -0.5), (2.2, 0.5, 0.5), "D") | csg.box((2.2, -0.3, -0.3), (2.8, 0.3, 0.3), "E")
+    return (A & (B | C)) | touching, ((0.9, 0.0, 0.0), 2.2)
+
+
+def _thin():
+    """Figure 15's point: features far below the splat radius are found and covered."""
+    lens = csg.sphere((0, 0, -0.99), 1.0, "lens lo") & csg.sphere((0, 0, 0.99), 1.0, "lens hi")  # 0.02 thick
+    fin = csg.box((1.0, -0.5, -0.3), (2.0, 0.5, -0.285), "fin")  # 0.015 thick
+    pin = csg.sphere((0.5, 0.9, 0.3), 0.03, "pin")  # far smaller than the radius
+    # a sharp tip: a cone's apex clipped by a sphere
+    tip = csg.cone((1.5, 1.0, 0.0), (1.5, 1.0, 0.6), 0.0, 0.25, "tip") & csg.sphere((1.5, 1.0, 0.45), 0.5, "tip ball")
+    return csg.union(lens, fin, pin, tip), ((0.9, 0.4, 0.0), 1.6)
+
+
+def _eight():
+    """An intersection of eight quadrics with small corners and slivers (like Figure 15)."""
+    rot = csg.rotation_matrix((1, 2, 3), 0.4)
+    parts = [csg.sphere((0, 0, 0), 1.0, "ball")]
+    for k, r in enumerate((0.82, 0.8, 0.78)):
+        axis = np.eye(3)[k]
+        parts.append(csg.leaf(elliptic_cylinder((r, r)).transformed(csg.solids.frame_to_axis((0, 0, 0), axis)),
+                              f"cyl {k}"))
+    for k, n in enumerate(((1, 1, 1), (-1, 1, 1), (1, -1, 1), (1, 1, -1))):
+        nn = np.array(n, float) / np.sqrt(3)
+        parts.append(csg.leaf(csg.graph.Quadric.from_abc(np.zeros((3, 3)), -0.5 * nn, -0.93), f"cut {k}"))
+    return csg.intersection(*parts).transformed(rot), ((0, 0, 0), 1.1)
+
+
+MODELS = {"spheres": _spheres, "capsule": _capsule, "plate": _plate, "shared": _shared, "thin": _thin,
+          "eight": _eight}
+
+
+def _check_on_surface(shape, cloud, scale):
+    nf = cloud.normal_form
+    Q = np.array([q.matrix for q in nf.quadrics])[cloud.quadric_ids]
+    h = np.column_stack([cloud.positions, np.ones(len(cloud))])
+    val = np.einsum("ni,nij,nj->n", h, Q, h)
+    grad = 2.0 * np.einsum("ni,nij->nj", h, Q[:, :, :3])
+    gn = np.linalg.norm(grad, axis=1)
+    assert np.all(np.abs(val) / gn <= 1e-9 * scale), "samples off their quadric"
+    assert np.allclose(np.einsum("ni,ni->n", cloud.normals, grad / gn[:, None]), 1.0, atol=1e-9)
+    f = graph_first_order_distance(shape, cloud.positions)
+    assert np.all(np.abs(f) <= 1e-7 * scale), f"samples off the CSG surface: {np.sort(np.abs(f))[-5:]}"
+
+
+def _check_coverage(shape, cloud, center, radius, rng, n_rays=1500):
+    o, d, tmax = random_rays(rng, center, radius, n_rays)
+    pts, mats = ray_surface_points(shape, o, d, tmax)
+    assert len(pts) > 100
+    tree = cKDTree(cloud.positions)
+    near = tree.query_ball_point(pts, cloud.radius * (1 + 1e-9))
+    Qs = np.array([q.matrix for q in cloud.normal_form.quadrics])
+    missing = []
+    for p, cand in zip(pts, near, strict=True):
+        cand = np.asarray(cand, dtype=int)
+        cand = cand[np.linalg.norm(cloud.positions[cand] - p, axis=1) <= cloud.radii[cand] * (1 + 1e-9)]
+        if len(cand) == 0:
+            missing.append(p)
+            continue
+        h = np.append(p, 1.0)
+        Qc = Qs[cloud.quadric_ids[cand]]
+        val = np.einsum("i,nij,j->n", h, Qc, h)
+        gn = np.linalg.norm(2.0 * np.einsum("i,nij->nj", h, Qc[:, :, :3]), axis=1)
+        if not np.any(np.abs(val) / gn <= 1e-7):
+            missing.append(p)
+    assert not missing, f"{len(missing)} of {len(pts)} surface points uncovered, e.g. {missing[:3]}"
+    return len(pts)
+
+
+@pytest.mark.parametrize("name", sorted(MODELS))
+def test_samples_lie_on_the_csg_surface_and_cover_it(name):
+    shape, (center, radius) = MODELS[name]()
+    r = 0.12 if name != "thin" else 0.1
+    cloud = sample_csg(shape, r)
+    _check_on_surface(shape, cloud, radius)
+    _check_coverage(shape, cloud, center, radius, np.random.default_rng(7))
+
+
+@pytest.mark.parametrize("options", [{"reduce_radius": True}, {"distortion": "sqrt3"}, {"refine": False}])
+def test_guarantee_holds_for_every_option(options):
+    shape, (center, radius) = _plate()
+    cloud = sample_csg(shape, 0.1, **options)
+    _check_on_surface(shape, cloud, radius)
+    _check_coverage(shape, cloud, center, radius, np.random.default_rng(3), n_rays=800)
+    if options.get("reduce_radius"):
+        assert np.all(cloud.radii <= 0.1 * (1 + 1e-12)) and np.min(cloud.radii) < 0.05
+
+
+def test_rotated_model_keeps_the_guarantee():
+    shape, (center, radius) = _spheres()
+    M = csg.rotation_matrix((0.3, -1.0, 0.5), 1.1, center)
+    rotated = shape.transformed(M)
+    cloud = sample_csg(rotated, 0.08)
+    _check_on_surface(rotated, cloud, radius)
+    _check_coverage(rotated, cloud, center, radius, np.random.default_rng(11), n_rays=800)
+
+
+def test_thin_features_get_samples_even_below_the_radius():
+    shape, _ = _thin()
+    cloud = sample_csg(shape, 0.1)
+    names = np.array(cloud.normal_form.names, dtype=object)[cloud.quadric_ids]
+    for part in ("lens lo", "lens hi", "fin -z", "fin +z", "fin +x", "pin", "tip side"):
+        assert np.sum(names == part) >= 1, part
+    # the fin's side faces are 0.015 high: still covered along their whole length
+    side = cloud.positions[names == "fin +x"]
+    assert np.ptp(side[:, 1]) >= 1.0 - 2 * 0.1
+
+
+def test_min_size_threshold_is_faster_but_may_drop_tiny_parts():
+    shape, _ = _thin()
+    full = sample_csg(shape, 0.1)
+    fast = sample_csg(shape, 0.1, min_size=0.1)
+    assert fast.stats.distance_queries < full.stats.distance_queries
+
+
+def test_clip_sets_hold_every_quadric_reaching_into_the_splat():
+    shape, _ = _plate()
+    cloud = sample_csg(shape, 0.1)
+    nf = cloud.normal_form
+    rng = np.random.default_rng(5)
+    with_clip = np.flatnonzero(cloud.clip_count > 0)
+    assert len(with_clip) > 50
+    term = nf.term_of
+    # candidates near features: samples with clip sets and samples next to them
+    picks = rng.choice(len(cloud), 400, replace=False)
+    picks = np.concatenate([picks, rng.choice(with_clip, 200, replace=False)])
+    ball = rng.normal(size=(300, 3))
+    ball *= (rng.uniform(0, 1, 300) ** (1 / 3) / np.linalg.norm(ball, axis=1))[:, None]
+    for i in picks:
+        s, q, r_s = cloud.positions[i], cloud.quadric_ids[i], cloud.radii[i]
+        clip = set(cloud.clip_set(i).tolist())
+        assert q not in clip and all(term[j] == term[q] for j in clip)
+        pts = s + 0.999 * r_s * ball
+        for j in nf.term(term[q]):
+            if j == q or j in clip:
+                continue
+            v = nf.quadrics[j].value(pts)
+            assert np.all(v > 0) or np.all(v < 0), f"quadric {j} reaches into the splat of sample {i}"
+            assert np.abs(signed_distance(nf.quadrics[j], s[None]))[0] > 0.0
+    # each distinct set is stored once
+    sets = {tuple(cloud.clip_set(i).tolist()) for i in with_clip}
+    starts = {(int(cloud.clip_start[i]), int(cloud.clip_count[i])) for i in with_clip}
+    assert len(sets) == len(starts)
+    assert cloud.stats.clip_indices == len(cloud.clip_indices) == sum(len(t) for t in sets)
+
+
+def test_point_cloud_output():
+    shape, _ = _spheres()
+    cloud = sample_csg(shape, 0.1)
+    pc = cloud.to_pyvista()
+    assert pc.n_points == len(cloud)
+    for key in ("normals", "quadric_id", "radius", "clip_count"):
+        assert key in pc.point_data
+    assert np.array_equal(pc.point_data["quadric_id"], cloud.quadric_ids)
+    assert cloud.quadric_buffer().shape == (len(cloud.normal_form), 10)
+    assert "samples" in repr(cloud)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", sorted(MODELS))
+@pytest.mark.parametrize("r", [0.05, 0.2])
+def test_guarantee_many_rays(name, r):
+    shape, (center, radius) = MODELS[name]()
+    cloud = sample_csg(shape, r)
+    _check_on_surface(shape, cloud, radius)
+    _check_coverage(shape, cloud, center, radius, np.random.default_rng(int(r * 1000)), n_rays=6000)
+
+
+def test_the_coverage_check_finds_holes():
+    """The check above can fail: drop the samples of one spot and it reports the hole."""
+    shape, (center, radius) = _spheres()
+    cloud = sample_csg(shape, 0.1)
+    spot = cloud.positions[len(cloud) // 2]
+    keep = np.linalg.norm(cloud.positions - spot, axis=1) > 0.35
+    holed = type(cloud)(cloud.positions[keep], cloud.normals[keep], cloud.quadric_ids[keep], cloud.radii[keep],
+                        cloud.clip_start[keep], cloud.clip_count[keep], cloud.clip_indices, cloud.radius,
+                        cloud.normal_form, cloud.stats)
+    with pytest.raises(AssertionError, match="uncovered"):
+        _check_coverage(shape, holed, center, radius, np.random.default_rng(1), n_rays=3000)
