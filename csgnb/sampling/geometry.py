@@ -120,8 +120,8 @@ def _segment_distance(px, py, ax, ay, bx, by):
 def region_polygon(v, uv, sx, sy, P, H):
     """Write the bounding polygon of a region into ``P`` : (6, 2); return (vertex count 3–6, bulge).
 
-    ``H`` : (6, 2) scratch space. ``v`` : (3, 2) corners; ``uv``: whether the sides are (u, v)-segments in the quadrant of signs
-    ``sx, sy``. The polygon is the convex hull of the corners and of the end-tangent intersection
+    ``H`` : (6, 2) scratch space. ``v`` : (3, 2) corners; ``uv``: whether the sides are (u, v)-segments in the
+    quadrant of signs ``sx, sy``. The polygon is the convex hull of the corners and of the end-tangent intersection
     of every curved side (each arc lies in the triangle of its chord and that point), so it holds
     the region even when strongly curved sides make the straight triangle a poor guide (it can
     even have the opposite orientation). ``bulge`` is the largest distance from a polygon vertex
