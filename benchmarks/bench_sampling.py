@@ -1,0 +1,206 @@
+"""Sampling quadric CSG surfaces against the paper's Table 2 and the "sampling" rows of Table 1.
+
+Five models of 3, 5, 21, 31 and 80 quadrics, each at three splat radii ("large", "medium",
+"small", chosen so that the sample counts are near the paper's rows of the same size class).
+Each run is the whole pipeline — normal form, term boxes, sampling domains, subdivision,
+emission, clip-set deduplication — from a CSG graph to a ``SampleCloud``; kernels are compiled
+(or loaded from the cache) by an untimed first run, the domain cache is emptied before every
+timed run, and the best of ``--repeat`` runs is kept. One thread, as in the paper.
+
+    python benchmarks/bench_sampling.py --json /tmp/bench_sampling.json
+
+``--json PATH`` writes ``{"models": [{"name", "quadrics", "splat", "samples",
+"distance_queries", "clip_indices", "sampling_s"}, ...]}``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import time
+
+os.environ.setdefault("NUMBA_NUM_THREADS", "1")
+
+import numpy as np  # noqa: E402
+
+import csgnb.csg as csg  # noqa: E402
+from csgnb.csg.solids import frame_to_axis  # noqa: E402
+from csgnb.quadric import elliptic_cone, elliptic_cylinder, parallel_planes  # noqa: E402
+from csgnb.sampling import domain_cache_clear, sample_csg  # noqa: E402
+
+# -- the models -------------------------------------------------------------------------------
+
+
+def _hole(center, radius, axis=(0.0, 0.0, 1.0), name="hole"):
+    """A through hole: an infinite cylinder (one quadric; subtracting it keeps one term)."""
+    return csg.leaf(elliptic_cylinder((radius, radius)).transformed(frame_to_axis(center, axis)), name)
+
+
+def spheres() -> csg.Node:
+    """(A ∩ B) ∪ C of three spheres (Figure 2)."""
+    A, B, C = csg.sphere((0, 0, 0), 1, "A"), csg.sphere((0.8, 0, 0), 1, "B"), csg.sphere((0.4, 0.9, 0), 0.6, "C")
+    return (A & B) | C
+
+
+def slotted_cylinder() -> csg.Node:
+    """A capped cylinder cut by a slot (a slab: one quadric) with a spherical dimple: 5 quadrics."""
+    body = csg.cylinder((0, 0, 0), (0, 0, 2), 1.0, "body")
+    slot = csg.leaf(parallel_planes((1, 0, 0), -0.2, 0.2), "slot")
+    dimple = csg.sphere((0, 0.5, 2.1), 0.5, "dimple")
+    return csg.difference(body, slot, dimple)
+
+
+def bracket() -> csg.Node:
+    """A plate with a boss, a bore, eight holes and three spherical dimples: 21 quadrics."""
+    plate = csg.box((0, 0, 0), (6, 4, 0.6), "plate")
+    boss = csg.cylinder((3, 2, 0.6), (3, 2, 1.8), 1.0, "boss")
+    cuts = [_hole((3, 2, 0), 0.5, name="bore")]
+    for k, (x, y) in enumerate([(0.6, 0.6), (2.0, 0.6), (4.0, 0.6), (5.4, 0.6),
+                                (0.6, 3.4), (2.0, 3.4), (4.0, 3.4), (5.4, 3.4)]):
+        cuts.append(_hole((x, y, 0), 0.25, name=f"hole {k}"))
+    cuts += [csg.sphere((x, 2.0, 0.75), 0.35, f"dimple {k}") for k, x in enumerate((0.9, 1.6, 5.1))]
+    return csg.difference(plate | boss, *cuts)
+
+
+def block() -> csg.Node:
+    """A block rounded by a sphere, three axis bores, twelve holes, three bosses: 31 quadrics."""
+    body = csg.box((-1, -1, -1), (1, 1, 1), "block") & csg.sphere((0, 0, 0), 1.55, "round")
+    cuts = [_hole((0, 0, 0), 0.3, axis, f"bore {k}") for k, axis in enumerate(np.eye(3))]
+    for a in range(3):
+        for k, (u, w) in enumerate([(-0.6, -0.6), (-0.6, 0.6), (0.6, -0.6), (0.6, 0.6)]):
+            cuts.append(_hole(np.roll([0.0, u, w], a), 0.12, np.eye(3)[a], f"hole {a}{k}"))
+    bosses = [csg.cylinder(np.eye(3)[k] * 0.9, np.eye(3)[k] * 1.35, 0.45, f"boss {k}") for k in range(3)]
+    return csg.union(csg.difference(body, *cuts), *bosses)
+
+
+def perforated_plate() -> csg.Node:
+    """A plate with 72 holes (cylinders and countersink cones) and two cross bores: 80 quadrics."""
+    plate = csg.box((0, 0, 0), (10, 9, 1), "plate")
+    holes = []
+    for i in range(9):
+        for j in range(8):
+            c = np.array([0.6 + i * 1.1, 0.6 + j * 1.1, 0.0])
+            if (i + j) % 2 == 0:
+                holes.append(csg.leaf(elliptic_cylinder((0.3, 0.3)).translated(c), f"hole {i},{j}"))
+            else:
+                holes.append(csg.leaf(elliptic_cone((0.35, 0.35)).translated(c + [0, 0, -1.2]), f"cone {i},{j}"))
+    holes.append(_hole((0, 4.5, 0.5), 0.2, (1, 0, 0), "x bore"))
+    holes.append(_hole((5, 0, 0.5), 0.2, (0, 1, 0), "y bore"))
+    return csg.difference(plate, *holes)
+
+
+#: name → (builder, {splat: radius}); radii chosen so that sample counts come near the paper's
+#: Table 2 rows with the same number of quadrics
+MODELS = {
+    "spheres": (spheres, {"large": 0.08, "medium": 0.034, "small": 0.0081}),
+    "slotted cylinder": (slotted_cylinder, {"large": 0.091, "medium": 0.038, "small": 0.0108}),
+    "bracket": (bracket, {"large": 0.19, "medium": 0.079, "small": 0.039}),
+    "block": (block, {"large": 0.083, "medium": 0.042, "small": 0.028}),
+    "perforated plate": (perforated_plate, {"large": 0.57, "medium": 0.108, "small": 0.0404}),
+}
+
+#: Table 2 of the paper: (quadrics, splat) → (samples, distance queries, clip indices, sampling ms).
+PAPER_TABLE2 = {
+    (3, "large"): (5454, 22372, 2, 1.51), (3, "medium"): (23452, 47336, 2, 3.39),
+    (3, "small"): (249014, 100398, 2, 8.51),
+    (5, "large"): (8112, 103296, 52, 7.63), (5, "medium"): (35904, 215040, 23, 16.45),
+    (5, "small"): (329856, 576048, 17, 66.87),
+    (21, "large"): (7134, 30802, 78, 6.26), (21, "medium"): (31940, 85744, 37, 18.01),
+    (21, "small"): (104972, 171958, 31, 37.91),
+    (31, "large"): (28432, 196298, 51, 36.63), (31, "medium"): (91895, 325705, 34, 62.23),
+    (31, "small"): (184533, 415847, 29, 83.36),
+    (80, "large"): (10176, 194024, 299, 94.47), (80, "medium"): (141200, 558582, 244, 292.35),
+    (80, "small"): (655727, 1182464, 236, 623.92),
+}  # fmt: skip
+
+#: Table 1 "sampling" rows, samples per second on one 4.8 GHz core.
+PAPER_TABLE1 = {
+    "single quadric, no subdivision": (135e6, 135e6),
+    "single quadric, with subdivision": (40e6, 70e6),
+    "simple CSG surface (Figure 9)": (10e6, 50e6),
+    "complex CSG surface (Figure 1)": (0.5e6, 2e6),
+}
+
+
+def _time(shape, radius, repeat, **kwargs):
+    sample_csg(shape, radius, **kwargs)  # compile / load the kernels outside the timing
+    best, cloud = np.inf, None
+    for _ in range(repeat):
+        domain_cache_clear()
+        t0 = time.perf_counter()
+        cloud = sample_csg(shape, radius, **kwargs)
+        best = min(best, time.perf_counter() - t0)
+    return best, cloud
+
+
+def run_table2(repeat: int, only=None) -> list[dict]:
+    rows = []
+    for name, (build, radii) in MODELS.items():
+        if only and name not in only:
+            continue
+        shape = build()
+        n_quadrics = len(csg.graph_leaves(shape))
+        for splat, r in radii.items():
+            seconds, cloud = _time(shape, r, repeat)
+            rows.append({
+                "name": name, "quadrics": n_quadrics, "splat": splat, "samples": len(cloud),
+                "distance_queries": cloud.stats.distance_queries, "clip_indices": cloud.stats.clip_indices,
+                "sampling_s": seconds, "radius": r, "normal_form": len(cloud.normal_form),
+                "unresolved": cloud.stats.unresolved,
+            })  # fmt: skip
+    return rows
+
+
+def run_table1(repeat: int) -> dict[str, float]:
+    from csgnb.quadric import hyperboloid_one_sheet
+
+    cases = {
+        "single quadric, no subdivision": (csg.sphere((0, 0, 0), 1.0), 0.002, {}),
+        "single quadric, with subdivision": (csg.leaf(hyperboloid_one_sheet((1.0, 0.8, 1.2))), 0.004,
+                                             {"bounds": ((0, 0, 0), 2.0)}),
+        "simple CSG surface (Figure 9)": (spheres(), 0.0068, {}),
+        "complex CSG surface (Figure 1)": (perforated_plate(), 0.032, {}),
+    }  # fmt: skip
+    out = {}
+    for label, (shape, r, kw) in cases.items():
+        seconds, cloud = _time(shape, r, repeat, **kw)
+        out[label] = len(cloud) / seconds
+    return out
+
+
+def main(argv=None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--repeat", type=int, default=3, help="timed runs per row, best is kept")
+    parser.add_argument("--json", metavar="PATH", help="write {'models': [...]} here")
+    parser.add_argument("--only", nargs="*", help="model names to run (default: all)")
+    parser.add_argument("--no-table1", action="store_true", help="skip the Table 1 rows")
+    args = parser.parse_args(argv)
+
+    rows = run_table2(args.repeat, args.only)
+    head = (f"{'model':18s} {'q':>3s} {'dnf':>4s} {'splat':6s} {'radius':>7s} {'samples':>8s} {'paper':>8s} "
+            f"{'queries':>8s} {'paper':>8s} {'clip':>5s} {'paper':>5s} {'time ms':>8s} {'paper':>7s} {'ratio':>6s}")
+    print("Table 2 (sampling; ours on this machine vs. the paper's 4.8 GHz core)")
+    print(head)
+    for row in rows:
+        p = PAPER_TABLE2.get((row["quadrics"], row["splat"]))
+        ms = 1e3 * row["sampling_s"]
+        print(f"{row['name']:18s} {row['quadrics']:3d} {row['normal_form']:4d} {row['splat']:6s} {row['radius']:7.4f} "
+              f"{row['samples']:8d} {p[0]:8d} {row['distance_queries']:8d} {p[1]:8d} {row['clip_indices']:5d} "
+              f"{p[2]:5d} {ms:8.2f} {p[3]:7.2f} {ms / p[3]:6.2f}")
+    if not args.no_table1:
+        print("\nTable 1, sampling rows (samples per second)")
+        print(f"{'case':34s} {'ours (M/s)':>10s} {'paper (M/s)':>12s}")
+        for label, rate in run_table1(args.repeat).items():
+            lo, hi = PAPER_TABLE1[label]
+            paper = f"{lo / 1e6:g}" if lo == hi else f"{lo / 1e6:g}–{hi / 1e6:g}"
+            print(f"{label:34s} {rate / 1e6:10.2f} {paper:>12s}")
+    if args.json:
+        keys = ("name", "quadrics", "splat", "samples", "distance_queries", "clip_indices", "sampling_s")
+        with open(args.json, "w") as fh:
+            json.dump({"models": [{k: row[k] for k in keys} for row in rows]}, fh, indent=2)
+        print(f"wrote {args.json}")
+
+
+if __name__ == "__main__":
+    main()
