@@ -4,10 +4,9 @@ A region is a triangle on a sampling plane, given by its corners in (x, y). Its 
 straight (planes) or, in *(u, v) mode*, images of straight segments of (u, v) = (x², y²) within
 one quadrant (:mod:`.domains`): arcs of axis-aligned conics centered at the origin, straight
 when the segment is axis-parallel or points at the origin. Such an arc turns by at most 90°, so
-it lies in the triangle spanned by its chord and its end tangents, and the region lies within a
-*bulge* distance of its straight triangle (``region_bulge``). The sampler works on the straight
-triangle and shortens every radius by the bulge: that bounds δ, tests disc covers and places
-samples for the curved region (arcs flatten quadratically as regions shrink).
+it lies in the triangle spanned by its chord and its end tangents. The region therefore lies in
+the convex hull of its corners and the tangent points of its arcs — its *bounding polygon* (3 to
+6 vertices), on which the sampler bounds δ, tests disc covers and places samples.
 
 All functions are numba kernels on scalars and small arrays, called from the sampler.
 """
@@ -22,7 +21,7 @@ __all__ = [
     "lift",
     "delta_range",
     "arc_midpoint",
-    "region_bulge",
+    "region_polygon",
     "discs_cover",
     "disc_contains",
     "covering_radius",
@@ -118,35 +117,80 @@ def _segment_distance(px, py, ax, ay, bx, by):
 
 
 @inline_jit
-def region_bulge(v, uv, sx, sy):
-    """Return how far the region over triangle ``v`` : (3, 2) reaches beyond the straight triangle.
+def region_polygon(v, uv, sx, sy, P, H):
+    """Write the bounding polygon of a region into ``P`` : (6, 2); return (vertex count 3–6, bulge).
 
-    ``uv``: whether the sides are (u, v)-segments in the quadrant of signs ``sx, sy`` (else the
-    region is the triangle: 0). Each arc lies in the triangle of its chord and the intersection T
-    of its end tangents, so the lens between arc and chord is within dist(T, chord) of the chord;
-    the region differs from the straight triangle only by such lenses (a winding-number argument
-    that holds even when strongly curved sides flip the straight triangle's orientation). The
-    sampler works on the straight triangle with every radius shortened by this bound.
+    ``H`` : (6, 2) scratch space. ``v`` : (3, 2) corners; ``uv``: whether the sides are (u, v)-segments in the
+    quadrant of signs ``sx, sy``. The polygon is the convex hull of the corners and of the end-tangent intersection
+    of every curved side (each arc lies in the triangle of its chord and that point), so it holds
+    the region even when strongly curved sides make the straight triangle a poor guide (it can
+    even have the opposite orientation). ``bulge`` is the largest distance from a polygon vertex
+    to the straight triangle: every point of the region is within it of the triangle.
     """
-    if not uv:
-        return 0.0
-    bulge = 0.0
+    m = 3
     for e in range(3):
-        f = (e + 1) % 3
-        x0, y0 = v[e, 0], v[e, 1]
-        x1, y1 = v[f, 0], v[f, 1]
-        du = x1 * x1 - x0 * x0
-        dv = y1 * y1 - y0 * y0
-        # tangent of s ↦ (sx √u(s), sy √v(s)), scaled by 2√u√v to stay finite on the axes
-        t0x, t0y = sx * du * abs(y0), sy * dv * abs(x0)
-        t1x, t1y = sx * du * abs(y1), sy * dv * abs(x1)
-        det = t1x * t0y - t0x * t1y
-        tn = math.sqrt(t0x * t0x + t0y * t0y) * math.sqrt(t1x * t1x + t1y * t1y)
-        if not abs(det) > 1e-12 * tn:
-            continue  # a straight side (axis-parallel or radial), or too short to bulge
-        w = ((x1 - x0) * (-t1y) + t1x * (y1 - y0)) / det
-        bulge = max(bulge, _segment_distance(x0 + w * t0x, y0 + w * t0y, x0, y0, x1, y1))
-    return bulge
+        P[e, 0] = v[e, 0]
+        P[e, 1] = v[e, 1]
+    if uv:
+        for e in range(3):
+            f = (e + 1) % 3
+            x0, y0 = v[e, 0], v[e, 1]
+            x1, y1 = v[f, 0], v[f, 1]
+            du = x1 * x1 - x0 * x0
+            dv = y1 * y1 - y0 * y0
+            # tangent of s ↦ (sx √u(s), sy √v(s)), scaled by 2√u√v to stay finite on the axes
+            t0x, t0y = sx * du * abs(y0), sy * dv * abs(x0)
+            t1x, t1y = sx * du * abs(y1), sy * dv * abs(x1)
+            det = t1x * t0y - t0x * t1y
+            tn = math.sqrt(t0x * t0x + t0y * t0y) * math.sqrt(t1x * t1x + t1y * t1y)
+            if not abs(det) > 1e-12 * tn:
+                continue  # a straight side (axis-parallel or radial), or too short to bulge
+            w = ((x1 - x0) * (-t1y) + t1x * (y1 - y0)) / det
+            P[m, 0] = x0 + w * t0x
+            P[m, 1] = y0 + w * t0y
+            m += 1
+    if m == 3:
+        return 3, 0.0
+    # convex hull of the m ≤ 6 points (gift wrapping from the lowest-leftmost point)
+    start = 0
+    for i in range(1, m):
+        if P[i, 1] < P[start, 1] or (P[i, 1] == P[start, 1] and P[i, 0] < P[start, 0]):
+            start = i
+    n = 0
+    cur = start
+    while n < 6:
+        H[n, 0] = P[cur, 0]
+        H[n, 1] = P[cur, 1]
+        n += 1
+        nxt = (cur + 1) % m
+        for j in range(m):
+            cr = (P[nxt, 0] - P[cur, 0]) * (P[j, 1] - P[cur, 1]) - (P[nxt, 1] - P[cur, 1]) * (P[j, 0] - P[cur, 0])
+            if cr < 0.0 or (cr == 0.0 and (P[j, 0] - P[cur, 0]) ** 2 + (P[j, 1] - P[cur, 1]) ** 2
+                            > (P[nxt, 0] - P[cur, 0]) ** 2 + (P[nxt, 1] - P[cur, 1]) ** 2):
+                nxt = j
+        cur = nxt
+        if cur == start:
+            break
+    # distance of the hull vertices outside the straight triangle to it
+    orient = (v[1, 0] - v[0, 0]) * (v[2, 1] - v[0, 1]) - (v[1, 1] - v[0, 1]) * (v[2, 0] - v[0, 0])
+    bulge = 0.0
+    for i in range(n):
+        outside = False
+        for e in range(3):
+            f = (e + 1) % 3
+            cr = (v[f, 0] - v[e, 0]) * (H[i, 1] - v[e, 1]) - (v[f, 1] - v[e, 1]) * (H[i, 0] - v[e, 0])
+            if cr * orient < 0.0:
+                outside = True
+        if outside:
+            dmin = math.inf
+            for e in range(3):
+                f = (e + 1) % 3
+                dmin = min(dmin, _segment_distance(H[i, 0], H[i, 1], v[e, 0], v[e, 1], v[f, 0], v[f, 1]))
+            bulge = max(bulge, dmin)
+    for i in range(n):
+        P[i, 0] = H[i, 0]
+        P[i, 1] = H[i, 1]
+    return n, bulge
 
 
 @inline_jit

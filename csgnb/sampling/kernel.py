@@ -51,7 +51,7 @@ from csgnb.sampling.geometry import (
     discs_cover,
     lattice_plan,
     lift,
-    region_bulge,
+    region_polygon,
 )
 
 __all__ = [
@@ -70,9 +70,9 @@ STATUS = {"single": 0, "kept": 1, "discarded": 2, "small": 3, "unresolved": 4}
 #: Columns of the leaf buffers of pass 1: floats (polygon x₀ y₀ … x₅ y₅, δ, aux, reach) and
 #: integers (job, kind, vertices, samples); see ``subdivide_quadric``.
 LEAF_FLOAT_FIELDS = tuple(f"{a}{k}" for k in range(6) for a in "xy") + ("delta", "aux", "reach", "rho")
-LEAF_INT_FIELDS = ("job", "kind", "corners", "count", "clip_start", "clip_len")
+LEAF_INT_FIELDS = ("job", "kind", "corners", "count")
 #: Overflow codes returned by ``subdivide_quadric``: which buffer to grow before resuming.
-OVERFLOW = {"none": 0, "leaves": 1, "trace_leaves": 2, "trace_points": 3, "clip_lists": 4}
+OVERFLOW = {"none": 0, "leaves": 1, "trace_leaves": 2, "trace_points": 3}
 
 _SQRT3 = math.sqrt(3.0)
 _MAX_DEPTH = 200
@@ -118,6 +118,24 @@ def relative_distance_pruned(C, act, a0, na, own_box, other_ptr, other_idx, rcap
     return min(max(d, -rcap), rcap), n
 
 
+@inline_jit
+def _lattice_fan(P, m, rho):
+    """Return (apex, samples) for covering the convex polygon P[:m] by per-triangle lattices.
+
+    The polygon is fanned from the vertex (``apex``) that needs the fewest samples.
+    """
+    best, best_n = 0, -1
+    for a in range(m if m > 3 else 1):
+        total = 0
+        for tri in range(m - 2):
+            i = (a + tri + 1) % m
+            j = (a + tri + 2) % m
+            total += lattice_plan(P[a, 0], P[a, 1], P[i, 0], P[i, 1], P[j, 0], P[j, 1], rho)[2]
+        if best_n < 0 or total < best_n:
+            best, best_n = a, total
+    return best, best_n
+
+
 @ieee_jit
 def subdivide_quadric(
     C,
@@ -144,7 +162,6 @@ def subdivide_quadric(
     trace,
     LF,
     LI,
-    LA,
     TT,
     TI,
     TP,
@@ -152,7 +169,6 @@ def subdivide_quadric(
     counters,
     job_start,
     nl,
-    nla,
     nt,
     npt,
 ):
@@ -166,16 +182,13 @@ def subdivide_quadric(
       the term can come (single: |d_Qab| at the corner; lattice: the slack of the keep discs),
       ``reach`` the world radius covering a single sample's region, ``rho`` the plane spacing
       radius of a lattice), ``LI`` (cap, 4) int64
-      (``LEAF_INT_FIELDS``: job, kind 0 single / 1 lattice, vertex count, sample count, and the
-      slice of ``LA`` listing the quadrics that may reach into the leaf's splats — empty when
-      the corner distances prove that none can);
+      (``LEAF_INT_FIELDS``: job, kind 0 single / 1 lattice, vertex count, sample count);
     * if ``trace``: final regions ``TT`` (tcap, 6) (triangle) and ``TI`` (tcap, 5) = (job, uv,
       status, depth, plane); distance evaluations ``TP`` (pcap, 3) = (x, y, d_Qab), ``TJ`` (pcap,)
       = job;
-    * ``counters`` (5,) int64 += distance queries, regions visited, unresolved regions, jobs done,
-      quadric distances evaluated (an upper bound: early exits are not counted).
+    * ``counters`` (4,) int64 += distance queries, regions visited, unresolved regions, jobs done.
 
-    Returns ``(nl, nla, nt, npt, next_job, overflow)``: fill levels, the first job not done and an
+    Returns ``(nl, nt, npt, next_job, overflow)``: fill levels, the first job not done and an
     ``OVERFLOW`` code. On overflow the unfinished job's output is rolled back; grow that buffer
     and call again from ``next_job``.
     """
@@ -195,16 +208,17 @@ def subdivide_quadric(
     n_own = own.shape[0]
     A = np.empty((_MAX_DEPTH + 3) * n_own + 1, dtype=np.int64)
     A[:n_own] = own
+    P = np.zeros((6, 2))
+    H = np.zeros((6, 2))
     rho = np.empty(3)
     v = np.empty((3, 2))
     d = np.empty(3)
 
     for job in range(job_start, job_plane.shape[0]):
-        nl0, nla0, nt0, npt0 = nl, nla, nt, npt
+        nl0, nt0, npt0 = nl, nt, npt
         queries = 0
         visited = 0
         unresolved = 0
-        evaluated = 0
         overflow = 0
         k = job_plane[job]
         al = alpha[k]
@@ -220,7 +234,6 @@ def subdivide_quadric(
                                              0.0, A, n_own)
             S_d[0, c] = dd
             queries += 1
-            evaluated += n_own + other_idx.shape[0]
             if trace:
                 if npt >= pcap:
                     overflow = 3
@@ -244,14 +257,13 @@ def subdivide_quadric(
             slack = S_slack[top]
             a0, an, clamp = S_a0[top], S_an[top], S_clamp[top]
             a_top = a0 + an  # lists above belong to finished subtrees
-            # the region is within ``bulge`` of the straight triangle v: shorten radii by it
-            bulge = region_bulge(v, uv, sx, sy)
-            x0 = min(v[0, 0], min(v[1, 0], v[2, 0])) - bulge
-            y0 = min(v[0, 1], min(v[1, 1], v[2, 1])) - bulge
-            x1 = max(v[0, 0], max(v[1, 0], v[2, 0])) + bulge
-            y1 = max(v[0, 1], max(v[1, 1], v[2, 1])) + bulge
+            m, bulge = region_polygon(v, uv, sx, sy, P, H)
+            x0, y0, x1, y1 = P[0, 0], P[0, 1], P[0, 0], P[0, 1]
+            for q in range(1, m):
+                x0, y0 = min(x0, P[q, 0]), min(y0, P[q, 1])
+                x1, y1 = max(x1, P[q, 0]), max(y1, P[q, 1])
             dlo, delta = delta_range(al, fl, x0, y0, x1, y1)
-            if sqrt3_mode and not fl and not uv:
+            if sqrt3_mode and not fl and m == 3 and not uv:
                 dlo, delta = _SQRT3, _SQRT3  # a straight piece of a basic region: δ ≤ √3 (§4.1)
             rho_r = radius / delta
             status = -1
@@ -262,9 +274,9 @@ def subdivide_quadric(
             best_w = 0.0
             for c in range(3):
                 if kept or d[c] <= on_surface:
-                    w = disc_contains(v, 3, v[c, 0], v[c, 1], rho_r - bulge)
+                    w = disc_contains(P, m, v[c, 0], v[c, 1], rho_r)
                     if w >= 0.0 and (best < 0 or w < best_w):
-                        best, best_w = c, w + bulge
+                        best, best_w = c, w
             if best >= 0:
                 emit_kind = 0
                 status = 0
@@ -277,26 +289,26 @@ def subdivide_quadric(
                 covered = False
                 if neg or posi:
                     for c in range(3):
-                        rho[c] = max(abs(d[c]) / delta - bulge, 0.0)
-                    covered = discs_cover(v, 3, v, rho)
+                        rho[c] = abs(d[c]) / delta
+                    covered = discs_cover(P, m, v, rho)
                 if covered and posi:
                     status = 2
                 elif covered:
-                    # 2. kept: every sample of the region stays this far from the term's other quadrics
+                    # 2. kept: every sample in P stays this far from the term's other quadrics
                     slack = math.inf
                     for c in range(3):
                         far = 0.0
-                        for q in range(3):
-                            far = max(far, _norm2(v[q, 0] - v[c, 0], v[q, 1] - v[c, 1]))
-                        slack = min(slack, -d[c] - delta * (far + bulge))
+                        for q in range(m):
+                            far = max(far, _norm2(P[q, 0] - v[c, 0], P[q, 1] - v[c, 1]))
+                        slack = min(slack, -d[c] - delta * far)
                     kept = True
                     emit_kind = 1
                     status = 1
                 else:
                     diam = 0.0
-                    for a in range(3):
-                        for b in range(a + 1, 3):
-                            diam = max(diam, _norm2(v[a, 0] - v[b, 0], v[a, 1] - v[b, 1]))
+                    for a in range(m):
+                        for b in range(a + 1, m):
+                            diam = max(diam, _norm2(P[a, 0] - P[b, 0], P[a, 1] - P[b, 1]))
                     if min_size > 0.0 and diam * min(delta, _SQRT3) < min_size:
                         status = 3
                     elif diam < min_region or depth >= _MAX_DEPTH:
@@ -305,36 +317,26 @@ def subdivide_quadric(
                     else:
                         split = True
             count = 1
-            rho_l = max(rho_r - bulge, 1e-3 * rho_r)  # (bulge ≥ rho_r only at _MAX_DEPTH: never)
+            apex = 0
+            rho_l = rho_r
+            lattice_on_triangle = False
             if emit_kind == 1:
-                # a strongly curved region would get a needlessly dense lattice: split it (no
-                # distance query), as one whose distortion bound is loose (``refine``)
-                curved = bulge > 0.5 * rho_r
-                if not curved:
-                    count = lattice_plan(v[0, 0], v[0, 1], v[1, 0], v[1, 1], v[2, 0], v[2, 1], rho_l)[2]
-                if (curved or (refine and count >= _REFINE_SAMPLES and delta > _REFINE_RATIO * dlo)) \
-                        and depth < _MAX_DEPTH:
-                    split = True
+                if m > 3 and bulge < 0.5 * rho_r:
+                    # lattice the straight triangle, denser by the bulge: the region beyond it is
+                    # within ``bulge`` of it (thin fan triangles of P would cost far more samples)
+                    rho_l = rho_r - bulge
+                    apex, count = _lattice_fan(v, 3, rho_l)
+                    lattice_on_triangle = True
+                else:
+                    apex, count = _lattice_fan(P, m, rho_l)
+                if refine and count >= _REFINE_SAMPLES and depth < _MAX_DEPTH and delta > _REFINE_RATIO * dlo:
+                    split = True  # geometric split of a kept region: no distance query
                     emit_kind = -1
                     status = -1
-                elif curved:
-                    count = lattice_plan(v[0, 0], v[0, 1], v[1, 0], v[1, 1], v[2, 0], v[2, 1], rho_l)[2]
             if emit_kind >= 0:
                 if nl >= cap:
                     overflow = 1
                     break
-                # the quadrics that may reach into this leaf's splats (its own-term list), unless
-                # the corner distances already prove that none does
-                free = (slack if kept else max(-d[best], 0.0)) >= radius
-                if free:
-                    LI[nl, 4], LI[nl, 5] = 0, 0
-                else:
-                    if nla + an > LA.shape[0]:
-                        overflow = 4
-                        break
-                    LA[nla:nla + an] = A[a0:a0 + an]
-                    LI[nl, 4], LI[nl, 5] = nla, an
-                    nla += an
                 LI[nl, 0] = job
                 LI[nl, 1] = emit_kind
                 LI[nl, 3] = count
@@ -346,10 +348,15 @@ def subdivide_quadric(
                     LF[nl, 13] = slack if kept else max(-d[best], 0.0)
                     LF[nl, 14] = delta * best_w
                 else:
-                    for q in range(3):
-                        LF[nl, 2 * q] = v[q, 0]
-                        LF[nl, 2 * q + 1] = v[q, 1]
-                    LI[nl, 2] = 3
+                    if lattice_on_triangle:
+                        m = 3
+                        for q in range(3):
+                            P[q, 0] = v[q, 0]
+                            P[q, 1] = v[q, 1]
+                    for q in range(m):  # rotated so that the fan apex comes first
+                        LF[nl, 2 * q] = P[(q + apex) % m, 0]
+                        LF[nl, 2 * q + 1] = P[(q + apex) % m, 1]
+                    LI[nl, 2] = m
                     LF[nl, 13] = slack
                     LF[nl, 14] = radius
                     LF[nl, 15] = rho_l
@@ -385,23 +392,20 @@ def subdivide_quadric(
             dm = -rcap
             c_a0, c_an, c_clamp = a0, an, clamp
             if not kept:
-                # The children's points (and their bounding polygons) lie within 2D of the
-                # midpoint (D: world diameter of this region's polygon). Quadrics whose surface
-                # stays ≥ max(4D, r + 3D) from the midpoint stay ≥ 2D from them, and farther than
-                # a splat radius from their samples: drop them there and clamp at 2D.
+                # quadrics whose surface stays ≥ 3D from the midpoint (D: world diameter of this
+                # region) stay ≥ 2D from the children: drop them there and clamp at 2D
                 diam = 0.0
-                for a in range(3):
-                    for b in range(a + 1, 3):
-                        diam = max(diam, _norm2(v[a, 0] - v[b, 0], v[a, 1] - v[b, 1]))
-                world = delta * (diam + 2.0 * bulge)
-                keep_below = max(4.0 * world, radius + 3.0 * world) if 2.0 * world < clamp else 0.0
+                for a in range(m):
+                    for b in range(a + 1, m):
+                        diam = max(diam, _norm2(P[a, 0] - P[b, 0], P[a, 1] - P[b, 1]))
+                world = delta * diam
+                keep_below = 3.0 * world if world < clamp else 0.0
                 px, py, pz = lift(origin, frame, alpha, k, sheet, mx, my)
                 dm, cnt = relative_distance_pruned(C, A, a0, an, own_box, other_ptr, other_idx, clamp,
                                                    px, py, pz, keep_below, A, a_top)
                 if keep_below > 0.0:
                     c_a0, c_an, c_clamp = a_top, cnt, 2.0 * world
                 queries += 1
-                evaluated += an + other_idx.shape[0]
                 if trace:
                     if npt >= pcap:
                         overflow = 3
@@ -426,17 +430,16 @@ def subdivide_quadric(
                 S_a0[top], S_an[top], S_clamp[top] = c_a0, c_an, c_clamp
                 top += 1
         if overflow != 0:
-            return nl0, nla0, nt0, npt0, job, overflow
+            return nl0, nt0, npt0, job, overflow
         counters[0] += queries
         counters[1] += visited
         counters[2] += unresolved
         counters[3] += 1
-        counters[4] += evaluated
-    return nl, nla, nt, npt, job_plane.shape[0], 0
+    return nl, nt, npt, job_plane.shape[0], 0
 
 
 @inline_jit
-def _emit(C, qid, LA, la0, lan, origin, frame, alpha, k, sheet, x, y, r_s, pos, nrm, rad, ccount, cidx, n, nc):
+def _emit(C, qid, own, origin, frame, alpha, k, sheet, x, y, r_s, check_clip, pos, nrm, rad, ccount, cidx, n, nc):
     """Write sample n at plane point (x, y) (capacity is the caller's); return the clip-index count."""
     px, py, pz = lift(origin, frame, alpha, k, sheet, x, y)
     pos[n, 0], pos[n, 1], pos[n, 2] = px, py, pz
@@ -450,67 +453,53 @@ def _emit(C, qid, LA, la0, lan, origin, frame, alpha, k, sheet, x, y, r_s, pos, 
         nrm[n, 0], nrm[n, 1], nrm[n, 2] = sheet * frame[k, 0, 2], sheet * frame[k, 1, 2], sheet * frame[k, 2, 2]
     rad[n] = r_s
     c0 = nc
-    for i in range(la0, la0 + lan):
-        if abs(quadric_distance(C, LA[i], px, py, pz)) < r_s:
-            cidx[nc] = LA[i]
-            nc += 1
+    if check_clip:
+        for k in range(own.shape[0]):
+            if abs(quadric_distance(C, own[k], px, py, pz)) < r_s:
+                cidx[nc] = own[k]
+                nc += 1
     ccount[n] = nc - c0
     return nc
 
 
 @ieee_jit
-def emit_quadric(C, qid, origin, frame, alpha, job_plane, job_sheet, LF, LI, LA, radius, reduce_radius,
+def emit_quadric(C, qid, own, origin, frame, alpha, job_plane, job_sheet, LF, LI, radius, reduce_radius,
                  pos, nrm, rad, ccount, cidx, leaf_start, n, nc):
-    """Pass 2: write the samples of one quadric's leaves ``LF``, ``LI``, ``LA`` from ``leaf_start`` on.
+    """Pass 2: write the samples of one quadric's leaves ``LF``, ``LI`` from ``leaf_start`` on.
 
     ``pos``, ``nrm`` (N, 3), ``rad`` (N,) float64 and ``ccount`` (N,) int32 are the caller's
     output arrays, written from index ``n`` on; clip indices go to ``cidx`` from ``nc`` on, in
     sample order. Returns ``(next_leaf, n, nc)``; ``next_leaf`` < number of leaves means
     ``cidx`` may be too small for that leaf: grow it and call again with the returned values.
     """
+    n_own = own.shape[0]
     ccap = cidx.shape[0]
-    longest = 0
-    for leaf in range(LI.shape[0]):
-        longest = max(longest, LI[leaf, 5])
-    local = np.empty(longest + 1, dtype=np.int64)
     for leaf in range(leaf_start, LI.shape[0]):
         job = LI[leaf, 0]
         k = job_plane[job]
         sheet = job_sheet[job]
         delta = LF[leaf, 12]
-        la0, lan = LI[leaf, 4], LI[leaf, 5]
-        if nc + LI[leaf, 3] * lan > ccap:
-            return leaf, n, nc
+        aux = LF[leaf, 13]
         if LI[leaf, 1] == 0:
             r_s = LF[leaf, 14] if reduce_radius else radius
-            nc = _emit(C, qid, LA, la0, lan, origin, frame, alpha, k, sheet, LF[leaf, 0], LF[leaf, 1], r_s,
+            if nc + n_own > ccap:
+                return leaf, n, nc
+            nc = _emit(C, qid, own, origin, frame, alpha, k, sheet, LF[leaf, 0], LF[leaf, 1], r_s, aux < r_s,
                        pos, nrm, rad, ccount, cidx, n, nc)
             n += 1
             continue
         m = LI[leaf, 2]
         rho_l = LF[leaf, 15]
         extra = radius - delta * rho_l  # the bulge, in world units
-        if lan > 0:
-            # keep the quadrics that can reach a splat of this lattice: a surface that stays
-            # farther than radius + (world reach of the polygon) from its first vertex cannot
-            far = 0.0
-            for q in range(1, m):
-                far = max(far, _norm2(LF[leaf, 2 * q] - LF[leaf, 0], LF[leaf, 2 * q + 1] - LF[leaf, 1]))
-            px, py, pz = lift(origin, frame, alpha, k, sheet, LF[leaf, 0], LF[leaf, 1])
-            n_loc = 0
-            for i in range(la0, la0 + lan):
-                if abs(quadric_distance(C, LA[i], px, py, pz)) < radius + delta * far:
-                    local[n_loc] = LA[i]
-                    n_loc += 1
-            clip_list, la0, lan = local, 0, n_loc
-        else:
-            clip_list = LA
+        if nc + LI[leaf, 3] * n_own > ccap and aux < radius:  # radii never exceed ``radius``
+            return leaf, n, nc
         for tri in range(m - 2):
             ax, ay = LF[leaf, 0], LF[leaf, 1]
             bx, by = LF[leaf, 2 * tri + 2], LF[leaf, 2 * tri + 3]
             qx, qy = LF[leaf, 2 * tri + 4], LF[leaf, 2 * tri + 5]
             centers, steps, _, reach, cs, ct = lattice_plan(ax, ay, bx, by, qx, qy, rho_l)
             r_s = delta * reach + extra if reduce_radius else radius
+            check = aux < r_s
             inv = 1.0 / steps
             e1x, e1y, e2x, e2y = bx - ax, by - ay, qx - ax, qy - ay
             if centers:
@@ -524,7 +513,7 @@ def emit_quadric(C, qid, origin, frame, alpha, job_plane, job_sheet, LF, LI, LA,
                             w = (j + ct) * inv if flip == 0 else (j + 1 - ct) * inv
                             x = ax + u * e1x + w * e2x
                             y = ay + u * e1y + w * e2y
-                            nc = _emit(C, qid, clip_list, la0, lan, origin, frame, alpha, k, sheet, x, y, r_s,
+                            nc = _emit(C, qid, own, origin, frame, alpha, k, sheet, x, y, r_s, check,
                                        pos, nrm, rad, ccount, cidx, n, nc)
                             n += 1
             else:
@@ -532,7 +521,7 @@ def emit_quadric(C, qid, origin, frame, alpha, job_plane, job_sheet, LF, LI, LA,
                     for j in range(steps + 1 - i):
                         x = ax + (i * inv) * e1x + (j * inv) * e2x
                         y = ay + (i * inv) * e1y + (j * inv) * e2y
-                        nc = _emit(C, qid, clip_list, la0, lan, origin, frame, alpha, k, sheet, x, y, r_s,
+                        nc = _emit(C, qid, own, origin, frame, alpha, k, sheet, x, y, r_s, check,
                                    pos, nrm, rad, ccount, cidx, n, nc)
                         n += 1
     return LI.shape[0], n, nc
