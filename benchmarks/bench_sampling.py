@@ -93,11 +93,11 @@ def perforated_plate() -> csg.Node:
 #: name → (builder, {splat: radius}); radii chosen so that sample counts come near the paper's
 #: Table 2 rows with the same number of quadrics
 MODELS = {
-    "spheres": (spheres, {"large": 0.08, "medium": 0.034, "small": 0.0081}),
-    "slotted cylinder": (slotted_cylinder, {"large": 0.091, "medium": 0.038, "small": 0.0108}),
-    "bracket": (bracket, {"large": 0.19, "medium": 0.079, "small": 0.039}),
-    "block": (block, {"large": 0.083, "medium": 0.042, "small": 0.028}),
-    "perforated plate": (perforated_plate, {"large": 0.57, "medium": 0.108, "small": 0.0404}),
+    "spheres": (spheres, {"large": 0.106, "medium": 0.0427, "small": 0.0108}),
+    "slotted cylinder": (slotted_cylinder, {"large": 0.1075, "medium": 0.045, "small": 0.0124}),
+    "bracket": (bracket, {"large": 0.224, "medium": 0.0876, "small": 0.0429}),
+    "block": (block, {"large": 0.114, "medium": 0.0523, "small": 0.0335}),
+    "perforated plate": (perforated_plate, {"large": 1.0, "medium": 0.115, "small": 0.0456}),
 }
 
 #: Table 2 of the paper: (quadrics, splat) → (samples, distance queries, clip indices, sampling ms).
@@ -159,8 +159,8 @@ def run_table1(repeat: int) -> dict[str, float]:
         "single quadric, no subdivision": (csg.sphere((0, 0, 0), 1.0), 0.002, {}),
         "single quadric, with subdivision": (csg.leaf(hyperboloid_one_sheet((1.0, 0.8, 1.2))), 0.004,
                                              {"bounds": ((0, 0, 0), 2.0)}),
-        "simple CSG surface (Figure 9)": (spheres(), 0.0068, {}),
-        "complex CSG surface (Figure 1)": (perforated_plate(), 0.032, {}),
+        "simple CSG surface (Figure 9)": (spheres(), 0.0108, {}),
+        "complex CSG surface (Figure 1)": (perforated_plate(), 0.0456, {}),
     }  # fmt: skip
     out = {}
     for label, (shape, r, kw) in cases.items():

@@ -10,11 +10,12 @@ from csgnb.quadric import QUADRIC_CONSTRUCTORS, distortion, principal_frame, sam
 from csgnb.sampling.domains import quadric_jobs
 from csgnb.sampling.geometry import (
     arc_midpoint,
+    corner_reach,
     delta_range,
     discs_cover,
     enclosing_circle,
     lattice_plan,
-    region_polygon,
+    region_bulge,
 )
 
 SQRT3 = np.sqrt(3.0)
@@ -52,10 +53,8 @@ def test_discs_cover_agrees_with_a_dense_check(seed):
     v = rng.uniform(-1, 1, (3, 2))
     if abs(_cross(v[1] - v[0], v[2] - v[0])) < 0.05:
         return
-    P = np.zeros((6, 2))
-    P[:3] = v
     rho = rng.uniform(0.1, 1.5, 3)
-    got = discs_cover(P, 3, v, rho)
+    got = discs_cover(*v.ravel(), *rho)
     g = _grid_in(v)
     dist = np.min(np.linalg.norm(g[:, None, :] - v[None], axis=2) - rho[None], axis=1)
     if got:
@@ -64,29 +63,25 @@ def test_discs_cover_agrees_with_a_dense_check(seed):
         # not covered: some point of the triangle is farther than rho from all centers; the dense
         # grid finds it unless the gap is tiny
         assert np.max(dist) > -0.02
+    assert np.isclose(corner_reach(*v.ravel(), 1), max(np.linalg.norm(v - v[1], axis=1)))
 
 
-@pytest.mark.parametrize("seed", range(20))
-def test_bounding_polygon_holds_the_uv_triangle(seed):
+@pytest.mark.parametrize("seed", range(30))
+def test_curved_regions_stay_within_their_bulge(seed):
+    """A (u, v)-triangle's region lies within ``region_bulge`` of its straight triangle, even when
+    its sides curve so much that the straight triangle flips."""
     rng = np.random.default_rng(seed)
     sx, sy = rng.choice([-1.0, 1.0], 2)
     uv = rng.uniform(0, 1, (3, 2)) ** 2
     v = np.sqrt(uv) * [sx, sy]
-    P = np.zeros((6, 2))
-    m, bulge = region_polygon(v, True, sx, sy, P, np.zeros((6, 2)))
-    Pm = P[:m]
-    # convex
-    cr = np.array([_cross(Pm[(i + 1) % m] - Pm[i], Pm[(i + 2) % m] - Pm[(i + 1) % m]) for i in range(m)])
-    assert np.all(cr >= -1e-12) or np.all(cr <= 1e-12)
-    # points of the (u, v)-triangle, mapped to (x, y), lie inside
+    bulge = region_bulge(*v.ravel(), True, sx, sy)
     w = rng.dirichlet(np.ones(3), 4000)
     pts = np.sqrt(w @ uv) * [sx, sy]
-    assert np.all(_inside_convex(Pm, pts, tol=1e-12))
-    # and within ``bulge`` of the straight triangle
     outside = ~_inside_convex(v, pts, tol=1e-12)
     if outside.any():
         d = np.min([_segment_distance(pts[outside], v[e], v[(e + 1) % 3]) for e in range(3)], axis=0)
         assert np.all(d <= bulge + 1e-12)
+    assert region_bulge(*v.ravel(), False, sx, sy) == 0.0
 
 
 def test_arc_midpoint_stays_on_the_uv_segment():
@@ -110,7 +105,7 @@ def test_delta_range_bounds_the_distortion(name):
         for _ in range(30):
             x0, y0 = rng.uniform(-1.5, 1.5, 2)
             x1, y1 = x0 + rng.uniform(0, 0.5), y0 + rng.uniform(0, 0.5)
-            lo, hi = delta_range(al, False, x0, y0, x1, y1)
+            lo, hi = delta_range(*al, False, x0, y0, x1, y1)
             gx, gy = np.meshgrid(np.linspace(x0, x1, 25), np.linspace(y0, y1, 25))
             d = distortion(al, gx.ravel(), gy.ravel())
             if np.isfinite(hi):

@@ -27,6 +27,7 @@ from csgnb.quadric.heightfield import principal_frame
 from csgnb.quadric.quadric import Quadric
 
 __all__ = [
+    "frame_cache_clear",
     "support_halfspaces",
     "polytope_box",
     "polytope_extents",
@@ -41,6 +42,24 @@ __all__ = [
 EMPTY_BOX = np.array([np.inf, np.inf, np.inf, -np.inf, -np.inf, -np.inf])
 
 _PSD_TOLERANCE = 1e-12
+
+# principal frames by matrix: term boxes, surface boxes and axial bounds all need them
+_FRAMES: dict[bytes, object] = {}
+
+
+def _frame(q: Quadric):
+    key = q.matrix.tobytes()
+    f = _FRAMES.get(key)
+    if f is None:
+        if len(_FRAMES) > 8192:
+            _FRAMES.clear()
+        f = _FRAMES[key] = principal_frame(q)
+    return f
+
+
+def frame_cache_clear() -> None:
+    """Empty the cache of principal frames used for bounds."""
+    _FRAMES.clear()
 
 
 def box_is_empty(box: np.ndarray) -> bool:
@@ -69,7 +88,7 @@ def support_halfspaces(q: Quadric) -> tuple[np.ndarray, np.ndarray]:
         # half-space: Q = -2 bᵀx + c ≤ 0  ⇔  (-b̂)·x ≤ -c / (2|b|)
         nb = float(np.linalg.norm(b))
         return (-b / nb)[None, :], np.array([-c / (2.0 * nb)])
-    frame = principal_frame(q)
+    frame = _frame(q)
     lam = frame.eigenvalues
     top = float(np.max(np.abs(lam)))
     if np.any(lam < -_PSD_TOLERANCE * top) or not frame.central:
@@ -186,7 +205,7 @@ def _axial_bound(q: Quadric):
     A = q.A
     if np.max(np.abs(A)) <= 1e-14 * float(np.max(np.abs(q.matrix))):
         return None
-    frame = principal_frame(q)
+    frame = _frame(q)
     lam = frame.eigenvalues
     top = float(np.max(np.abs(lam)))
     neg = lam < -_PSD_TOLERANCE * top

@@ -135,25 +135,30 @@ class _Registry:
     """Distinct surfaces seen so far, matched up to scale and sign."""
 
     def __init__(self) -> None:
-        self.vectors: list[np.ndarray] = []
+        self.vectors = np.empty((16, 10))
+        self.count = 0
         self.quadric: dict[tuple[int, int], Quadric] = {}
         self.name: dict[tuple[int, int], str | None] = {}
 
     def key(self, q: Quadric, name: str | None) -> tuple[int, int]:
         w = q.matrix[np.triu_indices(4)]
         w = w / np.max(np.abs(w))
-        for sid, v in enumerate(self.vectors):
-            for orient in (1, -1):
-                if np.max(np.abs(orient * w - v)) <= SURFACE_TOLERANCE:
-                    k = (sid, orient)
-                    if k not in self.quadric:
-                        self.quadric[k] = q
-                        self.name[k] = name
-                    return k
-        self.vectors.append(w)
-        k = (len(self.vectors) - 1, 1)
-        self.quadric[k] = q
-        self.name[k] = name
+        V = self.vectors[: self.count]
+        k = None
+        for orient in (1, -1):
+            hit = np.flatnonzero(np.max(np.abs(orient * w - V), axis=1) <= SURFACE_TOLERANCE)
+            if len(hit):
+                k = (int(hit[0]), orient)
+                break
+        if k is None:
+            if self.count == len(self.vectors):
+                self.vectors = np.vstack([self.vectors, np.empty_like(self.vectors)])
+            self.vectors[self.count] = w
+            self.count += 1
+            k = (self.count - 1, 1)
+        if k not in self.quadric:
+            self.quadric[k] = q
+            self.name[k] = name
         return k
 
 

@@ -25,6 +25,7 @@ import math
 import numpy as np
 
 from csgnb._jit import jit
+from csgnb.csg.bounds import frame_cache_clear
 from csgnb.errors import GeometryError
 from csgnb.quadric.heightfield import sampling_planes
 from csgnb.quadric.quadric import Quadric
@@ -252,5 +253,6 @@ def quadric_jobs(q: Quadric, box: np.ndarray):
 
 
 def domain_cache_clear() -> None:
-    """Empty the cache of jobs per (quadric, box)."""
+    """Empty the caches of jobs per (quadric, box) and of principal frames (``csg.bounds``)."""
     _cached_jobs.cache_clear()
+    frame_cache_clear()

@@ -1,12 +1,13 @@
-"""Scalar geometry of one sampling region: lift, distortion bound, bounding polygon, disc cover.
+"""Scalar geometry of one sampling region: lift, distortion bound, bulge, disc cover, lattices.
 
 A region is a triangle on a sampling plane, given by its corners in (x, y). Its sides are either
 straight (planes) or, in *(u, v) mode*, images of straight segments of (u, v) = (x², y²) within
 one quadrant (:mod:`.domains`): arcs of axis-aligned conics centered at the origin, straight
 when the segment is axis-parallel or points at the origin. Such an arc turns by at most 90°, so
-it lies in the triangle spanned by its chord and its end tangents. The region therefore lies in
-the convex hull of its corners and the tangent points of its arcs — its *bounding polygon* (3 to
-6 vertices), on which the sampler bounds δ, tests disc covers and places samples.
+it lies in the triangle spanned by its chord and its end tangents, and the region lies within a
+*bulge* distance of its straight triangle (``region_bulge``). The sampler works on the straight
+triangle and shortens every radius by the bulge: that bounds δ, tests disc covers and places
+samples for the curved region (arcs flatten quadratically as regions shrink).
 
 All functions are numba kernels on scalars and small arrays, called from the sampler.
 """
@@ -21,9 +22,9 @@ __all__ = [
     "lift",
     "delta_range",
     "arc_midpoint",
-    "region_polygon",
+    "region_bulge",
     "discs_cover",
-    "disc_contains",
+    "corner_reach",
     "covering_radius",
     "enclosing_circle",
     "lattice_plan",
@@ -38,24 +39,25 @@ def _norm2(x, y):
 
 
 @inline_jit
-def lift(origin, frame, alpha, k, sheet, x, y):
-    """Return the world point over (x, y) of sampling plane ``k`` on the sheet ``t = sheet·h(x, y)``.
+def lift(o0, o1, o2, f00, f01, f02, f10, f11, f12, f20, f21, f22, ax, ay, ac, sheet, x, y):
+    """Return the world point over (x, y) of a sampling plane on the sheet ``t = sheet·h(x, y)``.
 
-    ``origin`` (3, 3), ``frame`` (3, 3, 3) (columns x axis, y axis, normal) and ``alpha`` (3, 3)
-    hold the three planes (indexed, not sliced: a slice would be reference-counted). Rounding
-    just outside the heightfield's domain (h² < 0) is clamped to the rim, h = 0.
+    The plane is given by scalars: origin (o0, o1, o2), frame F (columns x axis, y axis, normal)
+    and α = (ax, ay, ac) — scalars, not arrays, because numba reference-counts every array bound
+    in an inlined call, which in the sampler's loops cost more than the arithmetic. Rounding just
+    outside the heightfield's domain (h² < 0) is clamped to the rim, h = 0.
     """
-    h2 = alpha[k, 0] * x * x + alpha[k, 1] * y * y + alpha[k, 2]
+    h2 = ax * x * x + ay * y * y + ac
     t = sheet * math.sqrt(h2) if h2 > 0.0 else 0.0
     return (
-        origin[k, 0] + x * frame[k, 0, 0] + y * frame[k, 0, 1] + t * frame[k, 0, 2],
-        origin[k, 1] + x * frame[k, 1, 0] + y * frame[k, 1, 1] + t * frame[k, 1, 2],
-        origin[k, 2] + x * frame[k, 2, 0] + y * frame[k, 2, 1] + t * frame[k, 2, 2],
+        o0 + x * f00 + y * f01 + t * f02,
+        o1 + x * f10 + y * f11 + t * f12,
+        o2 + x * f20 + y * f21 + t * f22,
     )
 
 
 @inline_jit
-def delta_range(al, flat, x0, y0, x1, y1):
+def delta_range(ax, ay, ac, flat, x0, y0, x1, y1):
     """Return (min δ, max δ) (eq. 13) over the rectangle [x0, x1] × [y0, y1]; max is inf off the domain.
 
     As ``csgnb.quadric.distortion_bounds``: δ² - 1 is linear-fractional in (u, v) = (x², y²), so
@@ -65,7 +67,6 @@ def delta_range(al, flat, x0, y0, x1, y1):
     """
     if flat:
         return 1.0, 1.0
-    ax, ay, ac = al[0], al[1], al[2]
     sx, sy = ax * ax, ay * ay
     u0, u1 = x0 * x0, x1 * x1
     v0, v1 = y0 * y0, y1 * y1
@@ -117,80 +118,37 @@ def _segment_distance(px, py, ax, ay, bx, by):
 
 
 @inline_jit
-def region_polygon(v, uv, sx, sy, P, H):
-    """Write the bounding polygon of a region into ``P`` : (6, 2); return (vertex count 3–6, bulge).
+def region_bulge(v0x, v0y, v1x, v1y, v2x, v2y, uv, sx, sy):
+    """Return how far the region over the triangle v0 v1 v2 reaches beyond the straight triangle.
 
-    ``H`` : (6, 2) scratch space. ``v`` : (3, 2) corners; ``uv``: whether the sides are (u, v)-segments in the
-    quadrant of signs ``sx, sy``. The polygon is the convex hull of the corners and of the end-tangent intersection
-    of every curved side (each arc lies in the triangle of its chord and that point), so it holds
-    the region even when strongly curved sides make the straight triangle a poor guide (it can
-    even have the opposite orientation). ``bulge`` is the largest distance from a polygon vertex
-    to the straight triangle: every point of the region is within it of the triangle.
+    ``uv``: whether the sides are (u, v)-segments in the quadrant of signs ``sx, sy`` (else the
+    region is the triangle: 0). Each arc lies in the triangle of its chord and the intersection T
+    of its end tangents, so the lens between arc and chord is within dist(T, chord) of the chord;
+    the region differs from the straight triangle only by such lenses (a winding-number argument
+    that holds even when strongly curved sides flip the straight triangle's orientation). The
+    sampler works on the straight triangle with every radius shortened by this bound.
     """
-    m = 3
-    for e in range(3):
-        P[e, 0] = v[e, 0]
-        P[e, 1] = v[e, 1]
-    if uv:
-        for e in range(3):
-            f = (e + 1) % 3
-            x0, y0 = v[e, 0], v[e, 1]
-            x1, y1 = v[f, 0], v[f, 1]
-            du = x1 * x1 - x0 * x0
-            dv = y1 * y1 - y0 * y0
-            # tangent of s ↦ (sx √u(s), sy √v(s)), scaled by 2√u√v to stay finite on the axes
-            t0x, t0y = sx * du * abs(y0), sy * dv * abs(x0)
-            t1x, t1y = sx * du * abs(y1), sy * dv * abs(x1)
-            det = t1x * t0y - t0x * t1y
-            tn = math.sqrt(t0x * t0x + t0y * t0y) * math.sqrt(t1x * t1x + t1y * t1y)
-            if not abs(det) > 1e-12 * tn:
-                continue  # a straight side (axis-parallel or radial), or too short to bulge
-            w = ((x1 - x0) * (-t1y) + t1x * (y1 - y0)) / det
-            P[m, 0] = x0 + w * t0x
-            P[m, 1] = y0 + w * t0y
-            m += 1
-    if m == 3:
-        return 3, 0.0
-    # convex hull of the m ≤ 6 points (gift wrapping from the lowest-leftmost point)
-    start = 0
-    for i in range(1, m):
-        if P[i, 1] < P[start, 1] or (P[i, 1] == P[start, 1] and P[i, 0] < P[start, 0]):
-            start = i
-    n = 0
-    cur = start
-    while n < 6:
-        H[n, 0] = P[cur, 0]
-        H[n, 1] = P[cur, 1]
-        n += 1
-        nxt = (cur + 1) % m
-        for j in range(m):
-            cr = (P[nxt, 0] - P[cur, 0]) * (P[j, 1] - P[cur, 1]) - (P[nxt, 1] - P[cur, 1]) * (P[j, 0] - P[cur, 0])
-            if cr < 0.0 or (cr == 0.0 and (P[j, 0] - P[cur, 0]) ** 2 + (P[j, 1] - P[cur, 1]) ** 2
-                            > (P[nxt, 0] - P[cur, 0]) ** 2 + (P[nxt, 1] - P[cur, 1]) ** 2):
-                nxt = j
-        cur = nxt
-        if cur == start:
-            break
-    # distance of the hull vertices outside the straight triangle to it
-    orient = (v[1, 0] - v[0, 0]) * (v[2, 1] - v[0, 1]) - (v[1, 1] - v[0, 1]) * (v[2, 0] - v[0, 0])
+    if not uv:
+        return 0.0
     bulge = 0.0
-    for i in range(n):
-        outside = False
-        for e in range(3):
-            f = (e + 1) % 3
-            cr = (v[f, 0] - v[e, 0]) * (H[i, 1] - v[e, 1]) - (v[f, 1] - v[e, 1]) * (H[i, 0] - v[e, 0])
-            if cr * orient < 0.0:
-                outside = True
-        if outside:
-            dmin = math.inf
-            for e in range(3):
-                f = (e + 1) % 3
-                dmin = min(dmin, _segment_distance(H[i, 0], H[i, 1], v[e, 0], v[e, 1], v[f, 0], v[f, 1]))
-            bulge = max(bulge, dmin)
-    for i in range(n):
-        P[i, 0] = H[i, 0]
-        P[i, 1] = H[i, 1]
-    return n, bulge
+    vx = (v0x, v1x, v2x)
+    vy = (v0y, v1y, v2y)
+    for e in range(3):
+        f = (e + 1) % 3
+        x0, y0 = vx[e], vy[e]
+        x1, y1 = vx[f], vy[f]
+        du = x1 * x1 - x0 * x0
+        dv = y1 * y1 - y0 * y0
+        # tangent of s ↦ (sx √u(s), sy √v(s)), scaled by 2√u√v to stay finite on the axes
+        t0x, t0y = sx * du * abs(y0), sy * dv * abs(x0)
+        t1x, t1y = sx * du * abs(y1), sy * dv * abs(x1)
+        det = t1x * t0y - t0x * t1y
+        tn = math.sqrt(t0x * t0x + t0y * t0y) * math.sqrt(t1x * t1x + t1y * t1y)
+        if not abs(det) > 1e-12 * tn:
+            continue  # a straight side (axis-parallel or radial), or too short to bulge
+        w = ((x1 - x0) * (-t1y) + t1x * (y1 - y0)) / det
+        bulge = max(bulge, _segment_distance(x0 + w * t0x, y0 + w * t0y, x0, y0, x1, y1))
+    return bulge
 
 
 @inline_jit
@@ -204,74 +162,57 @@ def _power(cx, cy, r2, x, y):
 
 
 @inline_jit
-def discs_cover(P, m, v, rho):
-    """Return whether the discs (v[k], rho[k]), k < 3, cover the convex polygon P[:m] (m ≤ 6).
+def discs_cover(v0x, v0y, v1x, v1y, v2x, v2y, r0, r1, r2):
+    """Return whether the discs of radii r0, r1, r2 around the corners cover the triangle v0 v1 v2.
 
-    Exact up to rounding: the power function f(x) = min_k |x - v_k|² - ρ_k² is convex on each
-    power cell, so its maximum over P is at a vertex of P, where a power bisector crosses an
-    edge of P, or at the power center of the three discs if it lies in P.
+    Exact up to rounding: the power function f(x) = min_k |x - v_k|² - r_k² is convex on each
+    power cell, so its maximum over the triangle is at a corner (where it is ≤ 0), where a power
+    bisector crosses an edge, or at the power center of the three discs if it lies inside.
     """
-    # work relative to v[0]: the polygon is small compared with its position
-    ox, oy = v[0, 0], v[0, 1]
-    cx = (0.0, v[1, 0] - ox, v[2, 0] - ox)
-    cy = (0.0, v[1, 1] - oy, v[2, 1] - oy)
-    r2 = (rho[0] * rho[0], rho[1] * rho[1], rho[2] * rho[2])
-    # P[m:] is never read (the array is always (6, 2))
-    px = (P[0, 0] - ox, P[1, 0] - ox, P[2, 0] - ox, P[3, 0] - ox, P[4, 0] - ox, P[5, 0] - ox)
-    py = (P[0, 1] - oy, P[1, 1] - oy, P[2, 1] - oy, P[3, 1] - oy, P[4, 1] - oy, P[5, 1] - oy)
-    for k in range(m):
-        if _power(cx, cy, r2, px[k], py[k]) > 0.0:
-            return False
-    area2 = 0.0
-    for k in range(m):
-        n = (k + 1) % m
-        area2 += px[k] * py[n] - px[n] * py[k]
+    # work relative to v0: the triangle is small compared with its position
+    cx = (0.0, v1x - v0x, v2x - v0x)
+    cy = (0.0, v1y - v0y, v2y - v0y)
+    r2 = (r0 * r0, r1 * r1, r2 * r2)
     for i in range(3):
         for j in range(i + 1, 3):
             nx, ny = cx[j] - cx[i], cy[j] - cy[i]
             kk = 0.5 * (cx[j] * cx[j] + cy[j] * cy[j] - cx[i] * cx[i] - cy[i] * cy[i] + r2[i] - r2[j])
-            for e in range(m):
-                f = (e + 1) % m
-                dx, dy = px[f] - px[e], py[f] - py[e]
+            for e in range(3):
+                f = (e + 1) % 3
+                dx, dy = cx[f] - cx[e], cy[f] - cy[e]
                 den = nx * dx + ny * dy
                 if den != 0.0:
-                    t = (kk - nx * px[e] - ny * py[e]) / den
+                    t = (kk - nx * cx[e] - ny * cy[e]) / den
                     if 0.0 <= t <= 1.0:
-                        if _power(cx, cy, r2, px[e] + t * dx, py[e] + t * dy) > 0.0:
+                        if _power(cx, cy, r2, cx[e] + t * dx, cy[e] + t * dy) > 0.0:
                             return False
     # power center: equal power to all three discs
-    a1x, a1y = cx[1] - cx[0], cy[1] - cy[0]
-    a2x, a2y = cx[2] - cx[0], cy[2] - cy[0]
-    b1 = 0.5 * (cx[1] * cx[1] + cy[1] * cy[1] - cx[0] * cx[0] - cy[0] * cy[0] + r2[0] - r2[1])
-    b2 = 0.5 * (cx[2] * cx[2] + cy[2] * cy[2] - cx[0] * cx[0] - cy[0] * cy[0] + r2[0] - r2[2])
+    a1x, a1y = cx[1], cy[1]
+    a2x, a2y = cx[2], cy[2]
+    b1 = 0.5 * (a1x * a1x + a1y * a1y + r2[0] - r2[1])
+    b2 = 0.5 * (a2x * a2x + a2y * a2y + r2[0] - r2[2])
     det = a1x * a2y - a1y * a2x
     if det != 0.0:
         qx = (b1 * a2y - b2 * a1y) / det
         qy = (a1x * b2 - a2x * b1) / det
-        inside = True
-        for e in range(m):
-            f = (e + 1) % m
-            cr = (px[f] - px[e]) * (qy - py[e]) - (py[f] - py[e]) * (qx - px[e])
-            if cr * area2 < 0.0:
-                inside = False
-                break
-        if inside and _power(cx, cy, r2, qx, qy) > 0.0:
+        # barycentric test: q = s·a1 + t·a2 with s, t ≥ 0, s + t ≤ 1
+        s_ = (qx * a2y - qy * a2x) / det
+        t_ = (a1x * qy - a1y * qx) / det
+        if s_ >= 0.0 and t_ >= 0.0 and s_ + t_ <= 1.0 and _power(cx, cy, r2, qx, qy) > 0.0:
             return False
     return True
 
 
 @inline_jit
-def disc_contains(P, m, cx, cy, rho):
-    """Return the largest distance from (cx, cy) to the vertices of P[:m] if ≤ rho, else -1.
-
-    (P is convex, so the disc holds P iff it holds P's vertices.)
-    """
+def corner_reach(v0x, v0y, v1x, v1y, v2x, v2y, c):
+    """Return the largest distance from corner ``c`` to the other corners of the triangle."""
+    vx = (v0x, v1x, v2x)
+    vy = (v0y, v1y, v2y)
     worst = 0.0
-    for k in range(m):
-        dx, dy = P[k, 0] - cx, P[k, 1] - cy
+    for k in range(3):
+        dx, dy = vx[k] - vx[c], vy[k] - vy[c]
         worst = max(worst, dx * dx + dy * dy)
-    worst = math.sqrt(worst)
-    return worst if worst <= rho else -1.0
+    return math.sqrt(worst)
 
 
 @inline_jit

@@ -1,38 +1,41 @@
 """The adaptive sampling kernel of §4.2: classify, split or cover the regions of one quadric.
 
 For every job (a triangle of a basic region on one sheet) the kernel keeps a depth-first stack
-of triangles with d_Qab (eq. 22) known at their corners. For each triangle, with δ the distortion
-bound over its bounding polygon P (:mod:`.geometry`) and r the splat radius:
+of triangles with d_Qab (eq. 22) known at their corners. A region lies within ``bulge`` of its
+straight triangle T (:mod:`.geometry`; 0 for straight sides), so every radius below is shortened
+by the bulge and tested on T. With δ the distortion bound over T's box grown by the bulge and r
+the splat radius:
 
-1. *single sample*: if a corner is on the CSG surface (d < 0, or |d| ≤ ``on_surface``: a point
+1. *single sample*: if a corner is on the CSG surface (d < 0, or d ≤ ``on_surface``: a point
    of a feature curve, in the closure of the surface) and the disc of radius r/δ around it holds
-   P, emit that corner and stop (the sample covers the region whatever the rest is). Counting
-   corners on feature curves matters when a curve runs along region edges (axis-aligned models):
-   the regions outside it would otherwise never be classified (their discs there have radius 0);
-2. *classify*: if all corners have the same sign and the discs of radius |d|/δ cover P, the
-   region is kept (all of it is on the CSG surface: cover P with a triangular lattice of
-   spacing such that every point is within r/δ of a lattice point) or discarded;
+   the region, emit that corner and stop (the sample covers the region whatever the rest is).
+   Counting corners on feature curves matters when a curve runs along region edges
+   (axis-aligned models): the regions outside it would otherwise never be classified;
+2. *classify*: if all corners have the same sign and the discs of radius |d|/δ cover the region
+   (an exact power-diagram test on T), it is kept — all of it is on the CSG surface: cover it with
+   a triangular lattice such that every point is within r/δ of a lattice point — or discarded;
 3. optionally (``min_size`` > 0) discard unclassified regions smaller than ``min_size``
    (faster, but can leave holes, as the paper says);
-4. otherwise split the longest edge (in (u, v) mode at its (u, v)-midpoint, so that the halves
-   are (u, v)-triangles again),
-   evaluate d_Qab at the new corner and recurse. Regions below ``min_region`` (a few ulps of
-   the radius) are given up and counted as unresolved.
+4. otherwise split the longest edge (in (u, v) mode at a point of the (u, v)-segment, so that the
+   halves are (u, v)-triangles again), evaluate d_Qab at the new corner and recurse. Regions below
+   ``min_region`` are given up and counted as unresolved (see ``sampler.MIN_REGION``).
 
 Kept regions that would need many samples are split further without distance queries while
 their distortion bound varies (``refine``): a lattice is as dense as its region's largest δ
-demands. The world distance between two points over P is at most δ times their (x, y) distance
-(the lift stretches by at most δ), which turns world radii into (x, y) radii. Each sample
-carries its clip set: the quadrics of its term whose surface may pass within its radius (§6),
-found from the corner distances when they prove the set empty and from d(Q_aj, s) otherwise.
+demands. The world distance between two points of a region is at most δ times their (x, y)
+distance (the lift stretches by at most δ), which turns world radii into (x, y) radii. Each
+sample carries its clip set: the quadrics of its term whose surface may pass within its radius
+(§6), from per-region lists of the quadrics still in play (pruned as regions shrink) unless the
+corner distances prove the set empty.
 
 Two passes keep the memory traffic low: ``subdivide_quadric`` records the emitting leaves,
 ``emit_quadric`` writes their samples into arrays the caller allocated with numpy (numpy asks
 for huge pages; page faults on fresh numba buffers cost more than the sampling itself here).
-Neither kernel re-binds an array inside its loops — numba reference-counts re-bound arrays with
-atomic operations on every iteration, which cost 60 % of the time in a first version — so both
-stop when a buffer is full and are resumed by the caller with a larger one (at a job, or a
-leaf, boundary).
+Neither kernel binds an array to a new name inside its loops — numba reference-counts such
+bindings (re-bound buffers, array arguments of inlined helpers) with atomic operations, which
+cost 60 % of the time in a first version. So the helpers take scalars, the distance and the
+emission are written out in the loops, and both kernels stop when a buffer is full and are
+resumed by the caller with a larger one (at a job, or a leaf, boundary).
 """
 
 from __future__ import annotations
@@ -46,12 +49,12 @@ from csgnb.quadric.evaluate import ieee_jit
 from csgnb.sampling.geometry import (
     _norm2,
     arc_midpoint,
+    corner_reach,
     delta_range,
-    disc_contains,
     discs_cover,
     lattice_plan,
     lift,
-    region_polygon,
+    region_bulge,
 )
 
 __all__ = [
@@ -70,9 +73,9 @@ STATUS = {"single": 0, "kept": 1, "discarded": 2, "small": 3, "unresolved": 4}
 #: Columns of the leaf buffers of pass 1: floats (polygon x₀ y₀ … x₅ y₅, δ, aux, reach) and
 #: integers (job, kind, vertices, samples); see ``subdivide_quadric``.
 LEAF_FLOAT_FIELDS = tuple(f"{a}{k}" for k in range(6) for a in "xy") + ("delta", "aux", "reach", "rho")
-LEAF_INT_FIELDS = ("job", "kind", "corners", "count")
+LEAF_INT_FIELDS = ("job", "kind", "corners", "count", "clip_start", "clip_len")
 #: Overflow codes returned by ``subdivide_quadric``: which buffer to grow before resuming.
-OVERFLOW = {"none": 0, "leaves": 1, "trace_leaves": 2, "trace_points": 3}
+OVERFLOW = {"none": 0, "leaves": 1, "trace_leaves": 2, "trace_points": 3, "clip_lists": 4}
 
 _SQRT3 = math.sqrt(3.0)
 _MAX_DEPTH = 200
@@ -91,7 +94,9 @@ def relative_distance_pruned(C, act, a0, na, own_box, other_ptr, other_idx, rcap
     the signed distance to ``own_box``, an exact distance to a superset of the quadric's surface in
     the term, so the bound stays conservative and reaches ``rcap`` beyond the neighbourhood where
     the lists hold. If ``keep_below`` > 0, the own-term quadrics with d > -keep_below — those
-    that can still matter closer than that — are copied to ``out[o0:o0 + n]``.
+    that can still matter closer than that — are copied to ``out[o0:o0 + n]``. (The sampling
+    kernel repeats this code inline in its loop; this function is its reference and its entry
+    for the first corners of a job.)
     """
     own_d = box_distance(own_box, x, y, z)
     n = 0
@@ -116,24 +121,6 @@ def relative_distance_pruned(C, act, a0, na, own_box, other_ptr, other_idx, rcap
             return rcap, n
     d = max(-other, own_d)
     return min(max(d, -rcap), rcap), n
-
-
-@inline_jit
-def _lattice_fan(P, m, rho):
-    """Return (apex, samples) for covering the convex polygon P[:m] by per-triangle lattices.
-
-    The polygon is fanned from the vertex (``apex``) that needs the fewest samples.
-    """
-    best, best_n = 0, -1
-    for a in range(m if m > 3 else 1):
-        total = 0
-        for tri in range(m - 2):
-            i = (a + tri + 1) % m
-            j = (a + tri + 2) % m
-            total += lattice_plan(P[a, 0], P[a, 1], P[i, 0], P[i, 1], P[j, 0], P[j, 1], rho)[2]
-        if best_n < 0 or total < best_n:
-            best, best_n = a, total
-    return best, best_n
 
 
 @ieee_jit
@@ -162,6 +149,7 @@ def subdivide_quadric(
     trace,
     LF,
     LI,
+    LA,
     TT,
     TI,
     TP,
@@ -169,6 +157,7 @@ def subdivide_quadric(
     counters,
     job_start,
     nl,
+    nla,
     nt,
     npt,
 ):
@@ -176,27 +165,30 @@ def subdivide_quadric(
 
     Task arrays as in ``tasks.QuadricTask``. Writes, from the given fill levels on:
 
-    * leaves that emit samples: ``LF`` (cap, 16) float64 (``LEAF_FLOAT_FIELDS``: the polygon —
-      one point for a single sample, else the 3–4 vertices whose fan gets a lattice —, the
-      distortion bound δ used, ``aux`` the distance from the samples below which no quadric of
-      the term can come (single: |d_Qab| at the corner; lattice: the slack of the keep discs),
-      ``reach`` the world radius covering a single sample's region, ``rho`` the plane spacing
-      radius of a lattice), ``LI`` (cap, 4) int64
-      (``LEAF_INT_FIELDS``: job, kind 0 single / 1 lattice, vertex count, sample count);
+    * leaves that emit samples: ``LF`` (cap, 16) float64 (``LEAF_FLOAT_FIELDS``: the triangle —
+      its first vertex alone for a single sample —, the distortion bound δ used, ``aux`` the
+      distance from the samples below which no quadric of the term can come (single: |d_Qab| at
+      the corner; lattice: the slack of the keep discs), ``reach`` the world radius covering a
+      single sample's region, ``rho`` the plane covering radius of a lattice), ``LI`` (cap, 6)
+      int64 (``LEAF_INT_FIELDS``: job, kind 0 single / 1 lattice, vertex count, sample count, and
+      the slice of ``LA`` listing the quadrics that may reach into the leaf's splats — empty when
+      the corner distances prove that none can);
     * if ``trace``: final regions ``TT`` (tcap, 6) (triangle) and ``TI`` (tcap, 5) = (job, uv,
       status, depth, plane); distance evaluations ``TP`` (pcap, 3) = (x, y, d_Qab), ``TJ`` (pcap,)
       = job;
-    * ``counters`` (4,) int64 += distance queries, regions visited, unresolved regions, jobs done.
+    * ``counters`` (5,) int64 += distance queries, regions visited, unresolved regions, jobs done,
+      quadric distances evaluated (an upper bound: early exits are not counted).
 
-    Returns ``(nl, nt, npt, next_job, overflow)``: fill levels, the first job not done and an
+    Returns ``(nl, nla, nt, npt, next_job, overflow)``: fill levels, the first job not done and an
     ``OVERFLOW`` code. On overflow the unfinished job's output is rolled back; grow that buffer
     and call again from ``next_job``.
     """
     cap = LF.shape[0]
     tcap = TT.shape[0]
     pcap = TP.shape[0]
+    n_terms = other_ptr.shape[0] - 1
     smax = 2 * _MAX_DEPTH + 8
-    S_v = np.empty((smax, 3, 2))
+    S_v = np.empty((smax, 6))
     S_d = np.empty((smax, 3))
     S_depth = np.empty(smax, dtype=np.int64)
     S_kept = np.zeros(smax, dtype=np.bool_)
@@ -208,37 +200,40 @@ def subdivide_quadric(
     n_own = own.shape[0]
     A = np.empty((_MAX_DEPTH + 3) * n_own + 1, dtype=np.int64)
     A[:n_own] = own
-    P = np.zeros((6, 2))
-    H = np.zeros((6, 2))
-    rho = np.empty(3)
-    v = np.empty((3, 2))
-    d = np.empty(3)
+    b0, b1, b2, b3, b4, b5 = own_box[0], own_box[1], own_box[2], own_box[3], own_box[4], own_box[5]
 
     for job in range(job_start, job_plane.shape[0]):
-        nl0, nt0, npt0 = nl, nt, npt
+        nl0, nla0, nt0, npt0 = nl, nla, nt, npt
         queries = 0
         visited = 0
         unresolved = 0
+        evaluated = 0
         overflow = 0
         k = job_plane[job]
-        al = alpha[k]
+        o0, o1, o2 = origin[k, 0], origin[k, 1], origin[k, 2]
+        f00, f01, f02 = frame[k, 0, 0], frame[k, 0, 1], frame[k, 0, 2]
+        f10, f11, f12 = frame[k, 1, 0], frame[k, 1, 1], frame[k, 1, 2]
+        f20, f21, f22 = frame[k, 2, 0], frame[k, 2, 1], frame[k, 2, 2]
+        ax, ay, ac = alpha[k, 0], alpha[k, 1], alpha[k, 2]
         fl = flat[k]
         sheet = job_sheet[job]
         sx, sy = job_quadrant[job, 0], job_quadrant[job, 1]
         uv = job_uv[job] != 0
         for c in range(3):
-            S_v[0, c, 0] = job_tri[job, c, 0]
-            S_v[0, c, 1] = job_tri[job, c, 1]
-            px, py, pz = lift(origin, frame, alpha, k, sheet, S_v[0, c, 0], S_v[0, c, 1])
+            S_v[0, 2 * c] = job_tri[job, c, 0]
+            S_v[0, 2 * c + 1] = job_tri[job, c, 1]
+            px, py, pz = lift(o0, o1, o2, f00, f01, f02, f10, f11, f12, f20, f21, f22, ax, ay, ac, sheet,
+                              S_v[0, 2 * c], S_v[0, 2 * c + 1])
             dd, _ = relative_distance_pruned(C, A, 0, n_own, own_box, other_ptr, other_idx, rcap, px, py, pz,
                                              0.0, A, n_own)
             S_d[0, c] = dd
             queries += 1
+            evaluated += n_own + other_idx.shape[0]
             if trace:
                 if npt >= pcap:
                     overflow = 3
                     break
-                TP[npt, 0], TP[npt, 1], TP[npt, 2] = S_v[0, c, 0], S_v[0, c, 1], dd
+                TP[npt, 0], TP[npt, 1], TP[npt, 2] = S_v[0, 2 * c], S_v[0, 2 * c + 1], dd
                 TJ[npt] = job
                 npt += 1
         S_depth[0] = 0
@@ -248,23 +243,23 @@ def subdivide_quadric(
         while top > 0:
             top -= 1
             visited += 1
-            for c in range(3):
-                v[c, 0] = S_v[top, c, 0]
-                v[c, 1] = S_v[top, c, 1]
-                d[c] = S_d[top, c]
+            v0x, v0y, v1x, v1y, v2x, v2y = S_v[top, 0], S_v[top, 1], S_v[top, 2], S_v[top, 3], S_v[top, 4], S_v[top, 5]
+            d0, d1, d2 = S_d[top, 0], S_d[top, 1], S_d[top, 2]
             depth = S_depth[top]
             kept = S_kept[top]
             slack = S_slack[top]
             a0, an, clamp = S_a0[top], S_an[top], S_clamp[top]
             a_top = a0 + an  # lists above belong to finished subtrees
-            m, bulge = region_polygon(v, uv, sx, sy, P, H)
-            x0, y0, x1, y1 = P[0, 0], P[0, 1], P[0, 0], P[0, 1]
-            for q in range(1, m):
-                x0, y0 = min(x0, P[q, 0]), min(y0, P[q, 1])
-                x1, y1 = max(x1, P[q, 0]), max(y1, P[q, 1])
-            dlo, delta = delta_range(al, fl, x0, y0, x1, y1)
-            if sqrt3_mode and not fl and m == 3 and not uv:
-                dlo, delta = _SQRT3, _SQRT3  # a straight piece of a basic region: δ ≤ √3 (§4.1)
+            # the region is within ``bulge`` of the straight triangle: shorten radii by it
+            bulge = region_bulge(v0x, v0y, v1x, v1y, v2x, v2y, uv, sx, sy)
+            x0 = min(v0x, min(v1x, v2x)) - bulge
+            y0 = min(v0y, min(v1y, v2y)) - bulge
+            x1 = max(v0x, max(v1x, v2x)) + bulge
+            y1 = max(v0y, max(v1y, v2y)) + bulge
+            dlo, delta = delta_range(ax, ay, ac, fl, x0, y0, x1, y1)
+            if sqrt3_mode:  # assume the worst case of the low-distortion regions (§4.1), never less
+                delta = max(delta, _SQRT3)
+                dlo = delta
             rho_r = radius / delta
             status = -1
             emit_kind = -1
@@ -273,9 +268,10 @@ def subdivide_quadric(
             best = -1
             best_w = 0.0
             for c in range(3):
-                if kept or d[c] <= on_surface:
-                    w = disc_contains(P, m, v[c, 0], v[c, 1], rho_r)
-                    if w >= 0.0 and (best < 0 or w < best_w):
+                dc = d0 if c == 0 else (d1 if c == 1 else d2)
+                if kept or dc <= on_surface:
+                    w = corner_reach(v0x, v0y, v1x, v1y, v2x, v2y, c) + bulge
+                    if w <= rho_r and (best < 0 or w < best_w):
                         best, best_w = c, w
             if best >= 0:
                 emit_kind = 0
@@ -284,31 +280,25 @@ def subdivide_quadric(
                 emit_kind = 1
                 status = 1
             else:
-                neg = d[0] < 0.0 and d[1] < 0.0 and d[2] < 0.0
-                posi = d[0] > 0.0 and d[1] > 0.0 and d[2] > 0.0
+                neg = d0 < 0.0 and d1 < 0.0 and d2 < 0.0
+                posi = d0 > 0.0 and d1 > 0.0 and d2 > 0.0
                 covered = False
                 if neg or posi:
-                    for c in range(3):
-                        rho[c] = abs(d[c]) / delta
-                    covered = discs_cover(P, m, v, rho)
+                    covered = discs_cover(v0x, v0y, v1x, v1y, v2x, v2y, max(abs(d0) / delta - bulge, 0.0),
+                                          max(abs(d1) / delta - bulge, 0.0), max(abs(d2) / delta - bulge, 0.0))
                 if covered and posi:
                     status = 2
                 elif covered:
-                    # 2. kept: every sample in P stays this far from the term's other quadrics
-                    slack = math.inf
-                    for c in range(3):
-                        far = 0.0
-                        for q in range(m):
-                            far = max(far, _norm2(P[q, 0] - v[c, 0], P[q, 1] - v[c, 1]))
-                        slack = min(slack, -d[c] - delta * far)
+                    # 2. kept: every sample of the region stays this far from the term's other quadrics
+                    slack = min(-d0 - delta * (corner_reach(v0x, v0y, v1x, v1y, v2x, v2y, 0) + bulge),
+                                min(-d1 - delta * (corner_reach(v0x, v0y, v1x, v1y, v2x, v2y, 1) + bulge),
+                                    -d2 - delta * (corner_reach(v0x, v0y, v1x, v1y, v2x, v2y, 2) + bulge)))
                     kept = True
                     emit_kind = 1
                     status = 1
                 else:
-                    diam = 0.0
-                    for a in range(m):
-                        for b in range(a + 1, m):
-                            diam = max(diam, _norm2(P[a, 0] - P[b, 0], P[a, 1] - P[b, 1]))
+                    diam = max(_norm2(v1x - v0x, v1y - v0y),
+                               max(_norm2(v2x - v1x, v2y - v1y), _norm2(v0x - v2x, v0y - v2y)))
                     if min_size > 0.0 and diam * min(delta, _SQRT3) < min_size:
                         status = 3
                     elif diam < min_region or depth >= _MAX_DEPTH:
@@ -317,46 +307,50 @@ def subdivide_quadric(
                     else:
                         split = True
             count = 1
-            apex = 0
-            rho_l = rho_r
-            lattice_on_triangle = False
+            rho_l = max(rho_r - bulge, 1e-3 * rho_r)  # (bulge ≥ rho_r only at _MAX_DEPTH: never)
             if emit_kind == 1:
-                if m > 3 and bulge < 0.5 * rho_r:
-                    # lattice the straight triangle, denser by the bulge: the region beyond it is
-                    # within ``bulge`` of it (thin fan triangles of P would cost far more samples)
-                    rho_l = rho_r - bulge
-                    apex, count = _lattice_fan(v, 3, rho_l)
-                    lattice_on_triangle = True
-                else:
-                    apex, count = _lattice_fan(P, m, rho_l)
-                if refine and count >= _REFINE_SAMPLES and depth < _MAX_DEPTH and delta > _REFINE_RATIO * dlo:
-                    split = True  # geometric split of a kept region: no distance query
+                # a strongly curved region would get a needlessly dense lattice: split it (no
+                # distance query), as one whose distortion bound is loose (``refine``)
+                curved = bulge > 0.5 * rho_r
+                if not curved:
+                    count = lattice_plan(v0x, v0y, v1x, v1y, v2x, v2y, rho_l)[2]
+                if (curved or (refine and count >= _REFINE_SAMPLES and delta > _REFINE_RATIO * dlo)) \
+                        and depth < _MAX_DEPTH:
+                    split = True
                     emit_kind = -1
                     status = -1
+                elif curved:
+                    count = lattice_plan(v0x, v0y, v1x, v1y, v2x, v2y, rho_l)[2]
             if emit_kind >= 0:
                 if nl >= cap:
                     overflow = 1
                     break
+                # the quadrics that may reach into this leaf's splats (its own-term list), unless
+                # the corner distances already prove that none does
+                dbest = d0 if best == 0 else (d1 if best == 1 else d2)
+                if (slack if kept else max(-dbest, 0.0)) >= radius:
+                    LI[nl, 4], LI[nl, 5] = 0, 0
+                else:
+                    if nla + an > LA.shape[0]:
+                        overflow = 4
+                        break
+                    for i in range(an):
+                        LA[nla + i] = A[a0 + i]
+                    LI[nl, 4], LI[nl, 5] = nla, an
+                    nla += an
                 LI[nl, 0] = job
                 LI[nl, 1] = emit_kind
                 LI[nl, 3] = count
                 LF[nl, 12] = delta
                 if emit_kind == 0:
-                    LF[nl, 0] = v[best, 0]
-                    LF[nl, 1] = v[best, 1]
+                    LF[nl, 0] = v0x if best == 0 else (v1x if best == 1 else v2x)
+                    LF[nl, 1] = v0y if best == 0 else (v1y if best == 1 else v2y)
                     LI[nl, 2] = 1
-                    LF[nl, 13] = slack if kept else max(-d[best], 0.0)
+                    LF[nl, 13] = slack if kept else max(-dbest, 0.0)
                     LF[nl, 14] = delta * best_w
                 else:
-                    if lattice_on_triangle:
-                        m = 3
-                        for q in range(3):
-                            P[q, 0] = v[q, 0]
-                            P[q, 1] = v[q, 1]
-                    for q in range(m):  # rotated so that the fan apex comes first
-                        LF[nl, 2 * q] = P[(q + apex) % m, 0]
-                        LF[nl, 2 * q + 1] = P[(q + apex) % m, 1]
-                    LI[nl, 2] = m
+                    LF[nl, 0], LF[nl, 1], LF[nl, 2], LF[nl, 3], LF[nl, 4], LF[nl, 5] = v0x, v0y, v1x, v1y, v2x, v2y
+                    LI[nl, 2] = 3
                     LF[nl, 13] = slack
                     LF[nl, 14] = radius
                     LF[nl, 15] = rho_l
@@ -366,9 +360,7 @@ def subdivide_quadric(
                     if nt >= tcap:
                         overflow = 2
                         break
-                    for c in range(3):
-                        TT[nt, 2 * c] = v[c, 0]
-                        TT[nt, 2 * c + 1] = v[c, 1]
+                    TT[nt, 0], TT[nt, 1], TT[nt, 2], TT[nt, 3], TT[nt, 4], TT[nt, 5] = v0x, v0y, v1x, v1y, v2x, v2y
                     TI[nt, 0], TI[nt, 1], TI[nt, 2] = job, uv, status
                     TI[nt, 3], TI[nt, 4] = depth, k
                     nt += 1
@@ -376,36 +368,65 @@ def subdivide_quadric(
             if not split:
                 continue
             # 3. split the longest edge (a (u, v)-side at its midpoint in (u, v))
-            e = 0
-            longest = -1.0
-            for c in range(3):
-                c1 = (c + 1) % 3
-                L = _norm2(v[c1, 0] - v[c, 0], v[c1, 1] - v[c, 1])
-                if L > longest:
-                    longest, e = L, c
-            e1 = (e + 1) % 3
-            o = (e + 2) % 3
+            l0 = _norm2(v1x - v0x, v1y - v0y)
+            l1 = _norm2(v2x - v1x, v2y - v1y)
+            l2 = _norm2(v0x - v2x, v0y - v2y)
+            if l0 >= l1 and l0 >= l2:  # edge v0 v1, opposite v2
+                ex0, ey0, ex1, ey1, ox, oy, de0, de1, do = v0x, v0y, v1x, v1y, v2x, v2y, d0, d1, d2
+            elif l1 >= l2:  # edge v1 v2, opposite v0
+                ex0, ey0, ex1, ey1, ox, oy, de0, de1, do = v1x, v1y, v2x, v2y, v0x, v0y, d1, d2, d0
+            else:  # edge v2 v0, opposite v1
+                ex0, ey0, ex1, ey1, ox, oy, de0, de1, do = v2x, v2y, v0x, v0y, v1x, v1y, d2, d0, d1
             if uv:
-                mx, my = arc_midpoint(v[e, 0], v[e, 1], v[e1, 0], v[e1, 1], sx, sy)
+                mx, my = arc_midpoint(ex0, ey0, ex1, ey1, sx, sy)
             else:
-                mx, my = 0.5 * (v[e, 0] + v[e1, 0]), 0.5 * (v[e, 1] + v[e1, 1])
+                mx, my = 0.5 * (ex0 + ex1), 0.5 * (ey0 + ey1)
             dm = -rcap
             c_a0, c_an, c_clamp = a0, an, clamp
             if not kept:
-                # quadrics whose surface stays ≥ 3D from the midpoint (D: world diameter of this
-                # region) stay ≥ 2D from the children: drop them there and clamp at 2D
-                diam = 0.0
-                for a in range(m):
-                    for b in range(a + 1, m):
-                        diam = max(diam, _norm2(P[a, 0] - P[b, 0], P[a, 1] - P[b, 1]))
-                world = delta * diam
-                keep_below = 3.0 * world if world < clamp else 0.0
-                px, py, pz = lift(origin, frame, alpha, k, sheet, mx, my)
-                dm, cnt = relative_distance_pruned(C, A, a0, an, own_box, other_ptr, other_idx, clamp,
-                                                   px, py, pz, keep_below, A, a_top)
+                # The children's points lie within 2D of the midpoint (D: world diameter of this
+                # region). Quadrics whose surface stays ≥ max(4D, r + 3D) from the midpoint stay
+                # ≥ 2D from them, and farther than a splat radius from their samples: drop them
+                # there and clamp at 2D. (The distance of eq. 22, written out; see
+                # ``relative_distance_pruned``.)
+                world = delta * (max(l0, max(l1, l2)) + 2.0 * bulge)
+                keep_below = max(4.0 * world, radius + 3.0 * world) if 2.0 * world < clamp else 0.0
+                px, py, pz = lift(o0, o1, o2, f00, f01, f02, f10, f11, f12, f20, f21, f22, ax, ay, ac, sheet,
+                                  mx, my)
+                e0 = max(b0 - px, px - b3)
+                e1 = max(b1 - py, py - b4)
+                e2 = max(b2 - pz, pz - b5)
+                if e0 <= 0.0 and e1 <= 0.0 and e2 <= 0.0:
+                    own_d = max(e0, max(e1, e2))
+                else:
+                    q0, q1, q2 = max(e0, 0.0), max(e1, 0.0), max(e2, 0.0)
+                    own_d = math.sqrt(q0 * q0 + q1 * q1 + q2 * q2)
+                cnt = 0
+                for i in range(a0, a0 + an):
+                    j = A[i]
+                    dj = quadric_distance(C, j, px, py, pz)
+                    own_d = max(own_d, dj)
+                    if keep_below > 0.0 and dj > -keep_below:
+                        A[a_top + cnt] = j
+                        cnt += 1
+                if own_d >= clamp:
+                    dm = clamp
+                else:
+                    other = math.inf
+                    for e in range(n_terms):
+                        mm = -math.inf
+                        for i in range(other_ptr[e], other_ptr[e + 1]):
+                            mm = max(mm, quadric_distance(C, other_idx[i], px, py, pz))
+                            if mm >= other:
+                                break
+                        other = min(other, mm)
+                        if other <= -clamp:
+                            break
+                    dm = min(max(max(-other, own_d), -clamp), clamp)
                 if keep_below > 0.0:
                     c_a0, c_an, c_clamp = a_top, cnt, 2.0 * world
                 queries += 1
+                evaluated += an + other_idx.shape[0]
                 if trace:
                     if npt >= pcap:
                         overflow = 3
@@ -413,115 +434,121 @@ def subdivide_quadric(
                     TP[npt, 0], TP[npt, 1], TP[npt, 2] = mx, my, dm
                     TJ[npt] = job
                     npt += 1
-            # child A = (v_e, M, v_o), child B = (M, v_e1, v_o)
+            # children (e0, M, o) and (M, e1, o), same orientation as the parent
             for child in range(2):
-                S_v[top, 0, 0] = v[e, 0] if child == 0 else mx
-                S_v[top, 0, 1] = v[e, 1] if child == 0 else my
-                S_v[top, 1, 0] = mx if child == 0 else v[e1, 0]
-                S_v[top, 1, 1] = my if child == 0 else v[e1, 1]
-                S_v[top, 2, 0] = v[o, 0]
-                S_v[top, 2, 1] = v[o, 1]
-                S_d[top, 0] = d[e] if child == 0 else dm
-                S_d[top, 1] = dm if child == 0 else d[e1]
-                S_d[top, 2] = d[o]
+                if child == 0:
+                    S_v[top, 0], S_v[top, 1], S_v[top, 2], S_v[top, 3] = ex0, ey0, mx, my
+                    S_d[top, 0], S_d[top, 1] = de0, dm
+                else:
+                    S_v[top, 0], S_v[top, 1], S_v[top, 2], S_v[top, 3] = mx, my, ex1, ey1
+                    S_d[top, 0], S_d[top, 1] = dm, de1
+                S_v[top, 4], S_v[top, 5] = ox, oy
+                S_d[top, 2] = do
                 S_depth[top] = depth + 1
                 S_kept[top] = kept
                 S_slack[top] = slack
                 S_a0[top], S_an[top], S_clamp[top] = c_a0, c_an, c_clamp
                 top += 1
         if overflow != 0:
-            return nl0, nt0, npt0, job, overflow
+            return nl0, nla0, nt0, npt0, job, overflow
         counters[0] += queries
         counters[1] += visited
         counters[2] += unresolved
         counters[3] += 1
-    return nl, nt, npt, job_plane.shape[0], 0
-
-
-@inline_jit
-def _emit(C, qid, own, origin, frame, alpha, k, sheet, x, y, r_s, check_clip, pos, nrm, rad, ccount, cidx, n, nc):
-    """Write sample n at plane point (x, y) (capacity is the caller's); return the clip-index count."""
-    px, py, pz = lift(origin, frame, alpha, k, sheet, x, y)
-    pos[n, 0], pos[n, 1], pos[n, 2] = px, py, pz
-    g0 = C[qid, 0] * px + C[qid, 1] * py + C[qid, 2] * pz + C[qid, 6]
-    g1 = C[qid, 1] * px + C[qid, 3] * py + C[qid, 4] * pz + C[qid, 7]
-    g2 = C[qid, 2] * px + C[qid, 4] * py + C[qid, 5] * pz + C[qid, 8]
-    gn = math.sqrt(g0 * g0 + g1 * g1 + g2 * g2)
-    if gn > 0.0:
-        nrm[n, 0], nrm[n, 1], nrm[n, 2] = g0 / gn, g1 / gn, g2 / gn
-    else:  # a cone's apex: no normal; the sampling plane's, towards the sheet, is a fair choice
-        nrm[n, 0], nrm[n, 1], nrm[n, 2] = sheet * frame[k, 0, 2], sheet * frame[k, 1, 2], sheet * frame[k, 2, 2]
-    rad[n] = r_s
-    c0 = nc
-    if check_clip:
-        for k in range(own.shape[0]):
-            if abs(quadric_distance(C, own[k], px, py, pz)) < r_s:
-                cidx[nc] = own[k]
-                nc += 1
-    ccount[n] = nc - c0
-    return nc
+        counters[4] += evaluated
+    return nl, nla, nt, npt, job_plane.shape[0], 0
 
 
 @ieee_jit
-def emit_quadric(C, qid, own, origin, frame, alpha, job_plane, job_sheet, LF, LI, radius, reduce_radius,
+def emit_quadric(C, qid, origin, frame, alpha, job_plane, job_sheet, LF, LI, LA, radius, reduce_radius,
                  pos, nrm, rad, ccount, cidx, leaf_start, n, nc):
-    """Pass 2: write the samples of one quadric's leaves ``LF``, ``LI`` from ``leaf_start`` on.
+    """Pass 2: write the samples of one quadric's leaves ``LF``, ``LI``, ``LA`` from ``leaf_start`` on.
 
     ``pos``, ``nrm`` (N, 3), ``rad`` (N,) float64 and ``ccount`` (N,) int32 are the caller's
     output arrays, written from index ``n`` on; clip indices go to ``cidx`` from ``nc`` on, in
     sample order. Returns ``(next_leaf, n, nc)``; ``next_leaf`` < number of leaves means
     ``cidx`` may be too small for that leaf: grow it and call again with the returned values.
+    Each sample gets its position, the unit normal of its quadric (the sampling plane's, towards
+    the sheet, at a cone's apex where there is none), its radius and its clip set: the quadrics
+    of the leaf's list with |d(Q, s)| below the radius.
     """
-    n_own = own.shape[0]
     ccap = cidx.shape[0]
+    longest = 0
+    for leaf in range(LI.shape[0]):
+        longest = max(longest, LI[leaf, 5])
+    local = np.empty(longest + 1, dtype=np.int64)
+    q00, q01, q02, q11, q12, q22 = C[qid, 0], C[qid, 1], C[qid, 2], C[qid, 3], C[qid, 4], C[qid, 5]
+    m0, m1, m2 = C[qid, 6], C[qid, 7], C[qid, 8]
     for leaf in range(leaf_start, LI.shape[0]):
+        la0, lan = LI[leaf, 4], LI[leaf, 5]
+        if nc + LI[leaf, 3] * lan > ccap:
+            return leaf, n, nc
         job = LI[leaf, 0]
         k = job_plane[job]
         sheet = job_sheet[job]
+        o0, o1, o2 = origin[k, 0], origin[k, 1], origin[k, 2]
+        f00, f01, f02 = frame[k, 0, 0], frame[k, 0, 1], frame[k, 0, 2]
+        f10, f11, f12 = frame[k, 1, 0], frame[k, 1, 1], frame[k, 1, 2]
+        f20, f21, f22 = frame[k, 2, 0], frame[k, 2, 1], frame[k, 2, 2]
+        ax, ay, ac = alpha[k, 0], alpha[k, 1], alpha[k, 2]
         delta = LF[leaf, 12]
-        aux = LF[leaf, 13]
-        if LI[leaf, 1] == 0:
+        single = LI[leaf, 1] == 0
+        v0x, v0y, v1x, v1y, v2x, v2y = LF[leaf, 0], LF[leaf, 1], LF[leaf, 2], LF[leaf, 3], LF[leaf, 4], LF[leaf, 5]
+        if single:
             r_s = LF[leaf, 14] if reduce_radius else radius
-            if nc + n_own > ccap:
-                return leaf, n, nc
-            nc = _emit(C, qid, own, origin, frame, alpha, k, sheet, LF[leaf, 0], LF[leaf, 1], r_s, aux < r_s,
-                       pos, nrm, rad, ccount, cidx, n, nc)
-            n += 1
-            continue
-        m = LI[leaf, 2]
-        rho_l = LF[leaf, 15]
-        extra = radius - delta * rho_l  # the bulge, in world units
-        if nc + LI[leaf, 3] * n_own > ccap and aux < radius:  # radii never exceed ``radius``
-            return leaf, n, nc
-        for tri in range(m - 2):
-            ax, ay = LF[leaf, 0], LF[leaf, 1]
-            bx, by = LF[leaf, 2 * tri + 2], LF[leaf, 2 * tri + 3]
-            qx, qy = LF[leaf, 2 * tri + 4], LF[leaf, 2 * tri + 5]
-            centers, steps, _, reach, cs, ct = lattice_plan(ax, ay, bx, by, qx, qy, rho_l)
-            r_s = delta * reach + extra if reduce_radius else radius
-            check = aux < r_s
-            inv = 1.0 / steps
-            e1x, e1y, e2x, e2y = bx - ax, by - ay, qx - ax, qy - ay
-            if centers:
-                # copies a + (i, j)/n pointing like the triangle, and their point reflections
-                for i in range(steps):
-                    for j in range(steps - i):
-                        for flip in range(2):
-                            if flip == 1 and i + j > steps - 2:
-                                continue
-                            u = (i + cs) * inv if flip == 0 else (i + 1 - cs) * inv
-                            w = (j + ct) * inv if flip == 0 else (j + 1 - ct) * inv
-                            x = ax + u * e1x + w * e2x
-                            y = ay + u * e1y + w * e2y
-                            nc = _emit(C, qid, own, origin, frame, alpha, k, sheet, x, y, r_s, check,
-                                       pos, nrm, rad, ccount, cidx, n, nc)
-                            n += 1
-            else:
-                for i in range(steps + 1):
-                    for j in range(steps + 1 - i):
-                        x = ax + (i * inv) * e1x + (j * inv) * e2x
-                        y = ay + (i * inv) * e1y + (j * inv) * e2y
-                        nc = _emit(C, qid, own, origin, frame, alpha, k, sheet, x, y, r_s, check,
-                                   pos, nrm, rad, ccount, cidx, n, nc)
-                        n += 1
+            centers, steps, reach, cs, ct = False, 0, 0.0, 0.0, 0.0
+            n_loc = lan
+            for i in range(lan):
+                local[i] = LA[la0 + i]
+        else:
+            rho_l = LF[leaf, 15]
+            centers, steps, _, reach, cs, ct = lattice_plan(v0x, v0y, v1x, v1y, v2x, v2y, rho_l)
+            # the bulge, in world units, for reduced radii
+            r_s = delta * reach + (radius - delta * rho_l) if reduce_radius else radius
+            # keep the quadrics that can reach a splat of this lattice: a surface that stays
+            # farther than radius + (world reach of the triangle) from its first vertex cannot
+            n_loc = 0
+            if lan > 0:
+                far = max(_norm2(v1x - v0x, v1y - v0y), _norm2(v2x - v0x, v2y - v0y))
+                px, py, pz = lift(o0, o1, o2, f00, f01, f02, f10, f11, f12, f20, f21, f22, ax, ay, ac, sheet, v0x, v0y)
+                for i in range(la0, la0 + lan):
+                    if abs(quadric_distance(C, LA[i], px, py, pz)) < radius + delta * far:
+                        local[n_loc] = LA[i]
+                        n_loc += 1
+        inv = 1.0 / steps if steps > 0 else 0.0
+        e1x, e1y, e2x, e2y = v1x - v0x, v1y - v0y, v2x - v0x, v2y - v0y
+        # one loop for the three patterns: a single point, lattice vertices, copy centers
+        n_i = 1 if single else (steps if centers else steps + 1)
+        for i in range(n_i):
+            n_j = 1 if single else (steps - i if centers else steps + 1 - i)
+            for j in range(n_j):
+                for flip in range(2 if centers else 1):
+                    if flip == 1 and i + j > steps - 2:
+                        continue
+                    if single:
+                        x, y = v0x, v0y
+                    elif centers:
+                        u = (i + cs) * inv if flip == 0 else (i + 1 - cs) * inv
+                        w = (j + ct) * inv if flip == 0 else (j + 1 - ct) * inv
+                        x, y = v0x + u * e1x + w * e2x, v0y + u * e1y + w * e2y
+                    else:
+                        x, y = v0x + (i * inv) * e1x + (j * inv) * e2x, v0y + (i * inv) * e1y + (j * inv) * e2y
+                    px, py, pz = lift(o0, o1, o2, f00, f01, f02, f10, f11, f12, f20, f21, f22, ax, ay, ac, sheet, x, y)
+                    pos[n, 0], pos[n, 1], pos[n, 2] = px, py, pz
+                    g0 = q00 * px + q01 * py + q02 * pz + m0
+                    g1 = q01 * px + q11 * py + q12 * pz + m1
+                    g2 = q02 * px + q12 * py + q22 * pz + m2
+                    gn = math.sqrt(g0 * g0 + g1 * g1 + g2 * g2)
+                    if gn > 0.0:
+                        nrm[n, 0], nrm[n, 1], nrm[n, 2] = g0 / gn, g1 / gn, g2 / gn
+                    else:  # a cone's apex: no normal; take the sampling plane's towards the sheet
+                        nrm[n, 0], nrm[n, 1], nrm[n, 2] = sheet * f02, sheet * f12, sheet * f22
+                    rad[n] = r_s
+                    c0 = nc
+                    for t in range(n_loc):
+                        if abs(quadric_distance(C, local[t], px, py, pz)) < r_s:
+                            cidx[nc] = local[t]
+                            nc += 1
+                    ccount[n] = nc - c0
+                    n += 1
     return LI.shape[0], n, nc

@@ -82,7 +82,8 @@ def sample_csg(
         the normal form is unbounded (e.g. a single plane, or ``¬A``).
     distortion : "bounds" or "sqrt3"
         Turn world radii into plane radii with the per-region bound of δ (§3.4, fewer samples)
-        or with the worst case √3 of the low-distortion regions (§4.1).
+        or assume the worst case √3 of the low-distortion regions (§4.1; a region whose bound
+        exceeds √3 — one reaching beyond its low-distortion region — keeps its bound).
     min_size : float
         If > 0, discard regions still unclassified once smaller than ``min_size · radius`` (the
         paper's speed-up, e.g. 0.1). Off by default: it can leave holes at features smaller
@@ -145,8 +146,8 @@ def sample_csg(
 class _Leaves:
     """Pass-1 output of one task (see ``kernel.subdivide_quadric``)."""
 
-    def __init__(self, LF, LI, TT, TI, TP, TJ, counters) -> None:
-        self.LF, self.LI, self.TT, self.TI, self.TP, self.TJ = LF, LI, TT, TI, TP, TJ
+    def __init__(self, LF, LI, LA, TT, TI, TP, TJ, counters) -> None:
+        self.LF, self.LI, self.LA, self.TT, self.TI, self.TP, self.TJ = LF, LI, LA, TT, TI, TP, TJ
         self.counters = counters
         self.samples = int(LI[:, 3].sum())
 
@@ -159,29 +160,33 @@ def _grown(a: np.ndarray, used: int) -> np.ndarray:
 
 def _subdivide(C, task: QuadricTask, radius, min_size, sqrt3, refine, trace) -> _Leaves:
     jobs = len(task.job_plane)
-    LF, LI = np.empty((64 * jobs + 1024, 16)), np.empty((64 * jobs + 1024, 4), dtype=np.int64)
+    cap = 64 * jobs + 1024
+    LF, LI = np.empty((cap, 16)), np.empty((cap, 6), dtype=np.int64)
+    LA = np.empty(4 * cap, dtype=np.int64)
     tcap = 16 * jobs + 64 if trace else 1
     TT, TI = np.empty((tcap, 6)), np.empty((tcap, 5), dtype=np.int64)
     TP, TJ = np.empty((tcap, 3)), np.empty(tcap, dtype=np.int64)
     counters = np.zeros(5, dtype=np.int64)
-    nl = nt = npt = job = 0
+    nl = nla = nt = npt = job = 0
     while True:
-        nl, nt, npt, job, overflow = subdivide_quadric(
+        nl, nla, nt, npt, job, overflow = subdivide_quadric(
             C, task.own, task.own_box, task.other_ptr, task.other_idx, task.rcap,
             task.origin, task.frame, task.alpha, task.flat,
             task.job_plane, task.job_sheet, task.job_tri, task.job_uv, task.job_quadrant,
             radius, min_size, MIN_REGION * radius, ON_SURFACE * task.scale, sqrt3, refine, trace,
-            LF, LI, TT, TI, TP, TJ, counters, job, nl, nt, npt,
+            LF, LI, LA, TT, TI, TP, TJ, counters, job, nl, nla, nt, npt,
         )  # fmt: skip
         if overflow == OVERFLOW["none"]:
             break
         if overflow == OVERFLOW["leaves"]:
             LF, LI = _grown(LF, nl), _grown(LI, nl)
+        elif overflow == OVERFLOW["clip_lists"]:
+            LA = _grown(LA, nla)
         elif overflow == OVERFLOW["trace_leaves"]:
             TT, TI = _grown(TT, nt), _grown(TI, nt)
         else:
             TP, TJ = _grown(TP, npt), _grown(TJ, npt)
-    return _Leaves(LF[:nl], LI[:nl], TT[:nt], TI[:nt], TP[:npt], TJ[:npt], counters)
+    return _Leaves(LF[:nl], LI[:nl], LA[:nla], TT[:nt], TI[:nt], TP[:npt], TJ[:npt], counters)
 
 
 def _emit_all(nf: NormalForm, C, tasks, leaves, radius: float, reduce_radius: bool, trace: bool, t0: float):
@@ -205,12 +210,12 @@ def _emit_all(nf: NormalForm, C, tasks, leaves, radius: float, reduce_radius: bo
         leaf, end = 0, at
         while True:
             leaf, end, nc = emit_quadric(
-                C, task.index, task.own, task.origin, task.frame, task.alpha, task.job_plane, task.job_sheet,
-                lv.LF, lv.LI, radius, reduce_radius, positions, normals, radii, clip_count, cidx, leaf, end, nc,
+                C, task.index, task.origin, task.frame, task.alpha, task.job_plane, task.job_sheet,
+                lv.LF, lv.LI, lv.LA, radius, reduce_radius, positions, normals, radii, clip_count, cidx, leaf, end, nc,
             )  # fmt: skip
             if leaf >= len(lv.LI):
                 break
-            need = nc + int(lv.LI[leaf, 3]) * len(task.own)
+            need = nc + int(lv.LI[leaf, 3] * lv.LI[leaf, 5])
             grown = np.empty(max(4 * len(cidx), need), dtype=np.int64)
             grown[:nc] = cidx[:nc]
             cidx = grown
