@@ -23,8 +23,16 @@ import numpy as np
 from .._jit import jit
 from ..errors import GeometryError
 from ..exact.intrinsics import classify_at, intersect_into
-from ..mesh.cutting import CUT_PROPER, _cut_kernel, _cut_naive_kernel
-from ..mesh.halfedge import FACE, HE, NEXT, NF, NH, NV, OPP, PLANE, TWIN, VERT, MeshStore, _dest, _plane_row
+from ..mesh.cutting import (
+    CUT_PROPER,
+    FACES_PER_FACE,
+    HALFEDGES_PER_FACE,
+    VERTICES_PER_FACE,
+    _cut_kernel,
+    _cut_naive_kernel,
+    _room_for_cut,
+)
+from ..mesh.halfedge import FACE, HE, NEXT, OPP, PLANE, TWIN, VERT, MeshStore, _dest, _plane_row
 from .surface import BoundarySurface, assemble_surface
 from .tree import OUT, BSPTree
 
@@ -61,9 +69,7 @@ def _cells_kernel(palette, vx, he, fc, vmark, vdot, hmark, counts, loop_v, loop_
                 state[1] += 1
             state[0] = top
             continue
-        need = bound + 2
-        if (counts[NV] + 2 * need > vx.shape[0] or counts[NH] + 6 * need + 2 > he.shape[0]
-                or counts[NF] + need + 2 > fc.shape[0] or top + 2 > stack.shape[0] or need > loop_v.shape[0]):
+        if not _room_for_cut(counts, vx, he, fc, loop_v, bound) or top + 2 > stack.shape[0]:
             return _NEED_MORE_ROOM
         # The caps face the other child: the negative part's cap looks into pos[node].
         if naive:
@@ -291,7 +297,7 @@ def _room_for_next_cut(store: MeshStore, stack: np.ndarray, bound_column: int, t
     Returns (stack, loop_v, loop_h), each the old array or a larger one.
     """
     bound = int(stack[top, bound_column]) + 2
-    store.reserve(2 * bound, 6 * bound + 2, bound + 2)
+    store.reserve(VERTICES_PER_FACE * bound, HALFEDGES_PER_FACE * bound + 2, FACES_PER_FACE * bound + 2)
     if top + 2 > stack.shape[0]:
         stack = _grow(stack)
     if bound > loop_v.shape[0]:

@@ -24,8 +24,8 @@ import numpy as np
 from .._jit import jit
 from ..errors import GeometryError
 from ..exact.wide import width_of
-from ..mesh.cutting import CUT_PROPER, _cut_kernel
-from ..mesh.halfedge import NF, NH, NV, MeshStore
+from ..mesh.cutting import CUT_PROPER, _cut_kernel, _room_for_cut
+from ..mesh.halfedge import MeshStore
 from .build import bsp_from_polygons
 from .extract import _grow, _room_for_next_cut, boundary_pieces
 from .polygon import PolygonSet
@@ -81,9 +81,7 @@ def _merge_kernel(palette, vx, he, fc, vmark, vdot, counts, loop_v, loop_h,
             state[2] += 1
             state[0] = top
             continue
-        need = bound + 2
-        if (counts[NV] + 2 * need > vx.shape[0] or counts[NH] + 6 * need + 2 > he.shape[0]
-                or counts[NF] + need + 2 > fc.shape[0] or top + 2 > stack.shape[0] or need > loop_v.shape[0]
+        if (not _room_for_cut(counts, vx, he, fc, loop_v, bound) or top + 2 > stack.shape[0]
                 or state[1] + 2 > o_plane.shape[0]):
             return _NEED_MORE_ROOM
         row = plane + b_offset if in_b else plane

@@ -24,6 +24,7 @@ import numpy as np
 
 from csgnb.errors import CsgnbError, GeometryError
 from csgnb.quadric.quadric import SINGULAR_CONDITION, Quadric
+from csgnb.quadric.quadric import _as_finite_array as _finite  # one finite-array check for quadrics and transforms
 
 __all__ = [
     "Node",
@@ -112,18 +113,6 @@ class Node:
     def __repr__(self) -> str:
         kids = ", ".join(repr(c) for c in self.children())
         return f"{self._label()}({kids})"
-
-
-def _finite(values, shape: tuple[int, ...], name: str) -> np.ndarray:
-    try:
-        arr = np.asarray(values, dtype=np.float64)
-    except (TypeError, ValueError) as exc:
-        raise TypeError(f"{name} must be an array of numbers, got {type(values).__name__}") from exc
-    if arr.shape != shape:
-        raise ValueError(f"{name} must have shape {shape}, got {arr.shape}")
-    if not np.all(np.isfinite(arr)):
-        raise GeometryError(f"{name} contains NaN or inf: {arr.tolist()}; pass finite numbers")
-    return arr
 
 
 class Leaf(Node):

@@ -70,6 +70,16 @@ CUT_ERROR = -9
 VERTICES_PER_FACE, HALFEDGES_PER_FACE, FACES_PER_FACE = 2, 6, 1
 
 
+@jit(inline="always")
+def _room_for_cut(counts, vx, he, fc, loop_v, faces):
+    """Whether the store's arrays can take a cut of a polytope with at most ``faces`` faces."""
+    need = faces + 2
+    return (counts[NV] + VERTICES_PER_FACE * need <= vx.shape[0]
+            and counts[NH] + HALFEDGES_PER_FACE * need + 2 <= he.shape[0]
+            and counts[NF] + FACES_PER_FACE * need + 2 <= fc.shape[0]
+            and need <= loop_v.shape[0])
+
+
 # Kernels called per vertex or per cut are inlined at the numba IR level: a call that is
 # not inlined increfs and decrefs each of its many array arguments (measured: a slab cut
 # drops from 1.58 to 1.23 µs).

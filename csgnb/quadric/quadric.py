@@ -48,7 +48,7 @@ def _as_finite_array(values, shape: tuple[int, ...], name: str) -> np.ndarray:
     if arr.shape != shape:
         raise ValueError(f"{name} must have shape {shape}, got {arr.shape}")
     if not np.all(np.isfinite(arr)):
-        raise GeometryError(f"{name} contains NaN or inf: {arr!r}; pass finite coefficients")
+        raise GeometryError(f"{name} contains NaN or inf: {arr.tolist()}; pass finite numbers")
     return arr
 
 
