@@ -7,8 +7,8 @@ Two pipelines (see docs/ARCHITECTURE.md):
 * quadric CSG surfaces: :mod:`csgnb.quadric` → CSG graphs → sampling → rendering.
 """
 
-from .errors import CsgnbError, GeometryError, PrecisionError
+from .errors import CsgnbError, GeometryError, InternalError, PrecisionError
 
 __version__ = "0.1.0"
 
-__all__ = ["CsgnbError", "GeometryError", "PrecisionError", "__version__"]
+__all__ = ["CsgnbError", "GeometryError", "InternalError", "PrecisionError", "__version__"]

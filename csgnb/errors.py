@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-__all__ = ["CsgnbError", "PrecisionError", "GeometryError"]
+__all__ = ["CsgnbError", "PrecisionError", "GeometryError", "InternalError"]
 
 
 class CsgnbError(ValueError):
@@ -19,3 +19,11 @@ class PrecisionError(CsgnbError):
 
 class GeometryError(CsgnbError):
     """An input is geometrically invalid (degenerate, open, non-manifold, ...)."""
+
+
+class InternalError(RuntimeError):
+    """An internal invariant of csgnb failed: a bug in csgnb, not a problem with the input.
+
+    Deliberately *not* a ``ValueError``: callers that catch bad-input errors must not
+    swallow it. Please report it with the input that caused it.
+    """

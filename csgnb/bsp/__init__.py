@@ -4,14 +4,14 @@ import from meshes, Booleans by mesh cutting and redundancy removal.
 Modules, in pipeline order: :mod:`~csgnb.bsp.tree` (the flat tree), :mod:`~csgnb.bsp.polygon`
 (plane-based polygons, exact splitting), :mod:`~csgnb.bsp.build` (mesh / polygon soup → BSP),
 :mod:`~csgnb.bsp.extract` (cells and boundary), :mod:`~csgnb.bsp.surface` (conforming exact
-surfaces), :mod:`~csgnb.bsp.merge` (Booleans, redundancy removal), :mod:`~csgnb.bsp.solid`
+surfaces), :mod:`~csgnb.bsp.merging` (Booleans, redundancy removal), :mod:`~csgnb.bsp.solid`
 (the :class:`BSP` API), :mod:`~csgnb.bsp.random_tree` and :mod:`~csgnb.bsp.scenes` (test and
 benchmark scenes).
 """
 
 from .build import bsp_from_mesh, bsp_from_polygons
 from .extract import Extraction, extract_boundary, extract_cells
-from .merge import MergeResult, merge, remove_redundancy
+from .merging import MergeResult, merge, remove_redundancy
 from .polygon import PolygonSet
 from .random_tree import random_bsp
 from .scenes import tangent_plane_bsp

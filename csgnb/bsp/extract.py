@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._jit import jit
-from ..errors import GeometryError
+from ..errors import InternalError
 from ..exact.intrinsics import classify_at, intersect_into
 from ..mesh.cutting import (
     CUT_PROPER,
@@ -331,7 +331,8 @@ def extract_cells(tree: BSPTree, lo, hi, *, capacity: int = 1024, naive: bool = 
         if status == _DONE:
             return store, cells[: state[1]]
         if status == _FAILED:
-            raise GeometryError("cutting found an inconsistent half-edge mesh during extraction (a bug: please report)")
+            raise InternalError("cutting found an inconsistent half-edge mesh during extraction"
+                                " (a bug in csgnb: please report it)")
         stack, loop_v, loop_h = _room_for_next_cut(store, stack, _FACE_BOUND, int(state[0]) - 1, loop_v, loop_h)
         if state[1] >= cells.shape[0]:
             cells = _grow(cells)

@@ -20,7 +20,7 @@ from ..exact.predicates import homogeneous_points
 from ..mesh.halfedge import box_planes
 from .build import bsp_from_mesh
 from .extract import extract_boundary
-from .merge import MergeResult, merge, remove_redundancy
+from .merging import MergeResult, merge, remove_redundancy
 from .surface import BoundarySurface
 from .tree import BSPTree
 

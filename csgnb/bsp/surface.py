@@ -22,7 +22,7 @@ from math import gcd
 
 import numpy as np
 
-from ..errors import GeometryError
+from ..errors import InternalError
 from ..exact.predicates import to_double_position
 from ..exact.wide import from_wide, to_wide, width_of
 
@@ -217,7 +217,7 @@ def assemble_surface(palette: np.ndarray, vx: np.ndarray, edge_plane: np.ndarray
             elif ia > ib + 1:
                 indices.extend(order[line][ib + 1 : ia][::-1])
             elif ia == ib:
-                raise GeometryError("a boundary edge has coincident endpoints (a bug: please report)")
+                raise InternalError("a boundary edge has coincident endpoints (a bug in csgnb: please report it)")
         offsets.append(len(indices))
     vertices = to_wide(np.array(points, dtype=object).reshape(-1, 4), width) if points else np.zeros((0, 4), vx.dtype)
     return BoundarySurface(

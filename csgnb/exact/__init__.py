@@ -24,7 +24,7 @@ from .predicates import (
     signed_distance,
     to_double_position,
 )
-from .quantize import Quantization, quantize
+from .quantization import Quantization, quantize
 from .wide import WIDTHS, from_wide, is_wide, to_wide, wide_dtype, width_of
 
 __all__ = [

@@ -32,7 +32,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._jit import jit
-from ..errors import GeometryError
+from ..errors import GeometryError, InternalError
 from ..exact.intrinsics import compare_cached_values_at, intersect_into, plane_value_into
 from .halfedge import (
     FACE,
@@ -452,7 +452,7 @@ def cut(store: MeshStore, cell: int, plane: int, *, opp_negative: int = -1, opp_
                                    loop_v, loop_h, cell, plane, opp_negative, opp_positive, path)
     n_cls, n_con = (int(x) for x in store.counts[[N_CLASSIFY, N_CONSTRUCT]] - before)
     if status == CUT_ERROR:
-        raise GeometryError("cutting found an inconsistent half-edge mesh (a bug: please report it)")
+        raise InternalError("cutting found an inconsistent half-edge mesh (a bug in csgnb: please report it)")
     classified = tuple(int(v) for v in np.flatnonzero((store.vmark[:nv_before] >> 2) == store.counts[STAMP]))
     descent = tuple(int(v) for v in path[1 : 1 + path[0]])
     if status == CUT_PROPER:

@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._jit import jit
-from ..errors import GeometryError
+from ..errors import GeometryError, InternalError
 from ..exact.wide import width_of
 from ..mesh.cutting import CUT_PROPER, _cut_kernel, _room_for_cut
 from ..mesh.halfedge import MeshStore
@@ -192,7 +192,8 @@ def merge(a: BSPTree, b: BSPTree, fn, lo, hi) -> MergeResult:
         if status == _DONE:
             break
         if status == _FAILED:
-            raise GeometryError("cutting found an inconsistent half-edge mesh during a merge (a bug: please report)")
+            raise InternalError("cutting found an inconsistent half-edge mesh during a merge"
+                                " (a bug in csgnb: please report it)")
         stack, loop_v, loop_h = _room_for_next_cut(store, stack, _BOUND, int(state[0]) - 1, loop_v, loop_h)
         if state[1] + 2 > o_plane.shape[0]:
             o_plane, o_neg, o_pos, o_label = (_grow(x, -1) for x in (o_plane, o_neg, o_pos, o_label))
