@@ -28,7 +28,7 @@ from .._jit import jit
 from ..errors import GeometryError
 from ..exact.budgets import check_mesh_points
 from ..exact.intrinsics import classify_at, plane_from_points_into, signed_distance_into, wide_sign_at
-from ..exact.wide import wide_dtype
+from ..exact.wide import DEFAULT_WIDTH, wide_dtype
 from .polygon import PolygonSet, _checked_vertices, copy_point, polygons_from_triangles, split_polygon
 from .tree import OUT, BSPTree
 
@@ -432,7 +432,7 @@ def _describe_edge(first_index, V, a: int, b: int) -> str:
     return f"({int(first_index[a])}, {int(first_index[b])}) from {V[a].tolist()} to {V[b].tolist()}"
 
 
-def validate_mesh(vertices, faces, width: int = 128) -> tuple[np.ndarray, np.ndarray]:
+def validate_mesh(vertices, faces, width: int = DEFAULT_WIDTH) -> tuple[np.ndarray, np.ndarray]:
     """Check that an integer triangle mesh bounds a solid; return it welded: ``(vertices, faces)``.
 
     Vertices at equal positions are merged first (a triangle soup with repeated
@@ -546,7 +546,7 @@ def validate_mesh(vertices, faces, width: int = 128) -> tuple[np.ndarray, np.nda
     return W, T
 
 
-def bsp_from_mesh(vertices, faces, *, width: int = 128, seed: int = 0, label: int = 1) -> BSPTree:
+def bsp_from_mesh(vertices, faces, *, width: int = DEFAULT_WIDTH, seed: int = 0, label: int = 1) -> BSPTree:
     """Return the BSP of the solid bounded by a closed, outward-oriented integer triangle mesh.
 
     Parameters

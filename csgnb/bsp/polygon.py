@@ -44,7 +44,7 @@ from ..errors import GeometryError
 from ..exact.budgets import check_mesh_points, check_planes
 from ..exact.intrinsics import classify_at, intersect_into, wide_sign_at
 from ..exact.predicates import plane_from_points
-from ..exact.wide import is_wide, to_wide, wide_dtype
+from ..exact.wide import DEFAULT_WIDTH, is_wide, to_wide, wide_dtype
 
 __all__ = [
     "PolygonSet",
@@ -493,7 +493,8 @@ def dedup_planes(planes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return np.ascontiguousarray(planes[first[order]]), rank[inverse.reshape(-1)].astype(np.int32)
 
 
-def polygons_from_triangles(vertices, triangles, width: int = 128, payload=None) -> tuple[np.ndarray, PolygonSet]:
+def polygons_from_triangles(vertices, triangles, width: int = DEFAULT_WIDTH,
+                            payload=None) -> tuple[np.ndarray, PolygonSet]:
     """Return ``(palette, polygons)``: one plane-based polygon per triangle.
 
     The support of triangle (p, q, r) is the plane through p, q, r with normal

@@ -17,6 +17,7 @@ import numpy as np
 
 from ..errors import GeometryError
 from ..exact.predicates import homogeneous_points
+from ..exact.wide import DEFAULT_WIDTH
 from ..mesh.halfedge import box_planes
 from .build import bsp_from_mesh
 from .extract import extract_boundary
@@ -72,7 +73,7 @@ class BSP:
     # -- construction -------------------------------------------------------
 
     @classmethod
-    def from_mesh(cls, vertices, faces, *, width: int = 128, seed: int = 0, margin: int = 1, lo=None,
+    def from_mesh(cls, vertices, faces, *, width: int = DEFAULT_WIDTH, seed: int = 0, margin: int = 1, lo=None,
                   hi=None) -> BSP:
         """Import a closed, outward, non-self-intersecting triangle mesh with integer vertices.
 
@@ -87,7 +88,7 @@ class BSP:
         return cls(tree, lo, hi)
 
     @classmethod
-    def box(cls, lo, hi, *, width: int = 128, domain_margin: int = 1) -> BSP:
+    def box(cls, lo, hi, *, width: int = DEFAULT_WIDTH, domain_margin: int = 1) -> BSP:
         """The box ``[lo, hi]`` as a solid (six planes), in a domain ``domain_margin`` larger."""
         planes = box_planes(lo, hi, width)
         k = 6

@@ -24,12 +24,14 @@ from .predicates import (
     signed_distance,
     to_double_position,
 )
-from .quantization import Quantization, quantize
-from .wide import WIDTHS, from_wide, is_wide, to_wide, wide_dtype, width_of
+from .quantization import Grid, Quantization, quantize
+from .wide import DEFAULT_WIDTH, WIDTHS, from_wide, is_wide, to_wide, wide_dtype, width_of
 
 __all__ = [
     "WIDTHS",
     "BitBudget",
+    "DEFAULT_WIDTH",
+    "Grid",
     "Quantization",
     "are_planes_parallel",
     "budget",

@@ -17,6 +17,7 @@ import numpy as np
 from ..errors import PrecisionError
 
 __all__ = [
+    "DEFAULT_WIDTH",
     "WIDTHS",
     "wide_dtype",
     "width_of",
@@ -27,6 +28,10 @@ __all__ = [
 
 #: The supported integer widths in bits.
 WIDTHS: tuple[int, ...] = (128, 192, 256)
+
+DEFAULT_WIDTH: int = 128
+"""The width every csgnb constructor uses unless told otherwise (quantize, Grid, BSP, workpieces):
+the fastest, with a mesh budget of |coordinate| <= 4567 (eq. 8). Pass ``width=192`` or ``256`` for finer grids."""
 
 _DTYPES = {w: np.dtype([("limbs", "<u8", (w // 64,))]) for w in WIDTHS}
 
