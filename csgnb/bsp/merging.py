@@ -22,35 +22,37 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._jit import jit
-from ..errors import GeometryError, InternalError
+from .._resumable import DONE, FAILED, NEED_ROOM, grown, run_resumable
+from .._views import unmanaged, unmanaged_tuple
+from ..errors import GeometryError
 from ..exact.wide import width_of
-from ..mesh.cutting import CUT_PROPER, _cut_kernel, _room_for_cut
-from ..mesh.halfedge import MeshStore
+from ..mesh.cutting import CUT_PROPER, cut_cell
+from ..mesh.halfedge import MeshStore, grown_mesh_arrays, room_for_cut
 from .build import bsp_from_polygons
-from .extract import _grow, _room_for_next_cut, boundary_pieces
+from .extract import TreeArrays, boundary_pieces, tree_arrays
 from .polygon import PolygonSet
 from .surface import BoundarySurface, assemble_surface
 from .tree import OUT, BSPTree
 
 __all__ = ["MergeResult", "merge", "merge_table", "remove_redundancy"]
 
-_NEED_MORE_ROOM, _DONE, _FAILED = 1, 0, -1
 # Stack columns: which tree (0 = A, 1 = B), node, label of the A-leaf above (B only),
 # cell handle, bound on the cell's face count, output node.
 _TREE, _NODE, _ALABEL, _HANDLE, _BOUND, _OUT = 0, 1, 2, 3, 4, 5
 
 
-@jit
-def _merge_kernel(palette, vx, he, fc, vmark, vdot, counts, loop_v, loop_h,
-                  a_plane, a_neg, a_pos, a_label, b_plane, b_neg, b_pos, b_label, b_offset,
-                  table, constant, stack, state, o_plane, o_neg, o_pos, o_label, cells):
-    """Merge A and B cell by cell; resumable like :func:`csgnb.bsp.extract._cells_kernel`.
+@jit(inline="always")
+def merge_cells(m, a, b, b_offset, table, constant, stack, state, o, cells, no_path):
+    """Merge A and B cell by cell (§3.5); resumable (see :mod:`csgnb._resumable`).
 
-    ``table[la, lb]`` is the merge function, ``constant[la]`` its value when it does not
-    depend on lb (else -1). ``state`` = (stack size, output nodes, cells). Output leaves
-    are recorded in ``cells`` as (output node, handle). Returns 0 done, 1 grow, -1 error.
+    ``a``, ``b``, ``o`` are :class:`~csgnb.bsp.extract.TreeArrays` (``o`` is filled:
+    the output tree, with room for ``o.plane.shape[0]`` nodes); B's palette rows are
+    ``b_offset`` + its rows. ``table[la, lb]`` is the merge function, ``constant[la]``
+    its value when it does not depend on lb (else -1). ``state`` = (stack size, output
+    nodes, cells). Output leaves are recorded in ``cells`` as (output node, handle);
+    each cap face's ``OPP`` is the output node on its other side. Returns DONE,
+    NEED_ROOM or FAILED.
     """
-    no_path = np.zeros(1, np.int64)
     while state[0] > 0:
         top = state[0] - 1
         in_b = stack[top, _TREE] == 1
@@ -58,12 +60,12 @@ def _merge_kernel(palette, vx, he, fc, vmark, vdot, counts, loop_v, loop_h,
         h = stack[top, _HANDLE]
         bound = stack[top, _BOUND]
         out = stack[top, _OUT]
-        plane = b_plane[node] if in_b else a_plane[node]
+        plane = b.plane[node] if in_b else a.plane[node]
         if plane < 0:
             if in_b:
-                lab = table[stack[top, _ALABEL], b_label[node]]
+                lab = table[stack[top, _ALABEL], b.label[node]]
             else:
-                la = a_label[node]
+                la = a.label[node]
                 if constant[la] < 0:
                     stack[top, _TREE] = 1  # walk the cell through B
                     stack[top, _NODE] = 0
@@ -71,50 +73,56 @@ def _merge_kernel(palette, vx, he, fc, vmark, vdot, counts, loop_v, loop_h,
                     continue
                 lab = constant[la]
             if state[2] >= cells.shape[0]:
-                return _NEED_MORE_ROOM
-            o_plane[out] = -1
-            o_neg[out] = -1
-            o_pos[out] = -1
-            o_label[out] = lab
+                return NEED_ROOM
+            o.plane[out] = -1
+            o.neg[out] = -1
+            o.pos[out] = -1
+            o.label[out] = lab
             cells[state[2], 0] = out
             cells[state[2], 1] = h
             state[2] += 1
             state[0] = top
             continue
-        if (not _room_for_cut(counts, vx, he, fc, loop_v, bound) or top + 2 > stack.shape[0]
-                or state[1] + 2 > o_plane.shape[0]):
-            return _NEED_MORE_ROOM
+        if not room_for_cut(m, bound) or top + 2 > stack.shape[0] or state[1] + 2 > o.plane.shape[0]:
+            return NEED_ROOM
         row = plane + b_offset if in_b else plane
         n1 = state[1]
         n2 = n1 + 1
-        status, a, b = _cut_kernel(palette, vx, he, fc, vmark, vdot, counts, loop_v, loop_h, h, row, n2, n1, no_path)
+        status, ca, cb = cut_cell(m, h, row, n2, n1, no_path)
         if status == CUT_PROPER:
             state[1] += 2
-            o_plane[out] = row
-            o_neg[out] = n1
-            o_pos[out] = n2
-            o_label[out] = -1
-            child_neg = b_neg[node] if in_b else a_neg[node]
-            child_pos = b_pos[node] if in_b else a_pos[node]
+            o.plane[out] = row
+            o.neg[out] = n1
+            o.pos[out] = n2
+            o.label[out] = -1
+            child_neg = b.neg[node] if in_b else a.neg[node]
+            child_pos = b.pos[node] if in_b else a.pos[node]
             for c in range(6):
                 stack[top + 1, c] = stack[top, c]
             stack[top, _NODE] = child_pos
-            stack[top, _HANDLE] = b
+            stack[top, _HANDLE] = cb
             stack[top, _BOUND] = bound + 1
             stack[top, _OUT] = n2
             stack[top + 1, _NODE] = child_neg
-            stack[top + 1, _HANDLE] = a
+            stack[top + 1, _HANDLE] = ca
             stack[top + 1, _BOUND] = bound + 1
             stack[top + 1, _OUT] = n1
             state[0] = top + 2
         elif status == 0:
             if in_b:
-                stack[top, _NODE] = b_neg[node] if a < 0 else b_pos[node]
+                stack[top, _NODE] = b.neg[node] if ca < 0 else b.pos[node]
             else:
-                stack[top, _NODE] = a_neg[node] if a < 0 else a_pos[node]
+                stack[top, _NODE] = a.neg[node] if ca < 0 else a.pos[node]
         else:
-            return _FAILED
-    return _DONE
+            return FAILED
+    return DONE
+
+
+@jit
+def _merge_kernel(m, a, b, b_offset, table, constant, stack, state, o, cells, no_path):
+    m, a, b, o = unmanaged_tuple(m), unmanaged_tuple(a), unmanaged_tuple(b), unmanaged_tuple(o)
+    return merge_cells(m, a, b, b_offset, unmanaged(table), unmanaged(constant), unmanaged(stack), unmanaged(state),
+                       o, unmanaged(cells), unmanaged(no_path))
 
 
 def merge_table(fn, labels_a, labels_b) -> np.ndarray:
@@ -150,6 +158,17 @@ class MergeResult:
         return assemble_surface(*self.boundary_pieces())
 
 
+def constant_labels(table: np.ndarray, labels_b: np.ndarray) -> np.ndarray:
+    """``(La,) int32``: the value of ``table[la, .]`` when it is the same over ``labels_b``, else -1."""
+    present_b = np.unique(labels_b)
+    constant = np.full(table.shape[0], -1, np.int32)
+    for label in range(table.shape[0]):
+        values = np.unique(table[label, present_b])
+        if values.shape[0] == 1:
+            constant[label] = values[0]
+    return constant
+
+
 def merge(a: BSPTree, b: BSPTree, fn, lo, hi) -> MergeResult:
     """Merge BSPs ``a`` and ``b`` with the leaf-label function ``fn(la, lb)`` inside the box ``[lo, hi]``.
 
@@ -165,43 +184,41 @@ def merge(a: BSPTree, b: BSPTree, fn, lo, hi) -> MergeResult:
     if width_of(a.palette) != width_of(b.palette):
         raise GeometryError(f"cannot merge a {a.width}-bit BSP with a {b.width}-bit BSP: convert one first")
     palette = np.concatenate([a.palette, b.palette])
-    store = MeshStore(palette, capacity=1024)
+    store = MeshStore(palette, capacity=256 + 8 * (a.n_nodes + b.n_nodes))
     box = store.add_box(lo, hi)
     la = a.label[a.plane < 0]
     lb = b.label[b.plane < 0]
     table = merge_table(fn, la, lb)
-    present_b = np.unique(lb)
-    constant = np.full(table.shape[0], -1, np.int32)
-    for label in range(table.shape[0]):
-        values = np.unique(table[label, present_b])
-        if values.shape[0] == 1:
-            constant[label] = values[0]
-    stack = np.zeros((64, 6), np.int64)
+    constant = constant_labels(table, lb)
+    stack = np.zeros((max(64, 2 * (a.depth() + b.depth()) + 8), 6), np.int64)
     stack[0] = (0, 0, 0, box, 6, 0)
     state = np.array([1, 1, 0], np.int64)
-    cap = 64
-    o_plane, o_neg, o_pos, o_label = (np.full(cap, -1, np.int32) for _ in range(4))
-    cells = np.zeros((32, 2), np.int64)
-    loop_v = np.empty(64, np.int64)
-    loop_h = np.empty(64, np.int64)
-    while True:
-        status = _merge_kernel(store.palette, store.vx, store.he, store.fc, store.vmark, store.vdot, store.counts,
-                               loop_v, loop_h, a.plane, a.neg, a.pos, a.label, b.plane, b.neg, b.pos, b.label,
-                               a.palette.shape[0], table, constant, stack, state, o_plane, o_neg, o_pos, o_label,
-                               cells)
-        if status == _DONE:
-            break
-        if status == _FAILED:
-            raise InternalError("cutting found an inconsistent half-edge mesh during a merge"
-                                " (a bug in csgnb: please report it)")
-        stack, loop_v, loop_h = _room_for_next_cut(store, stack, _BOUND, int(state[0]) - 1, loop_v, loop_h)
-        if state[1] + 2 > o_plane.shape[0]:
-            o_plane, o_neg, o_pos, o_label = (_grow(x, -1) for x in (o_plane, o_neg, o_pos, o_label))
-        if state[2] >= cells.shape[0]:
-            cells = _grow(cells)
+    cap = 4 * (a.n_nodes + b.n_nodes) + 64
+    arrays = {"o": TreeArrays(*(np.full(cap, -1, np.int32) for _ in range(4))), "cells": np.zeros((cap, 2), np.int64),
+              "stack": stack}
+    ta, tb = tree_arrays(a), tree_arrays(b)
+    no_path = np.zeros(1, np.int64)
+
+    def step():
+        return _merge_kernel(store.m, ta, tb, a.palette.shape[0], table, constant, arrays["stack"], state,
+                             arrays["o"], arrays["cells"], no_path)
+
+    def grow():
+        top = int(state[0]) - 1
+        bound = int(arrays["stack"][top, _BOUND]) + 2
+        store.m = grown_mesh_arrays(store.m, 2 * bound, 6 * bound + 2, bound + 2, loop=bound)
+        if top + 2 > arrays["stack"].shape[0]:
+            arrays["stack"] = grown(arrays["stack"])
+        if state[1] + 2 > arrays["o"].plane.shape[0]:
+            arrays["o"] = TreeArrays(*(grown(x, fill=-1) for x in arrays["o"]))
+        if state[2] >= arrays["cells"].shape[0]:
+            arrays["cells"] = grown(arrays["cells"])
+
+    run_resumable(step, grow, "BSP merge")
     n = int(state[1])
-    tree = BSPTree(store.planes.copy(), o_plane[:n], o_neg[:n], o_pos[:n], o_label[:n])
-    return MergeResult(tree, store, cells[: int(state[2])])
+    o = arrays["o"]
+    tree = BSPTree(store.planes.copy(), o.plane[:n], o.neg[:n], o.pos[:n], o.label[:n], validate=False)
+    return MergeResult(tree, store, arrays["cells"][: int(state[2])])
 
 
 def remove_redundancy(result: MergeResult, *, seed: int = 0) -> BSPTree:

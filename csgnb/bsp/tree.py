@@ -17,7 +17,7 @@ inside of a face is its plane's negative side.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import InitVar, dataclass
 
 import numpy as np
 
@@ -103,6 +103,10 @@ class BSPTree:
         Exact integer planes (a, b, c, d) of one width.
     plane, neg, pos, label : (n,) int32
         The node arrays; node 0 is the root.
+    validate : bool
+        Check the arrays (shapes, a tree rooted at 0, labels, the palette's budget).
+        csgnb's own kernels pass ``False`` for the trees they build, which are valid by
+        construction; everything that comes from outside is checked.
     """
 
     palette: np.ndarray
@@ -110,8 +114,14 @@ class BSPTree:
     neg: np.ndarray
     pos: np.ndarray
     label: np.ndarray
+    validate: InitVar[bool] = True
 
-    def __post_init__(self) -> None:
+    def __post_init__(self, validate: bool = True) -> None:
+        if not validate:
+            for name in ("plane", "neg", "pos", "label"):
+                object.__setattr__(self, name, np.ascontiguousarray(getattr(self, name), dtype=np.int32))
+            object.__setattr__(self, "palette", np.ascontiguousarray(self.palette))
+            return
         if not (is_wide(self.palette) and self.palette.ndim == 2 and self.palette.shape[1] == 4):
             raise GeometryError(f"palette must be an (m, 4) wide array of planes, got {self.palette.shape}")
         arrays = {name: getattr(self, name) for name in ("plane", "neg", "pos", "label")}

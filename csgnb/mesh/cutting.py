@@ -32,15 +32,20 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._jit import jit
+from .._views import unmanaged, unmanaged_tuple
 from ..errors import GeometryError, InternalError
 from ..exact.intrinsics import compare_cached_values_at, intersect_into, plane_value_into
 from .halfedge import (
     FACE,
     HE,
+    LOOP_C,
+    LOOP_H,
+    LOOP_M,
+    LOOP_P,
+    LOOP_V,
     N_CLASSIFY,
     N_CONSTRUCT,
     NEXT,
-    NF,
     NH,
     NP,
     NV,
@@ -52,12 +57,15 @@ from .halfedge import (
     MeshStore,
     _cell_halfedges,
     _dest,
+    _new_face,
+    _new_halfedge,
     _new_stamp,
+    _new_vertex,
     _plane_row,
     _rot,
 )
 
-__all__ = ["CutResult", "cut", "CUT_PROPER", "CUT_ERROR"]
+__all__ = ["CutResult", "cut", "cut_cell", "cut_cell_naive", "CUT_PROPER", "CUT_ERROR"]
 
 CUT_PROPER = 2
 """Status of a cut that split the polytope into two parts of non-zero volume."""
@@ -65,40 +73,27 @@ CUT_PROPER = 2
 CUT_ERROR = -9
 """Status of a cut that found an inconsistent mesh (never expected; reported, not hidden)."""
 
-# Capacity a cut may need, per face of the polytope (plus 2): new vertices <= 2 per
-# loop vertex, half-edges <= 6 per loop edge, faces <= 1 per split face + 2 caps.
-VERTICES_PER_FACE, HALFEDGES_PER_FACE, FACES_PER_FACE = 2, 6, 1
 
-
+# Everything below is inlined at the numba IR level into the kernel that runs the cuts
+# (extraction, merge): a call that is not inlined increfs and decrefs each array it is
+# passed, which costs more than a classification.
 @jit(inline="always")
-def _room_for_cut(counts, vx, he, fc, loop_v, faces):
-    """Whether the store's arrays can take a cut of a polytope with at most ``faces`` faces."""
-    need = faces + 2
-    return (counts[NV] + VERTICES_PER_FACE * need <= vx.shape[0]
-            and counts[NH] + HALFEDGES_PER_FACE * need + 2 <= he.shape[0]
-            and counts[NF] + FACES_PER_FACE * need + 2 <= fc.shape[0]
-            and need <= loop_v.shape[0])
-
-
-# Kernels called per vertex or per cut are inlined at the numba IR level: a call that is
-# not inlined increfs and decrefs each of its many array arguments (measured: a slab cut
-# drops from 1.58 to 1.23 µs).
-@jit(inline="always")
-def _side(palette, vx, vmark, vdot, counts, v, s):
+def _side(m, v, s):
     """Cached exact side (-1, 0, +1) of vertex ``v`` against palette plane ``s`` in this cut."""
+    counts = m.counts
     stamp = counts[STAMP]
-    m = vmark[v]
-    if (m >> 2) == stamp:
-        return (m & 3) - 1
-    side = np.int64(plane_value_into(vx, v, palette, s, vdot, v))
-    vmark[v] = stamp * 4 + side + 1
+    mk = m.vmark[v]
+    if (mk >> 2) == stamp:
+        return (mk & 3) - 1
+    side = np.int64(plane_value_into(m.vx, v, m.palette, s, m.vdot, v))
+    m.vmark[v] = stamp * 4 + side + 1
     counts[N_CLASSIFY] += 1
     return side
 
 
 @jit(inline="always")
-def _mark_on_plane(vmark, vdot, counts, v):
-    vmark[v] = counts[STAMP] * 4 + 1
+def _mark_on_plane(m, v):
+    m.vmark[v] = m.counts[STAMP] * 4 + 1
 
 
 @jit(inline="always")
@@ -109,7 +104,7 @@ def _record(path, v):
 
 
 @jit(inline="always")
-def _descend(palette, vx, he, vmark, vdot, counts, h0, s, path):
+def _descend(m, h0, s, path):
     """Edge descent. Returns (kind, value):
 
     kind 1: ``value`` is a half-edge from a vertex strictly on one side to one strictly
@@ -117,16 +112,17 @@ def _descend(palette, vx, he, vmark, vdot, counts, h0, s, path):
     on-plane vertex with neighbours on both sides; kind 0: no proper intersection,
     ``value`` is the side (+1/-1) the polytope lies on.
     """
-    v = he[h0, VERT]
+    he = m.he
+    v = np.int64(he[h0, VERT])
     hv = h0
     _record(path, v)
-    sv = _side(palette, vx, vmark, vdot, counts, v, s)
+    sv = _side(m, v, s)
     if sv == 0:
         pos = False
         neg = False
         h = hv
         while True:
-            su = _side(palette, vx, vmark, vdot, counts, _dest(he, h), s)
+            su = _side(m, _dest(he, h), s)
             pos = pos or su > 0
             neg = neg or su < 0
             h = _rot(he, h)
@@ -142,7 +138,7 @@ def _descend(palette, vx, he, vmark, vdot, counts, h0, s, path):
         h = hv
         while True:
             u = _dest(he, h)
-            su = _side(palette, vx, vmark, vdot, counts, u, s)
+            su = _side(m, u, s)
             if su == -sign0:
                 if sv != 0:
                     return 1, h
@@ -155,8 +151,8 @@ def _descend(palette, vx, he, vmark, vdot, counts, h0, s, path):
                 if best < 0 or best_side != 0:
                     best = h
                     best_side = 0
-            elif best_side != 0 and sign0 * compare_cached_values_at(vdot, u, v, vx) < 0:
-                if best < 0 or sign0 * compare_cached_values_at(vdot, u, _dest(he, best), vx) < 0:
+            elif best_side != 0 and sign0 * compare_cached_values_at(m.vdot, u, v, m.vx) < 0:
+                if best < 0 or sign0 * compare_cached_values_at(m.vdot, u, _dest(he, best), m.vx) < 0:
                     best = h
             h = _rot(he, h)
             if h == hv:
@@ -165,27 +161,28 @@ def _descend(palette, vx, he, vmark, vdot, counts, h0, s, path):
             # A global minimum of sign0 * f on the polytope, at distance >= 0.
             return 0, sign0
         v = _dest(he, best)
-        hv = he[best, TWIN]  # runs from the new v back: an outgoing half-edge of v
+        hv = np.int64(he[best, TWIN])  # runs from the new v back: an outgoing half-edge of v
         _record(path, v)
-        sv = _side(palette, vx, vmark, vdot, counts, v, s)
+        sv = _side(m, v, s)
 
 
 @jit(inline="always")
-def _split_edge(palette, vx, he, fc, vmark, vdot, counts, h, s):
+def _split_edge(m, h, s):
     """Insert the crossing point of edge ``h`` with plane ``s``; return the new vertex.
 
     Afterwards ``h`` ends at the new vertex and ``he[h, NEXT]`` starts there; the
     twin edge is split the same way.
     """
-    t = he[h, TWIN]
-    w = counts[NV]
-    counts[NV] += 1
-    intersect_into(palette, _plane_row(fc, he[h, FACE]), palette, _plane_row(fc, he[t, FACE]), palette, s, vx, w)
-    counts[N_CONSTRUCT] += 1
-    _mark_on_plane(vmark, vdot, counts, w)
-    h2 = counts[NH]
-    t2 = h2 + 1
-    counts[NH] += 2
+    he = m.he
+    fc = m.fc
+    t = np.int64(he[h, TWIN])
+    w = _new_vertex(m)
+    intersect_into(m.palette, _plane_row(fc, he[h, FACE]), m.palette, _plane_row(fc, he[t, FACE]), m.palette, s,
+                   m.vx, w)
+    m.counts[N_CONSTRUCT] += 1
+    _mark_on_plane(m, w)
+    h2 = _new_halfedge(m)
+    t2 = _new_halfedge(m)
     he[h2, NEXT] = he[h, NEXT]
     he[h2, TWIN] = t
     he[h2, VERT] = w
@@ -202,12 +199,16 @@ def _split_edge(palette, vx, he, fc, vmark, vdot, counts, h, s):
 
 
 @jit(inline="always")
-def _march_and_separate(palette, vx, he, fc, vmark, vdot, counts, loop_v, loop_h, z0, hz0, s, opp_neg, opp_pos):
+def _march_and_separate(m, z0, hz0, s, opp_neg, opp_pos):
     """Marching and separation from on-plane vertex ``z0`` (outgoing half-edge ``hz0``).
 
     Returns (negative cap half-edge, positive cap half-edge), or (-1, -1) on an
     inconsistent mesh.
     """
+    he = m.he
+    fc = m.fc
+    vx = m.vx
+    loop = m.loop
     n = 0
     z = z0
     hz = hz0
@@ -216,8 +217,7 @@ def _march_and_separate(palette, vx, he, fc, vmark, vdot, counts, loop_v, loop_h
         h = hz
         found = False
         for _ in range(he.shape[0]):
-            if (_side(palette, vx, vmark, vdot, counts, _dest(he, h), s) < 0
-                    and _side(palette, vx, vmark, vdot, counts, _dest(he, _rot(he, h)), s) >= 0):
+            if _side(m, _dest(he, h), s) < 0 and _side(m, _dest(he, _rot(he, h)), s) >= 0:
                 found = True
                 break
             h = _rot(he, h)
@@ -227,24 +227,22 @@ def _march_and_separate(palette, vx, he, fc, vmark, vdot, counts, loop_v, loop_h
             return -1, -1
         r = _rot(he, h)  # z -> b, in the face G between the two neighbours
         b = _dest(he, r)
-        if _side(palette, vx, vmark, vdot, counts, b, s) == 0:
-            loop_h[n] = r  # an on-plane edge already: no face to split (Figure 4, last sentence)
+        if _side(m, b, s) == 0:
+            loop[n, LOOP_H] = r  # an on-plane edge already: no face to split (Figure 4, last sentence)
             znext = b
         else:
             # Walk G from b to its other on-plane point (Figure 4a: split an edge there).
             e = r
-            while _side(palette, vx, vmark, vdot, counts, _dest(he, e), s) > 0:
-                e = he[e, NEXT]
-            if _side(palette, vx, vmark, vdot, counts, _dest(he, e), s) < 0:
-                _split_edge(palette, vx, he, fc, vmark, vdot, counts, e, s)
+            while _side(m, _dest(he, e), s) > 0:
+                e = np.int64(he[e, NEXT])
+            if _side(m, _dest(he, e), s) < 0:
+                _split_edge(m, e, s)
             w = _dest(he, e)
-            g = he[r, FACE]
-            prev_r = he[h, TWIN]
-            d1 = counts[NH]
-            d2 = d1 + 1
-            counts[NH] += 2
-            g_plus = counts[NF]
-            counts[NF] += 1
+            g = np.int64(he[r, FACE])
+            prev_r = np.int64(he[h, TWIN])
+            d1 = _new_halfedge(m)
+            d2 = _new_halfedge(m)
+            g_plus = _new_face(m)
             he[d1, NEXT] = r
             he[d1, TWIN] = d2
             he[d1, VERT] = w
@@ -258,127 +256,142 @@ def _march_and_separate(palette, vx, he, fc, vmark, vdot, counts, loop_v, loop_h
             k = r
             while k != d1:
                 he[k, FACE] = g_plus
-                k = he[k, NEXT]
+                k = np.int64(he[k, NEXT])
             fc[g_plus, PLANE] = fc[g, PLANE]
             fc[g_plus, HE] = r
             fc[g_plus, OPP] = fc[g, OPP]
             fc[g, HE] = d2
-            loop_h[n] = d2
+            loop[n, LOOP_H] = d2
             znext = w
-        loop_v[n] = z
+        loop[n, LOOP_V] = z
         n += 1
         if znext == z0:
             break
-        if n >= loop_v.shape[0]:
+        if n >= loop.shape[0]:
             return -1, -1
         z = znext
-        hz = he[loop_h[n - 1], TWIN]
+        hz = np.int64(he[loop[n - 1, LOOP_H], TWIN])
     # Separation: copy the loop vertices for the positive part and re-attach its half-edges.
-    base_v = counts[NV]
-    counts[NV] += n
     for i in range(n):
-        zc = base_v + i
+        zc = _new_vertex(m)
+        loop[i, LOOP_C] = zc
+        zi = loop[i, LOOP_V]
         for c in range(4):
-            vx[zc, c] = vx[loop_v[i], c]
-        _mark_on_plane(vmark, vdot, counts, zc)
+            vx[zc, c] = vx[zi, c]
+        _mark_on_plane(m, zc)
     for i in range(n):
-        stop = he[loop_h[i - 1 if i > 0 else n - 1], TWIN]
-        h = _rot(he, loop_h[i])
+        stop = he[loop[i - 1 if i > 0 else n - 1, LOOP_H], TWIN]
+        h = _rot(he, loop[i, LOOP_H])
+        zc = loop[i, LOOP_C]
         while True:
-            he[h, VERT] = base_v + i
+            he[h, VERT] = zc
             if h == stop:
                 break
             h = _rot(he, h)
     # Two caps: M_i (negative part, z_{i+1} -> z_i) and P_i (positive part, z_i' -> z_{i+1}').
-    base_m = counts[NH]
-    base_p = base_m + n
-    counts[NH] += 2 * n
-    f_neg = counts[NF]
-    f_pos = f_neg + 1
-    counts[NF] += 2
     for i in range(n):
-        ell = loop_h[i]
-        t = he[ell, TWIN]
+        loop[i, LOOP_M] = _new_halfedge(m)
+        loop[i, LOOP_P] = _new_halfedge(m)
+    f_neg = _new_face(m)
+    f_pos = _new_face(m)
+    for i in range(n):
+        ell = loop[i, LOOP_H]
+        t = np.int64(he[ell, TWIN])
         nxt = i + 1 if i + 1 < n else 0
         prv = i - 1 if i > 0 else n - 1
-        m = base_m + i
-        p = base_p + i
-        he[m, NEXT] = base_m + prv
-        he[m, TWIN] = ell
-        he[m, VERT] = loop_v[nxt]
-        he[m, FACE] = f_neg
-        he[p, NEXT] = base_p + nxt
+        mi = loop[i, LOOP_M]
+        p = loop[i, LOOP_P]
+        he[mi, NEXT] = loop[prv, LOOP_M]
+        he[mi, TWIN] = ell
+        he[mi, VERT] = loop[nxt, LOOP_V]
+        he[mi, FACE] = f_neg
+        he[p, NEXT] = loop[nxt, LOOP_P]
         he[p, TWIN] = t
-        he[p, VERT] = base_v + i
+        he[p, VERT] = loop[i, LOOP_C]
         he[p, FACE] = f_pos
-        he[ell, TWIN] = m
+        he[ell, TWIN] = mi
         he[t, TWIN] = p
     fc[f_neg, PLANE] = s
-    fc[f_neg, HE] = base_m
+    fc[f_neg, HE] = loop[0, LOOP_M]
     fc[f_neg, OPP] = opp_neg
     fc[f_pos, PLANE] = ~s
-    fc[f_pos, HE] = base_p
+    fc[f_pos, HE] = loop[0, LOOP_P]
     fc[f_pos, OPP] = opp_pos
-    return base_m, base_p
+    return loop[0, LOOP_M], loop[0, LOOP_P]
 
 
-@jit
-def _cut_kernel(palette, vx, he, fc, vmark, vdot, counts, loop_v, loop_h, h0, s, opp_neg, opp_pos, path):
-    """Cut the polytope of ``h0`` by palette plane ``s`` (edge descent + marching).
+@jit(inline="always")
+def cut_cell(m, h0, s, opp_neg, opp_pos, path):
+    """Cut the polytope of ``h0`` by palette plane ``s`` (edge descent + marching), in place.
 
     Returns (status, a, b): status CUT_PROPER with the negative and positive parts'
     handles a, b; status 0 with a = the side (+1/-1) when the plane does not cut
-    properly (mesh unchanged); CUT_ERROR on an inconsistent mesh. The caller must
-    have reserved capacity for (faces + 2) * (2, 6, 1) new vertices, half-edges, faces.
+    properly (mesh unchanged); CUT_ERROR on an inconsistent mesh. The caller must have
+    checked :func:`~csgnb.mesh.halfedge.room_for_cut` for the polytope's face count.
     ``path`` records the descent's vertices when longer than 1 (``path[0]`` = count).
+    Inlined into its caller (see above).
     """
-    _new_stamp(counts)
-    kind, value = _descend(palette, vx, he, vmark, vdot, counts, h0, s, path)
+    _new_stamp(m.counts)
+    kind, value = _descend(m, h0, s, path)
     if kind == 0:
         return 0, value, -1
     if kind == 1:
-        z0 = _split_edge(palette, vx, he, fc, vmark, vdot, counts, value, s)
-        hz = he[value, NEXT]
+        z0 = _split_edge(m, value, s)
+        hz = np.int64(m.he[value, NEXT])
     else:
-        z0 = he[value, VERT]
+        z0 = np.int64(m.he[value, VERT])
         hz = value
-    a, b = _march_and_separate(palette, vx, he, fc, vmark, vdot, counts, loop_v, loop_h, z0, hz, s, opp_neg, opp_pos)
+    a, b = _march_and_separate(m, z0, hz, s, opp_neg, opp_pos)
     if a < 0:
         return CUT_ERROR, -1, -1
     return CUT_PROPER, a, b
 
 
-@jit
-def _cut_naive_kernel(palette, vx, he, fc, vmark, vdot, hmark, counts, loop_v, loop_h, work, h0, s, opp_neg, opp_pos):
-    """The baseline: classify every vertex of the polytope, then march as :func:`_cut_kernel`."""
-    nh = _cell_halfedges(he, hmark, counts, h0, work)
-    _new_stamp(counts)
+@jit(inline="always")
+def cut_cell_naive(m, work, h0, s, opp_neg, opp_pos):
+    """The baseline: classify every vertex of the polytope, then march as :func:`cut_cell`.
+
+    ``work`` (int32) holds at least the polytope's half-edges.
+    """
+    he = m.he
+    nh = _cell_halfedges(he, m.hmark, m.counts, h0, work)
+    _new_stamp(m.counts)
     pos = False
     neg = False
     zero_h = -1
     cross_h = -1
     for i in range(nh):
-        h = work[i]
-        sv = _side(palette, vx, vmark, vdot, counts, he[h, VERT], s)
+        h = np.int64(work[i])
+        sv = _side(m, np.int64(he[h, VERT]), s)
         pos = pos or sv > 0
         neg = neg or sv < 0
         if sv == 0:
             zero_h = h
         elif sv > 0 and cross_h < 0:
-            if _side(palette, vx, vmark, vdot, counts, _dest(he, h), s) < 0:
+            if _side(m, _dest(he, h), s) < 0:
                 cross_h = h
     if not (pos and neg):
         return 0, 1 if pos else -1, -1
     if zero_h >= 0:
-        z0 = he[zero_h, VERT]
+        z0 = np.int64(he[zero_h, VERT])
         hz = zero_h
     else:
-        z0 = _split_edge(palette, vx, he, fc, vmark, vdot, counts, cross_h, s)
-        hz = he[cross_h, NEXT]
-    a, b = _march_and_separate(palette, vx, he, fc, vmark, vdot, counts, loop_v, loop_h, z0, hz, s, opp_neg, opp_pos)
+        z0 = _split_edge(m, cross_h, s)
+        hz = np.int64(he[cross_h, NEXT])
+    a, b = _march_and_separate(m, z0, hz, s, opp_neg, opp_pos)
     if a < 0:
         return CUT_ERROR, -1, -1
     return CUT_PROPER, a, b
+
+
+@jit
+def _cut_kernel(m, h0, s, opp_neg, opp_pos, path):
+    return cut_cell(unmanaged_tuple(m), h0, s, opp_neg, opp_pos, unmanaged(path))
+
+
+@jit
+def _cut_naive_kernel(m, work, h0, s, opp_neg, opp_pos):
+    return cut_cell_naive(unmanaged_tuple(m), unmanaged(work), h0, s, opp_neg, opp_pos)
 
 
 @dataclass(frozen=True)
@@ -436,20 +449,15 @@ def cut(store: MeshStore, cell: int, plane: int, *, opp_negative: int = -1, opp_
     if not 0 <= cell < int(store.counts[NH]):
         raise GeometryError(f"cell {cell} is not a half-edge of the store")
     faces = _count_faces(store, cell) + 2
-    store.reserve(VERTICES_PER_FACE * faces, HALFEDGES_PER_FACE * faces + 2, FACES_PER_FACE * faces + 2)
-    loop_v = np.empty(faces, np.int64)
-    loop_h = np.empty(faces, np.int64)
+    store.reserve(2 * faces, 6 * faces + 2, faces + 2, loop=faces)
     path = np.zeros(int(store.counts[NV]) + 2, np.int64)
     before = store.counts[[N_CLASSIFY, N_CONSTRUCT]].copy()
     nv_before = int(store.counts[NV])
     if naive:
-        work = np.empty(int(store.counts[NH]), np.int32)
-        status, a, b = _cut_naive_kernel(store.palette, store.vx, store.he, store.fc, store.vmark, store.vdot,
-                                         store.hmark, store.counts, loop_v, loop_h, work, cell, plane, opp_negative,
-                                         opp_positive)
+        work = np.empty(store.he.shape[0], np.int32)
+        status, a, b = _cut_naive_kernel(store.m, work, cell, plane, opp_negative, opp_positive)
     else:
-        status, a, b = _cut_kernel(store.palette, store.vx, store.he, store.fc, store.vmark, store.vdot, store.counts,
-                                   loop_v, loop_h, cell, plane, opp_negative, opp_positive, path)
+        status, a, b = _cut_kernel(store.m, cell, plane, opp_negative, opp_positive, path)
     n_cls, n_con = (int(x) for x in store.counts[[N_CLASSIFY, N_CONSTRUCT]] - before)
     if status == CUT_ERROR:
         raise InternalError("cutting found an inconsistent half-edge mesh (a bug in csgnb: please report it)")

@@ -19,8 +19,19 @@ Arrays (``int32`` unless noted; rows ``[:counts[NV]]`` etc. are in use):
 * ``vdot`` ``(V,)`` wide -- x·s of the vertex with the cut plane that classified it
   (valid with its ``vmark`` stamp), for exact distance comparisons;
 * ``hmark`` ``(H,)`` int64 -- traversal stamps;
-* ``counts`` int64 -- ``NV, NH, NF`` (rows in use), ``STAMP`` (cut counter),
-  ``N_CLASSIFY``, ``N_CONSTRUCT`` (statistics), ``NP`` (palette rows in use).
+* ``counts`` int64 -- ``NV, NH, NF`` (rows ever used: the high-water marks), ``STAMP``
+  (cut counter), ``N_CLASSIFY``, ``N_CONSTRUCT`` (statistics), ``NP`` (palette rows in
+  use), ``FREE_V, FREE_H, FREE_F`` (lengths of the free lists);
+* ``free_v`` ``(V,)``, ``free_h`` ``(H,)``, ``free_f`` ``(F,)`` int32 -- rows of released
+  polytopes, reused before the high-water mark grows (:func:`release_cell`), so a long
+  extraction or merge that discards cells keeps a small, cache-resident store;
+* ``loop`` ``(L, 5)`` int64 -- a cut's scratch: per vertex of the cut loop its row
+  (``LOOP_V``), the loop half-edge (``LOOP_H``), its copy in the positive part
+  (``LOOP_C``) and the two cap half-edges (``LOOP_M``, ``LOOP_P``).
+
+All of them travel together as one :class:`MeshArrays` named tuple: kernels take
+``m`` and read ``m.he[h, NEXT]``; every kernel called per cut or per vertex is inlined,
+so the tuple costs nothing (a call that is not inlined would reference-count each array).
 
 Faces are outward: the polytope lies on the negative side of every face plane.
 """
@@ -28,21 +39,87 @@ Faces are outward: the polytope lies on the negative side of every face plane.
 from __future__ import annotations
 
 from fractions import Fraction
+from typing import NamedTuple
 
 import numpy as np
 
 from .._jit import jit
+from .._views import unmanaged_tuple
 from ..errors import GeometryError
 from ..exact.budgets import check_planes
 from ..exact.intrinsics import classify_at, intersect_into
 from ..exact.predicates import to_double_position
-from ..exact.wide import from_wide, is_wide, to_wide, wide_dtype, width_of
+from ..exact.wide import from_wide, is_wide, to_wide, width_of
 
-__all__ = ["MeshStore", "NEXT", "TWIN", "VERT", "FACE", "PLANE", "HE", "OPP"]
+__all__ = ["MeshArrays", "MeshStore", "NEXT", "TWIN", "VERT", "FACE", "PLANE", "HE", "OPP", "release_cell"]
 
 NEXT, TWIN, VERT, FACE = 0, 1, 2, 3
 PLANE, HE, OPP = 0, 1, 2
-NV, NH, NF, STAMP, N_CLASSIFY, N_CONSTRUCT, NP = 0, 1, 2, 3, 4, 5, 6
+NV, NH, NF, STAMP, N_CLASSIFY, N_CONSTRUCT, NP, FREE_V, FREE_H, FREE_F = range(10)
+LOOP_V, LOOP_H, LOOP_C, LOOP_M, LOOP_P = range(5)
+N_COUNTS = 16
+
+
+class MeshArrays(NamedTuple):
+    """The arrays of a :class:`MeshStore`, as one argument for kernels (see the module docstring).
+
+    palette : (P, 4) wide; vx : (V, 4) wide; vdot : (V,) wide; vmark : (V,) int64;
+    he : (H, 4) int32; hmark : (H,) int64; fc : (F, 3) int32; counts : (16,) int64;
+    free_v : (V,) int32; free_h : (H,) int32; free_f : (F,) int32; loop : (L, 5) int64.
+    """
+
+    palette: np.ndarray
+    vx: np.ndarray
+    vdot: np.ndarray
+    vmark: np.ndarray
+    he: np.ndarray
+    hmark: np.ndarray
+    fc: np.ndarray
+    counts: np.ndarray
+    free_v: np.ndarray
+    free_h: np.ndarray
+    free_f: np.ndarray
+    loop: np.ndarray
+
+
+def new_mesh_arrays(palette: np.ndarray, vertices: int, loop: int = 64) -> MeshArrays:
+    """Empty arrays for ``vertices`` vertex rows (4x as many half-edges, 2x faces) over ``palette`` (copied)."""
+    v = max(int(vertices), 64)
+    dtype = palette.dtype
+    pal = np.zeros((max(2 * palette.shape[0], 16), 4), dtype)
+    pal[: palette.shape[0]] = palette
+    counts = np.zeros(N_COUNTS, np.int64)
+    counts[NP] = palette.shape[0]
+    return MeshArrays(pal, np.zeros((v, 4), dtype), np.zeros(v, dtype), np.zeros(v, np.int64),
+                      np.full((4 * v, 4), -1, np.int32), np.zeros(4 * v, np.int64), np.full((2 * v, 3), -1, np.int32),
+                      counts, np.empty(v, np.int32), np.empty(4 * v, np.int32), np.empty(2 * v, np.int32),
+                      np.empty((max(int(loop), 16), 5), np.int64))
+
+
+def grown_mesh_arrays(m: MeshArrays, vertices: int, halfedges: int, faces: int, loop: int = 0,
+                      planes: int = 0) -> MeshArrays:
+    """``m`` with room for at least this many *more* vertices, half-edges, faces, loop rows and palette rows.
+
+    Arrays that are large enough are kept (the same objects); the others are copied into
+    geometrically larger ones.
+    """
+    c = m.counts
+    pal, vx, vdot, vmark, free_v = m.palette, m.vx, m.vdot, m.vmark, m.free_v
+    he, hmark, free_h, fc, free_f, lp = m.he, m.hmark, m.free_h, m.fc, m.free_f, m.loop
+    if c[NP] + planes > pal.shape[0]:
+        pal = _grown(pal, max(2 * pal.shape[0], int(c[NP]) + planes))
+    if c[NV] - c[FREE_V] + vertices > vx.shape[0]:
+        size = max(2 * vx.shape[0], int(c[NV] - c[FREE_V]) + vertices)
+        vx, vdot, vmark, free_v = _grown(vx, size), _grown(vdot, size), _grown(vmark, size), _grown(free_v, size)
+    if c[NH] - c[FREE_H] + halfedges > he.shape[0]:
+        size = max(2 * he.shape[0], int(c[NH] - c[FREE_H]) + halfedges)
+        he, hmark, free_h = _grown(he, size), _grown(hmark, size), _grown(free_h, size)
+    if c[NF] - c[FREE_F] + faces > fc.shape[0]:
+        size = max(2 * fc.shape[0], int(c[NF] - c[FREE_F]) + faces)
+        fc, free_f = _grown(fc, size), _grown(free_f, size)
+    if loop > lp.shape[0]:
+        lp = np.empty((max(2 * lp.shape[0], loop), 5), np.int64)
+    return MeshArrays(pal, vx, vdot, vmark, he, hmark, fc, c, free_v, free_h, free_f, lp)
 
 # A cube: vertex k has coordinates (k & 1, k >> 1 & 1, k >> 2 & 1) in {lo, hi};
 # faces listed counter-clockwise seen from outside, with the palette row of their plane.
@@ -100,6 +177,105 @@ def _new_stamp(counts):
     return counts[STAMP]
 
 
+@jit(inline="always")
+def _new_vertex(m):
+    """A free vertex row: a released one if any, else the next unused row (capacity checked by the caller)."""
+    c = m.counts
+    if c[FREE_V] > 0:
+        c[FREE_V] -= 1
+        return np.int64(m.free_v[c[FREE_V]])
+    v = c[NV]
+    c[NV] += 1
+    return v
+
+
+@jit(inline="always")
+def _new_halfedge(m):
+    c = m.counts
+    if c[FREE_H] > 0:
+        c[FREE_H] -= 1
+        return np.int64(m.free_h[c[FREE_H]])
+    h = c[NH]
+    c[NH] += 1
+    return h
+
+
+@jit(inline="always")
+def _new_face(m):
+    c = m.counts
+    if c[FREE_F] > 0:
+        c[FREE_F] -= 1
+        return np.int64(m.free_f[c[FREE_F]])
+    f = c[NF]
+    c[NF] += 1
+    return f
+
+
+@jit(inline="always")
+def room_for_cut(m, faces):
+    """Whether ``m`` can take one cut of a polytope with at most ``faces`` faces.
+
+    A cut creates at most 2 vertices, 6 half-edges and 1 face per face of the polytope,
+    plus two caps; the loop scratch needs a row per face.
+    """
+    c = m.counts
+    need = faces + 2
+    return (m.vx.shape[0] - c[NV] + c[FREE_V] >= 2 * need
+            and m.he.shape[0] - c[NH] + c[FREE_H] >= 6 * need + 2
+            and m.fc.shape[0] - c[NF] + c[FREE_F] >= need + 2
+            and m.loop.shape[0] >= need)
+
+
+@jit(inline="always")
+def release_cell(m, h0):
+    """Put every vertex, half-edge and face of the polytope of ``h0`` on the free lists; return its half-edge count.
+
+    The traversal queue is the free list of half-edges itself (released half-edges are
+    exactly the ones visited), so no scratch is needed. Each vertex and face belongs to
+    one polytope (cuts copy the loop's vertices), so each is released once: faces
+    through their recorded half-edge, vertices through a release stamp in ``vmark``.
+    """
+    he = m.he
+    c = m.counts
+    stamp = _new_stamp(c)
+    released = -stamp - 1  # never a classification entry (those are >= 0)
+    base = c[FREE_H]
+    top = base
+    m.free_h[top] = h0
+    m.hmark[h0] = stamp
+    top += 1
+    i = base
+    while i < top:
+        h = np.int64(m.free_h[i])
+        i += 1
+        g = np.int64(he[h, NEXT])
+        if m.hmark[g] != stamp:
+            m.hmark[g] = stamp
+            m.free_h[top] = g
+            top += 1
+        g = np.int64(he[h, TWIN])
+        if m.hmark[g] != stamp:
+            m.hmark[g] = stamp
+            m.free_h[top] = g
+            top += 1
+        f = np.int64(he[h, FACE])
+        if m.fc[f, HE] == h:
+            m.free_f[c[FREE_F]] = f
+            c[FREE_F] += 1
+        v = np.int64(he[h, VERT])
+        if m.vmark[v] != released:
+            m.vmark[v] = released
+            m.free_v[c[FREE_V]] = v
+            c[FREE_V] += 1
+    c[FREE_H] = top
+    return top - base
+
+
+@jit
+def _release_cell_kernel(m, h0):
+    return release_cell(unmanaged_tuple(m), h0)
+
+
 @jit
 def _cell_halfedges(he, hmark, counts, h0, out):
     """Write every half-edge of the polytope of ``h0`` into ``out``; return how many."""
@@ -120,6 +296,52 @@ def _cell_halfedges(he, hmark, counts, h0, out):
     return n
 
 
+_CUBE_CYCLES = np.array([cycle for _, cycle in _CUBE_FACES], np.int64)
+
+
+@jit(inline="always")
+def add_box_cell(m, rows, opp):
+    """Build the box with outward palette planes ``rows`` (x lo, x hi, y lo, y hi, z lo, z hi); return a handle.
+
+    Rows come from the free lists when possible; the caller checked room for 8 vertices,
+    24 half-edges and 6 faces.
+    """
+    verts = np.empty(8, np.int64)
+    for k in range(8):
+        v = _new_vertex(m)
+        verts[k] = v
+        intersect_into(m.palette, rows[(k & 1)], m.palette, rows[2 + ((k >> 1) & 1)], m.palette,
+                       rows[4 + ((k >> 2) & 1)], m.vx, v)
+        m.vmark[v] = 0
+    hs = np.empty(24, np.int64)
+    for i in range(24):
+        hs[i] = _new_halfedge(m)
+    # twin of the directed edge (a, b): found by scanning the 24 edges (tiny).
+    for f in range(6):
+        face = _new_face(m)
+        m.fc[face, PLANE] = rows[f]
+        m.fc[face, HE] = hs[4 * f]
+        m.fc[face, OPP] = opp
+        for i in range(4):
+            h = hs[4 * f + i]
+            m.he[h, NEXT] = hs[4 * f + (i + 1) % 4]
+            m.he[h, VERT] = verts[_CUBE_CYCLES[f, i]]
+            m.he[h, FACE] = face
+    for e in range(24):
+        fe, ie = e // 4, e % 4
+        a, b = _CUBE_CYCLES[fe, ie], _CUBE_CYCLES[fe, (ie + 1) % 4]
+        for g in range(24):
+            fg, ig = g // 4, g % 4
+            if _CUBE_CYCLES[fg, ig] == b and _CUBE_CYCLES[fg, (ig + 1) % 4] == a:
+                m.he[hs[e], TWIN] = hs[g]
+    return hs[0]
+
+
+@jit
+def _add_box_kernel(m, rows, opp):
+    return add_box_cell(unmanaged_tuple(m), rows, opp)
+
+
 class MeshStore:
     """Flat storage for many exact convex polytopes (see the module docstring).
 
@@ -137,33 +359,24 @@ class MeshStore:
         if not (is_wide(palette) and palette.ndim == 2 and palette.shape[1] == 4):
             raise GeometryError(f"palette must be an (m, 4) wide array of planes, got shape {np.shape(palette)}")
         self.width = width_of(palette)
-        capacity = max(int(capacity), 64)
-        self.palette = np.zeros((max(2 * palette.shape[0], 16), 4), wide_dtype(self.width))
-        self.vx = np.zeros((capacity, 4), wide_dtype(self.width))
-        self.he = np.full((4 * capacity, 4), -1, np.int32)
-        self.fc = np.full((2 * capacity, 3), -1, np.int32)
-        self.vmark = np.zeros(capacity, np.int64)
-        self.vdot = np.zeros(capacity, wide_dtype(self.width))
-        self.hmark = np.zeros(4 * capacity, np.int64)
-        self.counts = np.zeros(8, np.int64)
+        self.m = new_mesh_arrays(palette[:0], capacity)
         self.add_planes(palette)
+
+    # The arrays, by name (kernels take ``self.m`` whole).
+    palette = property(lambda self: self.m.palette)
+    vx = property(lambda self: self.m.vx)
+    vdot = property(lambda self: self.m.vdot)
+    vmark = property(lambda self: self.m.vmark)
+    he = property(lambda self: self.m.he)
+    hmark = property(lambda self: self.m.hmark)
+    fc = property(lambda self: self.m.fc)
+    counts = property(lambda self: self.m.counts)
 
     # -- capacity -----------------------------------------------------------
 
-    def reserve(self, vertices: int, halfedges: int, faces: int) -> None:
-        """Make room for at least this many *more* vertices, half-edges and faces."""
-        nv, nh, nf = (int(c) for c in self.counts[:3])
-        if nv + vertices > self.vx.shape[0]:
-            size = max(2 * self.vx.shape[0], nv + vertices)
-            self.vx = _grown(self.vx, size)
-            self.vmark = _grown(self.vmark, size)
-            self.vdot = _grown(self.vdot, size)
-        if nh + halfedges > self.he.shape[0]:
-            size = max(2 * self.he.shape[0], nh + halfedges)
-            self.he = _grown(self.he, size, -1)
-            self.hmark = _grown(self.hmark, size)
-        if nf + faces > self.fc.shape[0]:
-            self.fc = _grown(self.fc, max(2 * self.fc.shape[0], nf + faces), -1)
+    def reserve(self, vertices: int, halfedges: int, faces: int, loop: int = 0) -> None:
+        """Make room for at least this many *more* vertices, half-edges and faces (and loop rows)."""
+        self.m = grown_mesh_arrays(self.m, vertices, halfedges, faces, loop)
 
     def add_planes(self, planes: np.ndarray) -> np.ndarray:
         """Append ``(k, 4)`` wide planes to the palette; return their rows ``(k,) int64``."""
@@ -173,11 +386,14 @@ class MeshStore:
         np_ = int(self.counts[NP])
         if planes.shape[0]:
             check_planes(np.concatenate([self.palette[:np_], planes]), "palette")
-        if np_ + planes.shape[0] > self.palette.shape[0]:
-            self.palette = _grown(self.palette, max(2 * self.palette.shape[0], np_ + planes.shape[0]))
+        self.m = grown_mesh_arrays(self.m, 0, 0, 0, planes=planes.shape[0])
         self.palette[np_ : np_ + planes.shape[0]] = planes
         self.counts[NP] = np_ + planes.shape[0]
         return np.arange(np_, np_ + planes.shape[0])
+
+    def release(self, cell: int) -> int:
+        """Free the rows of polytope ``cell`` for reuse (its handles become invalid); return its half-edge count."""
+        return int(_release_cell_kernel(self.m, int(cell)))
 
     @property
     def planes(self) -> np.ndarray:
@@ -192,28 +408,8 @@ class MeshStore:
         The six box planes are appended to the palette; every face gets ``opp``.
         """
         rows = self.add_planes(box_planes(lo, hi, self.width))
-        nv, nh, nf = (int(c) for c in self.counts[:3])
         self.reserve(8, 24, 6)
-        pal = self.palette
-        for k in range(8):
-            # Vertex k lies on one plane per axis: lo (even row) or hi (odd row).
-            px, py, pz = (rows[2 * axis + ((k >> axis) & 1)] for axis in range(3))
-            _intersect_rows(pal, px, py, pz, self.vx, nv + k)
-        index = {}
-        h = nh
-        for f, (plane_offset, cycle) in enumerate(_CUBE_FACES):
-            self.fc[nf + f] = (rows[plane_offset], h, opp)
-            for i in range(4):
-                a, b = cycle[i], cycle[(i + 1) % 4]
-                self.he[h + i, NEXT] = h + (i + 1) % 4
-                self.he[h + i, VERT] = nv + a
-                self.he[h + i, FACE] = nf + f
-                index[a, b] = h + i
-            h += 4
-        for (a, b), e in index.items():
-            self.he[e, TWIN] = index[b, a]
-        self.counts[:3] = (nv + 8, nh + 24, nf + 6)
-        return nh
+        return int(_add_box_kernel(self.m, rows.astype(np.int64), int(opp)))
 
     # -- inspection ---------------------------------------------------------
 
@@ -361,7 +557,8 @@ def _classify_rows(vx, rows, palette, plane) -> np.ndarray:
     return out.astype(np.int64)
 
 
-def _grown(arr: np.ndarray, rows: int, fill=0) -> np.ndarray:
-    out = np.full((rows,) + arr.shape[1:], fill, arr.dtype) if fill else np.zeros((rows,) + arr.shape[1:], arr.dtype)
+def _grown(arr: np.ndarray, rows: int) -> np.ndarray:
+    """A copy of ``arr`` with ``rows`` rows (the new rows uninitialised: kernels write rows before reading them)."""
+    out = np.empty((rows,) + arr.shape[1:], arr.dtype)
     out[: arr.shape[0]] = arr
     return out
