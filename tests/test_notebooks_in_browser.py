@@ -62,14 +62,19 @@ SIGNATURE_JS = """
 (cell) => {
   const area = cell.querySelector('.jp-Cell-outputArea') || cell;
   const copy = area.cloneNode(true);
-  copy.querySelectorAll(%r).forEach((n) => n.remove());
-  const hash = (s) => { let h = 0; for (let i = 0; i < s.length; i++) { h = (h * 31 + s.charCodeAt(i)) | 0; } return h; };
+  copy.querySelectorAll("__CONTROLS__").forEach((n) => n.remove());
+  const hash = (s) => {
+    let h = 0;
+    for (let i = 0; i < s.length; i++) { h = (h * 31 + s.charCodeAt(i)) | 0; }
+    return h;
+  };
   const pictures = [];
   copy.querySelectorAll('img').forEach((i) => pictures.push('img:' + hash(i.getAttribute('src') || '')));
-  copy.querySelectorAll('iframe').forEach((f) => pictures.push('frame:' + hash(f.getAttribute('srcdoc') || f.src || '')));
+  copy.querySelectorAll('iframe').forEach(
+    (f) => pictures.push('frame:' + hash(f.getAttribute('srcdoc') || f.src || '')));
   return {text: copy.innerText, pictures: pictures};
 }
-""" % CONTROLS
+""".replace("__CONTROLS__", CONTROLS)
 
 
 def _free_port() -> int:
