@@ -241,6 +241,56 @@ class MeshStore:
             faces[f] = cycle
         return list(faces.values())
 
+    # Named reads of the topology columns, for notebooks and callers outside the kernels (which index ``he``
+    # and ``fc`` directly). Each takes an int or an integer array and returns the same shape, ``int64``.
+
+    def next_halfedge(self, h):
+        """Return the half-edge after ``h`` around its face (counter-clockwise seen from outside)."""
+        return self._column(self.he, h, NEXT)
+
+    def twin(self, h):
+        """Return the half-edge opposite ``h`` (same edge, other face, other direction)."""
+        return self._column(self.he, h, TWIN)
+
+    def origin(self, h):
+        """Return the vertex row ``h`` starts at."""
+        return self._column(self.he, h, VERT)
+
+    def face_of(self, h):
+        """Return the face ``h`` belongs to."""
+        return self._column(self.he, h, FACE)
+
+    def face_plane(self, f, *, signed: bool = False):
+        """Return the palette row of face ``f``'s plane; ``signed=True`` gives ``~row`` for a flipped face."""
+        p = self._column(self.fc, f, PLANE)
+        if signed:
+            return p
+        return np.where(p >= 0, p, ~p) if np.ndim(p) else (p if p >= 0 else ~p)
+
+    def face_halfedge(self, f):
+        """Return one half-edge of face ``f``."""
+        return self._column(self.fc, f, HE)
+
+    def face_opposite(self, f):
+        """Return the BSP node on the other side of face ``f`` (``-1``: outside the domain)."""
+        return self._column(self.fc, f, OPP)
+
+    @property
+    def classifications(self) -> int:
+        """How many vertex classifications the cuts on this store have made (a statistic)."""
+        return int(self.counts[N_CLASSIFY])
+
+    @property
+    def constructions(self) -> int:
+        """How many vertices the cuts on this store have built (a statistic)."""
+        return int(self.counts[N_CONSTRUCT])
+
+    @staticmethod
+    def _column(table, rows, column):
+        if np.ndim(rows) == 0:
+            return int(table[int(rows), column])
+        return table[np.asarray(rows, np.int64), column].astype(np.int64)
+
     def cell_vertices(self, cell: int) -> np.ndarray:
         """Return the vertex rows ``(k,) int64`` of a polytope, sorted."""
         return np.unique(self.he[self.cell_halfedges(cell), VERT].astype(np.int64))
