@@ -17,7 +17,8 @@ output follows pyvista's own variable ``PYVISTA_JUPYTER_BACKEND``:
 :func:`show` builds IPython display objects itself instead of calling ``Plotter.show``, so it works inside an
 ``ipywidgets`` callback, where pyvista does not detect the notebook and ignores its backend.
 
-:func:`aim` places the camera; :func:`snapshot` renders to an image array (for composing pictures).
+:func:`aim` places the camera; :func:`add_legend` labels colours in a way both kinds of output show;
+:func:`snapshot` renders to an image array (for composing pictures).
 """
 
 from __future__ import annotations
@@ -31,7 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["BACKENDS", "aim", "jupyter_backend", "show", "snapshot"]
+__all__ = ["BACKENDS", "add_legend", "aim", "jupyter_backend", "show", "snapshot"]
 
 #: The values of ``PYVISTA_JUPYTER_BACKEND`` that :func:`show` understands.
 BACKENDS = ("static", "html", "none", "trame", "client", "server")
@@ -66,6 +67,35 @@ def aim(plotter, focus, distance: float, direction=(1.0, -2.0, 0.9), up=(0.0, 0.
     plotter.camera.focal_point = tuple(focus)
     plotter.camera.position = tuple(focus + float(distance) * d / norm)
     plotter.camera.up = tuple(float(u) for u in up)
+
+
+def add_legend(plotter, entries, *, font_size: int = 12, corner: str = "upper right") -> None:
+    """Label colours in the active subplot of ``plotter``: one line per ``(label, colour)``, on a swatch of it.
+
+    ``corner`` is ``"upper right"``, ``"upper left"``, ``"lower right"`` or ``"lower left"``. Plain text actors,
+    so the legend shows in the static picture and over the interactive view alike (vtk.js draws no VTK legend).
+    """
+    import pyvista as pv
+
+    if corner not in ("upper right", "upper left", "lower right", "lower left"):
+        raise ValueError(f"corner must be 'upper right', 'upper left', 'lower right' or 'lower left', got {corner!r}")
+    entries = list(entries)
+    renderer = plotter.renderer
+    x0, y0, x1, y1 = renderer.GetViewport()
+    w, h = (x1 - x0) * plotter.window_size[0], (y1 - y0) * plotter.window_size[1]
+    step = 1.9 * font_size
+    right, top = corner.endswith("right"), corner.startswith("upper")
+    for k, (label, colour) in enumerate(entries):
+        rgb = pv.Color(colour).float_rgb
+        light = 0.299 * rgb[0] + 0.587 * rgb[1] + 0.114 * rgb[2] > 0.55
+        y = h - 10 - k * step if top else 10 + (len(entries) - 1 - k) * step
+        actor = plotter.add_text(str(label), position=(w - 10 if right else 10, y), font_size=font_size,
+                                 color="black" if light else "white")
+        prop = actor.GetTextProperty()
+        prop.SetJustification(2 if right else 0)
+        prop.SetVerticalJustification(2 if top else 0)
+        prop.SetBackgroundColor(rgb)
+        prop.SetBackgroundOpacity(1.0)
 
 
 def snapshot(plotter, path: str | Path | None = None, *, close: bool = True) -> np.ndarray:
@@ -183,24 +213,31 @@ def _captions(plotter, width: int, height: int) -> list[str]:
         for prop in _props(renderer):
             if not prop.GetVisibility():
                 continue
-            kind = prop.GetClassName()
-            if kind == "vtkCornerAnnotation":
+            if prop.IsA("vtkCornerAnnotation"):
                 for slot, where in _CORNERS.items():
                     text = prop.GetText(slot)
                     if text:
-                        texts.append((where, text, prop.GetTextProperty()))
-            elif kind == "vtkTextActor":
+                        # A corner annotation scales its font with the window: about twice its size in pixels.
+                        texts.append((where, text, prop.GetTextProperty(), 2.1))
+            elif prop.IsA("vtkTextActor"):
                 x, y = prop.GetPosition()
                 vw, vh = max((x1 - x0) * width, 1), max((y1 - y0) * height, 1)
-                texts.append((f"left:{100 * x / vw:.2f}%;bottom:{100 * y / vh:.2f}%", prop.GetInput(),
-                              prop.GetTextProperty()))
+                tp = prop.GetTextProperty()
+                # Honour the text's justification: its anchor is a left/centre/right, bottom/centre/top point.
+                dx = {0: 0, 1: -50, 2: -100}[tp.GetJustification()]
+                dy = {0: 0, 1: 50, 2: 100}[tp.GetVerticalJustification()]
+                where = (f"left:{100 * x / vw:.2f}%;bottom:{100 * y / vh:.2f}%;"
+                         f"transform:translate({dx}%,{dy}%)")
+                texts.append((where, prop.GetInput(), tp, 0.85))  # font size in pixels (pyvista doubled it)
         if texts:
             spans = []
-            for where, text, prop in texts:
-                size = max(12, int(round(1.3 * prop.GetFontSize()))) if prop is not None else 14
-                colour = _css_colour(prop.GetColor()) if prop is not None else "black"
-                spans.append(f'<div style="position:absolute;{where};font:{size}px sans-serif;color:{colour};'
-                             f'white-space:pre">{html.escape(str(text))}</div>')
+            for where, text, prop, scale in texts:
+                size = max(12, int(round(scale * prop.GetFontSize())))
+                colour = _css_colour(prop.GetColor())
+                style = f"position:absolute;{where};font:{size}px sans-serif;color:{colour};white-space:pre"
+                if prop.GetBackgroundOpacity() > 0:
+                    style += f";background:{_css_colour(prop.GetBackgroundColor())};padding:1px 5px"
+                spans.append(f'<div style="{style}">{html.escape(str(text))}</div>')
             out.append(f'<div style="{box}">{"".join(spans)}</div>')
     return out
 

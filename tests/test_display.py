@@ -87,3 +87,13 @@ def test_snapshot_and_aim():
     assert image.shape == (240, 320, 3) and image.dtype == np.uint8 and image.std() > 0
     with pytest.raises(ValueError, match="non-zero"):
         display.aim(_scene(), (0, 0, 0), 1.0, direction=(0, 0, 0))
+
+
+def test_legend_shows_in_both_backends(tmp_path):
+    plotter = _scene()
+    display.add_legend(plotter, [("inside", "#3b6fb6"), ("outside", "white")])
+    out = display.show(plotter, tmp_path / "legend.png", backend="html")
+    assert "inside" in out.data and "background:rgb(59,111,182)" in out.data
+    plotter = _scene()
+    with pytest.raises(ValueError, match="corner"):
+        display.add_legend(plotter, [("a", "red")], corner="middle")
