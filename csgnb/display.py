@@ -236,7 +236,7 @@ def _captions(plotter, width: int, height: int) -> list[str]:
                 colour = _css_colour(prop.GetColor())
                 style = f"position:absolute;{where};font:{size}px sans-serif;color:{colour};white-space:pre"
                 if prop.GetBackgroundOpacity() > 0:
-                    style += f";background:{_css_colour(prop.GetBackgroundColor())};padding:1px 5px"
+                    style += f";background:{_css_colour(prop.GetBackgroundColor())};padding:0 5px;line-height:1.1"
                 spans.append(f'<div style="{style}">{html.escape(str(text))}</div>')
             out.append(f'<div style="{box}">{"".join(spans)}</div>')
     return out

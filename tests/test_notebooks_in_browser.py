@@ -337,6 +337,7 @@ def test_notebook_in_browser(lab, browser, name):
         page.goto(f"{lab.url}/lab/tree/{name}?reset", timeout=120_000)
         page.locator(".jp-NotebookPanel .jp-Cell").first.wait_for(timeout=120_000)
         _wait_idle(page, 120)
+        page.keyboard.press("Control+b")  # hide the file browser: the notebook gets the whole width
         _run_all(page, name)
         errors = _stderr_texts(page)
         _screenshots(page, Path(name).stem)

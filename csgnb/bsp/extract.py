@@ -20,10 +20,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .._jit import jit
-from ..errors import InternalError
-from ..exact.intrinsics import classify_at, intersect_into
-from ..mesh.cutting import (
+from csgnb._jit import jit
+from csgnb.bsp.surface import BoundarySurface, assemble_surface
+from csgnb.bsp.tree import OUT, BSPTree
+from csgnb.errors import InternalError
+from csgnb.exact.intrinsics import classify_at, intersect_into
+from csgnb.mesh.cutting import (
     CUT_PROPER,
     FACES_PER_FACE,
     HALFEDGES_PER_FACE,
@@ -32,9 +34,7 @@ from ..mesh.cutting import (
     _cut_naive_kernel,
     _room_for_cut,
 )
-from ..mesh.halfedge import FACE, HE, NEXT, OPP, PLANE, TWIN, VERT, MeshStore, _dest, _plane_row
-from .surface import BoundarySurface, assemble_surface
-from .tree import OUT, BSPTree
+from csgnb.mesh.halfedge import FACE, HE, NEXT, OPP, PLANE, TWIN, VERT, MeshStore, _dest, _plane_row
 
 __all__ = ["Extraction", "boundary_pieces", "extract_boundary", "extract_cells"]
 

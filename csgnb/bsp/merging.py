@@ -21,16 +21,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .._jit import jit
-from ..errors import GeometryError, InternalError
-from ..exact.wide import width_of
-from ..mesh.cutting import CUT_PROPER, _cut_kernel, _room_for_cut
-from ..mesh.halfedge import MeshStore
-from .build import bsp_from_polygons
-from .extract import _grow, _room_for_next_cut, boundary_pieces
-from .polygon import PolygonSet
-from .surface import BoundarySurface, assemble_surface
-from .tree import OUT, BSPTree
+from csgnb._jit import jit
+from csgnb.bsp.build import bsp_from_polygons
+from csgnb.bsp.extract import _grow, _room_for_next_cut, boundary_pieces
+from csgnb.bsp.polygon import PolygonSet
+from csgnb.bsp.surface import BoundarySurface, assemble_surface
+from csgnb.bsp.tree import OUT, BSPTree
+from csgnb.errors import GeometryError, InternalError
+from csgnb.exact.wide import width_of
+from csgnb.mesh.cutting import CUT_PROPER, _cut_kernel, _room_for_cut
+from csgnb.mesh.halfedge import MeshStore
 
 __all__ = ["MergeResult", "merge", "merge_table", "remove_redundancy"]
 

@@ -31,10 +31,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .._jit import jit
-from ..errors import GeometryError, InternalError
-from ..exact.intrinsics import compare_cached_values_at, intersect_into, plane_value_into
-from .halfedge import (
+from csgnb._jit import jit
+from csgnb.errors import GeometryError, InternalError
+from csgnb.exact.intrinsics import compare_cached_values_at, intersect_into, plane_value_into
+from csgnb.mesh.halfedge import (
     FACE,
     HE,
     N_CLASSIFY,

@@ -31,12 +31,12 @@ from fractions import Fraction
 
 import numpy as np
 
-from .._jit import jit
-from ..errors import GeometryError
-from ..exact.budgets import check_planes
-from ..exact.intrinsics import classify_at, intersect_into
-from ..exact.predicates import to_double_position
-from ..exact.wide import from_wide, is_wide, to_wide, wide_dtype, width_of
+from csgnb._jit import jit
+from csgnb.errors import GeometryError
+from csgnb.exact.budgets import check_planes
+from csgnb.exact.intrinsics import classify_at, intersect_into
+from csgnb.exact.predicates import to_double_position
+from csgnb.exact.wide import from_wide, is_wide, to_wide, wide_dtype, width_of
 
 __all__ = ["MeshStore", "NEXT", "TWIN", "VERT", "FACE", "PLANE", "HE", "OPP"]
 
