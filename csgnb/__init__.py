@@ -7,7 +7,7 @@ Two pipelines (see docs/ARCHITECTURE.md):
 * quadric CSG surfaces: :mod:`csgnb.quadric` → CSG graphs → sampling → rendering.
 """
 
-from .errors import CsgnbError, GeometryError, InternalError, PrecisionError
+from csgnb.errors import CsgnbError, GeometryError, InternalError, PrecisionError
 
 __version__ = "0.1.0"
 

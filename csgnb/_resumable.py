@@ -20,7 +20,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from .errors import InternalError
+from csgnb.errors import InternalError
 
 __all__ = ["DONE", "NEED_ROOM", "FAILED", "grown", "run_resumable"]
 

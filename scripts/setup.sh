@@ -1,15 +1,17 @@
 #!/usr/bin/env bash
 # Shared set-up for demo.sh, test.sh and lab.sh: sourced, never run on its own.
-# Creates .venv, installs csgnb with its dev extras, installs the system libraries
-# headless VTK rendering needs (EGL + Mesa's software driver) and exports the
-# environment that makes pyvista render off-screen and notebooks run reproducibly.
+# Creates .venv, installs csgnb with its dev extras, installs the system packages
+# (EGL + Mesa's software driver for headless VTK; Debian's chromium for the
+# browser test) and exports the environment that makes pyvista render off-screen
+# and notebooks run reproducibly. `warm_numba_cache` (called by demo.sh and lab.sh)
+# compiles the kernels up front, with a progress bar.
 set -euo pipefail
 
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 cd "$ROOT"
 
 PYTHON="${PYTHON:-python3}"
-APT_PACKAGES=(libegl1 libgl1-mesa-dri)
+APT_PACKAGES=(libegl1 libgl1-mesa-dri chromium)
 
 missing_apt=()
 for pkg in "${APT_PACKAGES[@]}"; do
@@ -17,12 +19,12 @@ for pkg in "${APT_PACKAGES[@]}"; do
 done
 if [ "${#missing_apt[@]}" -gt 0 ]; then
     if [ "$(id -u)" = "0" ]; then
-        echo "csgnb setup: installing ${missing_apt[*]} (headless rendering) with apt-get"
+        echo "csgnb setup: installing ${missing_apt[*]} (headless rendering, browser test) with apt-get"
         export DEBIAN_FRONTEND=noninteractive
         apt-get update -qq
         apt-get install -y -qq --no-install-recommends "${missing_apt[@]}" >/dev/null
     else
-        echo "csgnb setup: headless rendering needs the Debian packages: ${missing_apt[*]}" >&2
+        echo "csgnb setup: headless rendering and the browser test need the Debian packages: ${missing_apt[*]}" >&2
         echo "  run as root:  apt-get install -y --no-install-recommends ${missing_apt[*]}" >&2
         exit 1
     fi
@@ -46,6 +48,15 @@ export PATH="$ROOT/.venv/bin:$PATH"
 # otherwise VTK prints a timestamped X-server warning that breaks output checks.
 export VTK_DEFAULT_OPENGL_WINDOW=vtkEGLRenderWindow
 export PYVISTA_OFF_SCREEN=true
+# static: deterministic PNGs for nbval and CI. lab.sh and demo.sh switch to html (csgnb.display).
 export PYVISTA_JUPYTER_BACKEND=static
+# trame-vtklocal (a dependency of pyvista's html backend) downloads a wasm bundle unless this names a folder.
+export VTK_WASM_DIR_OVERRIDE="$ROOT/.venv/no-vtk-wasm"
+mkdir -p "$VTK_WASM_DIR_OVERRIDE"
 export PYTHONHASHSEED=0
 export NUMBA_CACHE_DIR="$ROOT/.numba_cache"
+
+# Compiles (or loads from .numba_cache) the kernels the notebooks use, with a progress bar.
+warm_numba_cache() {
+    python -m csgnb.warmup
+}

@@ -15,8 +15,7 @@ from csgnb.bsp.build import _triangles_overlap, bsp_from_mesh, bsp_from_polygons
 from csgnb.bsp.polygon import PolygonSet, polygons_from_triangles
 from csgnb.bsp.random_tree import random_bsp
 from csgnb.bsp.tree import ON_BOUNDARY, OUT, BSPTree
-
-from .exact_reference import cross, sign
+from tests.exact_reference import cross, sign
 
 WIDTH = 128
 

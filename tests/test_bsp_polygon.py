@@ -18,8 +18,7 @@ from csgnb.bsp.polygon import (
     split_polygon_planes,
     split_polygons,
 )
-
-from .exact_reference import cross, side, solve_3_planes
+from tests.exact_reference import cross, side, solve_3_planes
 
 WIDTH = 128
 V128 = exact.budget(128).max_mesh_coordinate

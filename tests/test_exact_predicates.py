@@ -9,8 +9,7 @@ from hypothesis import strategies as st
 
 from csgnb import GeometryError, PrecisionError, exact
 from csgnb.exact import budget, integer_root
-
-from .exact_reference import cross, det3, side, solve_3_planes
+from tests.exact_reference import cross, det3, side, solve_3_planes
 
 WIDTHS = exact.WIDTHS
 widths = st.sampled_from(WIDTHS)

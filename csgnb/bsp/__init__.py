@@ -9,15 +9,15 @@ surfaces), :mod:`~csgnb.bsp.merging` (Booleans, redundancy removal), :mod:`~csgn
 benchmark scenes).
 """
 
-from .build import bsp_from_mesh, bsp_from_polygons
-from .extract import Extraction, extract_boundary, extract_cells
-from .merging import MergeResult, merge, remove_redundancy
-from .polygon import PolygonSet
-from .random_tree import random_bsp
-from .scenes import tangent_plane_bsp
-from .solid import BSP, DIFFERENCE, INTERSECTION, SYMMETRIC_DIFFERENCE, UNION
-from .surface import BoundarySurface
-from .tree import ON_BOUNDARY, OUT, BSPTree
+from csgnb.bsp.build import bsp_from_mesh, bsp_from_polygons
+from csgnb.bsp.extract import Extraction, extract_boundary, extract_cells
+from csgnb.bsp.merging import MergeResult, merge, remove_redundancy
+from csgnb.bsp.polygon import PolygonSet
+from csgnb.bsp.random_tree import random_bsp
+from csgnb.bsp.scenes import tangent_plane_bsp
+from csgnb.bsp.solid import BSP, DIFFERENCE, INTERSECTION, SYMMETRIC_DIFFERENCE, UNION
+from csgnb.bsp.surface import BoundarySurface
+from csgnb.bsp.tree import ON_BOUNDARY, OUT, BSPTree
 
 __all__ = [
     "BSP",

@@ -24,13 +24,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from .._jit import jit
-from ..errors import GeometryError
-from ..exact.budgets import check_mesh_points
-from ..exact.intrinsics import classify_at, plane_from_points_into, signed_distance_into, wide_sign_at
-from ..exact.wide import DEFAULT_WIDTH, wide_dtype
-from .polygon import PolygonSet, _checked_vertices, copy_point, polygons_from_triangles, split_polygon
-from .tree import OUT, BSPTree
+from csgnb._jit import jit
+from csgnb.bsp.polygon import PolygonSet, _checked_vertices, copy_point, polygons_from_triangles, split_polygon
+from csgnb.bsp.tree import OUT, BSPTree
+from csgnb.errors import GeometryError
+from csgnb.exact.budgets import check_mesh_points
+from csgnb.exact.intrinsics import classify_at, plane_from_points_into, signed_distance_into, wide_sign_at
+from csgnb.exact.wide import DEFAULT_WIDTH, wide_dtype
 
 __all__ = ["bsp_from_polygons", "bsp_from_mesh", "validate_mesh"]
 

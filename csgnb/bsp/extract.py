@@ -21,12 +21,14 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .._jit import jit
-from .._resumable import DONE, FAILED, NEED_ROOM, grown, run_resumable
-from .._views import unmanaged, unmanaged_tuple
-from ..exact.intrinsics import classify_at, intersect_into
-from ..mesh.cutting import CUT_PROPER, cut_cell, cut_cell_naive
-from ..mesh.halfedge import (
+from csgnb._jit import jit
+from csgnb._resumable import DONE, FAILED, NEED_ROOM, grown, run_resumable
+from csgnb._views import unmanaged, unmanaged_tuple
+from csgnb.bsp.surface import BoundarySurface, assemble_surface
+from csgnb.bsp.tree import OUT, BSPTree
+from csgnb.exact.intrinsics import classify_at, intersect_into
+from csgnb.mesh.cutting import CUT_PROPER, cut_cell, cut_cell_naive
+from csgnb.mesh.halfedge import (
     FACE,
     HE,
     NEXT,
@@ -42,8 +44,6 @@ from ..mesh.halfedge import (
     release_cell,
     room_for_cut,
 )
-from .surface import BoundarySurface, assemble_surface
-from .tree import OUT, BSPTree
 
 __all__ = ["ClipScratch", "Extraction", "Pieces", "TreeArrays", "boundary_pieces", "extract_boundary",
            "extract_cells"]

@@ -21,18 +21,18 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .._jit import jit
-from .._resumable import DONE, FAILED, NEED_ROOM, grown, run_resumable
-from .._views import unmanaged, unmanaged_tuple
-from ..errors import GeometryError
-from ..exact.wide import width_of
-from ..mesh.cutting import CUT_PROPER, cut_cell
-from ..mesh.halfedge import MeshStore, grown_mesh_arrays, room_for_cut
-from .build import bsp_from_polygons
-from .extract import TreeArrays, boundary_pieces, tree_arrays
-from .polygon import PolygonSet
-from .surface import BoundarySurface, assemble_surface
-from .tree import OUT, BSPTree
+from csgnb._jit import jit
+from csgnb._resumable import DONE, FAILED, NEED_ROOM, grown, run_resumable
+from csgnb._views import unmanaged, unmanaged_tuple
+from csgnb.bsp.build import bsp_from_polygons
+from csgnb.bsp.extract import TreeArrays, boundary_pieces, tree_arrays
+from csgnb.bsp.polygon import PolygonSet
+from csgnb.bsp.surface import BoundarySurface, assemble_surface
+from csgnb.bsp.tree import OUT, BSPTree
+from csgnb.errors import GeometryError
+from csgnb.exact.wide import width_of
+from csgnb.mesh.cutting import CUT_PROPER, cut_cell
+from csgnb.mesh.halfedge import MeshStore, grown_mesh_arrays, room_for_cut
 
 __all__ = ["MergeResult", "merge", "merge_table", "remove_redundancy"]
 

@@ -39,12 +39,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .._jit import jit
-from ..errors import GeometryError
-from ..exact.budgets import check_mesh_points, check_planes
-from ..exact.intrinsics import classify_at, intersect_into, wide_sign_at
-from ..exact.predicates import plane_from_points
-from ..exact.wide import DEFAULT_WIDTH, is_wide, to_wide, wide_dtype
+from csgnb._jit import jit
+from csgnb.errors import GeometryError
+from csgnb.exact.budgets import check_mesh_points, check_planes
+from csgnb.exact.intrinsics import classify_at, intersect_into, wide_sign_at
+from csgnb.exact.predicates import plane_from_points
+from csgnb.exact.wide import DEFAULT_WIDTH, is_wide, to_wide, wide_dtype
 
 __all__ = [
     "PolygonSet",

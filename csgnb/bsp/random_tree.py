@@ -13,12 +13,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from .._jit import jit
-from ..errors import PrecisionError
-from ..exact.budgets import budget
-from ..exact.wide import to_wide
-from .polygon import _canonical_int64, dedup_planes
-from .tree import BSPTree
+from csgnb._jit import jit
+from csgnb.bsp.polygon import _canonical_int64, dedup_planes
+from csgnb.bsp.tree import BSPTree
+from csgnb.errors import PrecisionError
+from csgnb.exact.budgets import budget
+from csgnb.exact.wide import to_wide
 
 __all__ = ["random_bsp", "DEFAULT_EXTENT", "DEFAULT_MAX_NORMAL"]
 

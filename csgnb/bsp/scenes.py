@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..errors import GeometryError
-from ..exact.wide import to_wide
-from .tree import OUT, BSPTree
+from csgnb.bsp.tree import OUT, BSPTree
+from csgnb.errors import GeometryError
+from csgnb.exact.wide import to_wide
 
 __all__ = ["sphere_directions", "tangent_plane_bsp"]
 

@@ -15,15 +15,15 @@ from fractions import Fraction
 
 import numpy as np
 
-from ..errors import GeometryError
-from ..exact.predicates import homogeneous_points
-from ..exact.wide import DEFAULT_WIDTH
-from ..mesh.halfedge import box_planes
-from .build import bsp_from_mesh
-from .extract import extract_boundary
-from .merging import MergeResult, merge, remove_redundancy
-from .surface import BoundarySurface
-from .tree import BSPTree
+from csgnb.bsp.build import bsp_from_mesh
+from csgnb.bsp.extract import extract_boundary
+from csgnb.bsp.merging import MergeResult, merge, remove_redundancy
+from csgnb.bsp.surface import BoundarySurface
+from csgnb.bsp.tree import BSPTree
+from csgnb.errors import GeometryError
+from csgnb.exact.predicates import homogeneous_points
+from csgnb.exact.wide import DEFAULT_WIDTH
+from csgnb.mesh.halfedge import box_planes
 
 __all__ = ["BSP", "UNION", "INTERSECTION", "DIFFERENCE", "SYMMETRIC_DIFFERENCE"]
 

@@ -22,9 +22,9 @@ from math import gcd
 
 import numpy as np
 
-from ..errors import InternalError
-from ..exact.predicates import to_double_position
-from ..exact.wide import from_wide, to_wide, width_of
+from csgnb.errors import InternalError
+from csgnb.exact.predicates import to_double_position
+from csgnb.exact.wide import from_wide, to_wide, width_of
 
 __all__ = ["BoundarySurface", "assemble_surface"]
 
@@ -85,7 +85,7 @@ class BoundarySurface:
 
     def exact_volume(self, label: int | None = None) -> Fraction:
         """Return the exact enclosed volume (of the polygons of one ``label``, or all)."""
-        from ..mesh.halfedge import polygons_volume
+        from csgnb.mesh.halfedge import polygons_volume
 
         pos = self.exact_positions()
         polys = [p for i, p in enumerate(self.polygons()) if label is None or self.labels[i] == label]

@@ -21,11 +21,11 @@ from dataclasses import InitVar, dataclass
 
 import numpy as np
 
-from .._jit import jit
-from ..errors import GeometryError
-from ..exact.budgets import check_planes, check_points_against_planes
-from ..exact.intrinsics import classify_at
-from ..exact.wide import is_wide, width_of
+from csgnb._jit import jit
+from csgnb.errors import GeometryError
+from csgnb.exact.budgets import check_planes, check_points_against_planes
+from csgnb.exact.intrinsics import classify_at
+from csgnb.exact.wide import is_wide, width_of
 
 __all__ = ["OUT", "ON_BOUNDARY", "BSPTree"]
 

@@ -13,8 +13,8 @@ ints. Every predicate checks its inputs against the bit budget of the width
 array([1., 2., 3.])
 """
 
-from .budgets import BitBudget, budget, integer_root
-from .predicates import (
+from csgnb.exact.budgets import BitBudget, budget, integer_root
+from csgnb.exact.predicates import (
     are_planes_parallel,
     classify_vertex,
     homogeneous_points,
@@ -24,8 +24,8 @@ from .predicates import (
     signed_distance,
     to_double_position,
 )
-from .quantization import Grid, Quantization, quantize
-from .wide import DEFAULT_WIDTH, WIDTHS, from_wide, is_wide, to_wide, wide_dtype, width_of
+from csgnb.exact.quantization import Grid, Quantization, quantize
+from csgnb.exact.wide import DEFAULT_WIDTH, WIDTHS, from_wide, is_wide, to_wide, wide_dtype, width_of
 
 __all__ = [
     "WIDTHS",

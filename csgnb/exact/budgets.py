@@ -33,10 +33,10 @@ from functools import cached_property
 
 import numpy as np
 
-from .._jit import jit
-from ..errors import GeometryError, PrecisionError
-from .intrinsics import wide_abs_greater_at, wide_sign_at
-from .wide import WIDTHS, from_wide, width_of
+from csgnb._jit import jit
+from csgnb.errors import GeometryError, PrecisionError
+from csgnb.exact.intrinsics import wide_abs_greater_at, wide_sign_at
+from csgnb.exact.wide import WIDTHS, from_wide, width_of
 
 __all__ = [
     "BitBudget",

@@ -25,16 +25,16 @@ import math
 
 import numpy as np
 
-from .._jit import jit
-from ..errors import GeometryError
-from .budgets import (
+from csgnb._jit import jit
+from csgnb.errors import GeometryError
+from csgnb.exact.budgets import (
     _first_zero_normal,
     check_integer_points_against_planes,
     check_mesh_points,
     check_planes,
     check_points_against_planes,
 )
-from .intrinsics import (
+from csgnb.exact.intrinsics import (
     classify_at,
     compare_ratio_dyadic_at,
     intersect_into,
@@ -47,7 +47,7 @@ from .intrinsics import (
     wide_to_float_at,
     wide_to_int64_at,
 )
-from .wide import to_wide, wide_dtype, width_of
+from csgnb.exact.wide import to_wide, wide_dtype, width_of
 
 __all__ = [
     "homogeneous_points",

@@ -12,9 +12,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import PrecisionError
-from .budgets import budget
-from .wide import DEFAULT_WIDTH
+from csgnb.errors import PrecisionError
+from csgnb.exact.budgets import budget
+from csgnb.exact.wide import DEFAULT_WIDTH
 
 __all__ = ["Grid", "Quantization", "quantize"]
 

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..errors import PrecisionError
+from csgnb.errors import PrecisionError
 
 __all__ = [
     "DEFAULT_WIDTH",

@@ -4,7 +4,7 @@
 splits one by a palette plane with edge descent and marching (or the naive baseline).
 """
 
-from .cutting import CutResult, cut
-from .halfedge import MeshStore, box_planes, polygons_volume
+from csgnb.mesh.cutting import CutResult, cut
+from csgnb.mesh.halfedge import MeshStore, box_planes, polygons_volume
 
 __all__ = ["CutResult", "MeshStore", "box_planes", "cut", "polygons_volume"]

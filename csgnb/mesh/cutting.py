@@ -31,11 +31,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .._jit import jit
-from .._views import unmanaged, unmanaged_tuple
-from ..errors import GeometryError, InternalError
-from ..exact.intrinsics import compare_cached_values_at, intersect_into, plane_value_into
-from .halfedge import (
+from csgnb._jit import jit
+from csgnb._views import unmanaged, unmanaged_tuple
+from csgnb.errors import GeometryError, InternalError
+from csgnb.exact.intrinsics import compare_cached_values_at, intersect_into, plane_value_into
+from csgnb.mesh.halfedge import (
     FACE,
     HE,
     LOOP_C,

@@ -43,13 +43,13 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .._jit import jit
-from .._views import unmanaged_tuple
-from ..errors import GeometryError
-from ..exact.budgets import check_planes
-from ..exact.intrinsics import classify_at, intersect_into
-from ..exact.predicates import to_double_position
-from ..exact.wide import from_wide, is_wide, to_wide, width_of
+from csgnb._jit import jit
+from csgnb._views import unmanaged_tuple
+from csgnb.errors import GeometryError
+from csgnb.exact.budgets import check_planes
+from csgnb.exact.intrinsics import classify_at, intersect_into
+from csgnb.exact.predicates import to_double_position
+from csgnb.exact.wide import from_wide, is_wide, to_wide, width_of
 
 __all__ = ["MeshArrays", "MeshStore", "NEXT", "TWIN", "VERT", "FACE", "PLANE", "HE", "OPP", "release_cell"]
 
@@ -445,6 +445,56 @@ class MeshStore:
         """Return (face ids, vertex rows per face) of a polytope, counter-clockwise from outside."""
         faces = self.cell_faces(cell)
         return [int(self.he[c[0], FACE]) for c in faces], [[int(self.he[h, VERT]) for h in c] for c in faces]
+
+    # Named reads of the topology columns, for notebooks and callers outside the kernels (which index ``he``
+    # and ``fc`` directly). Each takes an int or an integer array and returns the same shape, ``int64``.
+
+    def next_halfedge(self, h):
+        """Return the half-edge after ``h`` around its face (counter-clockwise seen from outside)."""
+        return self._column(self.he, h, NEXT)
+
+    def twin(self, h):
+        """Return the half-edge opposite ``h`` (same edge, other face, other direction)."""
+        return self._column(self.he, h, TWIN)
+
+    def origin(self, h):
+        """Return the vertex row ``h`` starts at."""
+        return self._column(self.he, h, VERT)
+
+    def face_of(self, h):
+        """Return the face ``h`` belongs to."""
+        return self._column(self.he, h, FACE)
+
+    def face_plane(self, f, *, signed: bool = False):
+        """Return the palette row of face ``f``'s plane; ``signed=True`` gives ``~row`` for a flipped face."""
+        p = self._column(self.fc, f, PLANE)
+        if signed:
+            return p
+        return np.where(p >= 0, p, ~p) if np.ndim(p) else (p if p >= 0 else ~p)
+
+    def face_halfedge(self, f):
+        """Return one half-edge of face ``f``."""
+        return self._column(self.fc, f, HE)
+
+    def face_opposite(self, f):
+        """Return the BSP node on the other side of face ``f`` (``-1``: outside the domain)."""
+        return self._column(self.fc, f, OPP)
+
+    @property
+    def classifications(self) -> int:
+        """How many vertex classifications the cuts on this store have made (a statistic)."""
+        return int(self.counts[N_CLASSIFY])
+
+    @property
+    def constructions(self) -> int:
+        """How many vertices the cuts on this store have built (a statistic)."""
+        return int(self.counts[N_CONSTRUCT])
+
+    @staticmethod
+    def _column(table, rows, column):
+        if np.ndim(rows) == 0:
+            return int(table[int(rows), column])
+        return table[np.asarray(rows, np.int64), column].astype(np.int64)
 
     def exact_vertices(self, rows) -> list[tuple[Fraction, Fraction, Fraction]]:
         """Return the Cartesian positions of vertex ``rows`` as exact Fractions."""

@@ -1,0 +1,255 @@
+"""How the notebooks show 3D scenes: one call, a static picture or a view you can turn, chosen by environment.
+
+:func:`show` takes a finished :class:`pyvista.Plotter` and returns what a notebook cell displays. The kind of
+output follows pyvista's own variable ``PYVISTA_JUPYTER_BACKEND``:
+
+* ``static`` -- a PNG. Deterministic: the set-up exports it for nbval and CI.
+* ``html`` (the default when the variable is unset; ``scripts/lab.sh`` and ``scripts/demo.sh`` use it) -- the
+  scene as a self-contained vtk.js page (pyvista's ``html`` backend, trame-vtk's exporter) in an
+  ``<iframe srcdoc>``. Drag to rotate, scroll to zoom, in JupyterLab *and* in an HTML export: no server, no
+  kernel, nothing fetched from the network. pyvista returns the same page inside an ``ipywidgets.HTML``;
+  csgnb puts it in a plain ``text/html`` output instead, because an exported HTML file can only draw widgets
+  with a script from a CDN. vtk.js draws scalar bars but not VTK's text actors, so the texts of the scene
+  (``add_text``) are laid over each view as HTML.
+* ``none`` -- nothing is shown (the PNG is still written when asked for).
+* ``trame``, ``client``, ``server`` -- handed to ``Plotter.show`` (these need a running kernel and trame server).
+
+:func:`show` builds IPython display objects itself instead of calling ``Plotter.show``, so it works inside an
+``ipywidgets`` callback, where pyvista does not detect the notebook and ignores its backend.
+
+:func:`aim` places the camera; :func:`add_legend` labels colours in a way both kinds of output show;
+:func:`snapshot` renders to an image array (for composing pictures).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import html
+import io
+import os
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["BACKENDS", "add_legend", "aim", "jupyter_backend", "show", "snapshot"]
+
+#: The values of ``PYVISTA_JUPYTER_BACKEND`` that :func:`show` understands.
+BACKENDS = ("static", "html", "none", "trame", "client", "server")
+
+_DEFAULT_BACKEND = "html"
+_SERVED = ("trame", "client", "server")  # pyvista keeps serving these plotters: not closed here
+
+
+def jupyter_backend(backend: str | None = None) -> str:
+    """Return the backend :func:`show` uses: ``backend`` if given, else ``PYVISTA_JUPYTER_BACKEND``, else ``html``.
+
+    Raises ``ValueError`` for a name that is not in :data:`BACKENDS`.
+    """
+    name = backend if backend is not None else os.environ.get("PYVISTA_JUPYTER_BACKEND", "").strip()
+    name = (name or _DEFAULT_BACKEND).lower()
+    if name not in BACKENDS:
+        source = "backend" if backend is not None else "PYVISTA_JUPYTER_BACKEND"
+        raise ValueError(f"{source}={name!r} is not a backend csgnb.display.show knows; use one of {BACKENDS}")
+    return name
+
+
+def aim(plotter, focus, distance: float, direction=(1.0, -2.0, 0.9), up=(0.0, 0.0, 1.0)) -> None:
+    """Put the camera of ``plotter`` (its active subplot) at ``focus + distance * direction / |direction|``.
+
+    One fixed camera per scene, so that the pictures of a sequence line up.
+    """
+    d = np.asarray(direction, float)
+    norm = np.linalg.norm(d)
+    if not np.isfinite(norm) or norm == 0:
+        raise ValueError(f"aim needs a non-zero, finite direction, got {direction!r}")
+    focus = np.asarray(focus, float).reshape(3)
+    plotter.camera.focal_point = tuple(focus)
+    plotter.camera.position = tuple(focus + float(distance) * d / norm)
+    plotter.camera.up = tuple(float(u) for u in up)
+
+
+def add_legend(plotter, entries, *, font_size: int = 12, corner: str = "upper right") -> None:
+    """Label colours in the active subplot of ``plotter``: one line per ``(label, colour)``, on a swatch of it.
+
+    ``corner`` is ``"upper right"``, ``"upper left"``, ``"lower right"`` or ``"lower left"``. Plain text actors,
+    so the legend shows in the static picture and over the interactive view alike (vtk.js draws no VTK legend).
+    """
+    import pyvista as pv
+
+    if corner not in ("upper right", "upper left", "lower right", "lower left"):
+        raise ValueError(f"corner must be 'upper right', 'upper left', 'lower right' or 'lower left', got {corner!r}")
+    entries = list(entries)
+    renderer = plotter.renderer
+    x0, y0, x1, y1 = renderer.GetViewport()
+    w, h = (x1 - x0) * plotter.window_size[0], (y1 - y0) * plotter.window_size[1]
+    step = 1.9 * font_size
+    right, top = corner.endswith("right"), corner.startswith("upper")
+    for k, (label, colour) in enumerate(entries):
+        rgb = pv.Color(colour).float_rgb
+        light = 0.299 * rgb[0] + 0.587 * rgb[1] + 0.114 * rgb[2] > 0.55
+        y = h - 10 - k * step if top else 10 + (len(entries) - 1 - k) * step
+        actor = plotter.add_text(str(label), position=(w - 10 if right else 10, y), font_size=font_size,
+                                 color="black" if light else "white")
+        prop = actor.GetTextProperty()
+        prop.SetJustification(2 if right else 0)
+        prop.SetVerticalJustification(2 if top else 0)
+        prop.SetBackgroundColor(rgb)
+        prop.SetBackgroundOpacity(1.0)
+
+
+def snapshot(plotter, path: str | Path | None = None, *, close: bool = True) -> np.ndarray:
+    """Render ``plotter`` off screen and return the picture, ``(h, w, 3) uint8``; also write it to ``path`` if given.
+
+    Closes the plotter unless ``close=False``.
+    """
+    image = plotter.screenshot(str(path) if path is not None else None, return_img=True)
+    if close:
+        plotter.close()
+    return np.asarray(image)
+
+
+def show(plotter, path: str | Path | None = None, *, backend: str | None = None):
+    """Return the display object for ``plotter`` under the current backend (see the module docstring).
+
+    Parameters
+    ----------
+    plotter : pyvista.Plotter
+        A finished scene; it is closed afterwards.
+    path : str or Path, optional
+        Also write the scene as a PNG there (whatever the backend), e.g. for the pictures under ``out/``.
+    backend : str, optional
+        Overrides ``PYVISTA_JUPYTER_BACKEND`` (one of :data:`BACKENDS`).
+
+    Returns
+    -------
+    IPython.display.Image, IPython.display.HTML, or None
+        Display it, or let it be the value of the cell.
+    """
+    from IPython.display import HTML, Image
+
+    name = jupyter_backend(backend)
+    if plotter.render_window is None:
+        raise ValueError("this plotter is closed; build the scene again before showing it")
+    png = None
+    if path is not None or name == "static":
+        png = _png(snapshot(plotter, path, close=False))
+    try:
+        if name == "static":
+            return Image(data=png, format="png")
+        if name == "none":
+            return None
+        if name == "html":
+            return HTML(_scene_html(plotter))
+        plotter.notebook = True  # as in a callback, pyvista must not second-guess where it runs
+        return plotter.show(jupyter_backend=name, return_viewer=True)
+    finally:
+        if name not in _SERVED:
+            plotter.close()
+
+
+# --- the html backend -------------------------------------------------------------------------------------------
+
+
+def _png(image: np.ndarray) -> bytes:
+    from PIL import Image as PILImage
+
+    buffer = io.BytesIO()
+    PILImage.fromarray(np.asarray(image, np.uint8)).save(buffer, format="png")
+    return buffer.getvalue()
+
+
+def _offline_wasm_dir() -> None:
+    # trame-vtklocal (pulled in by trame-pyvista) downloads a wasm bundle when its server starts unless this
+    # variable names a directory; csgnb never uses it, so an empty one keeps everything offline.
+    if not os.environ.get("VTK_WASM_DIR_OVERRIDE"):
+        os.environ["VTK_WASM_DIR_OVERRIDE"] = tempfile.mkdtemp(prefix="csgnb-no-wasm-")
+
+
+def _vtkjs_page(plotter) -> str:
+    _offline_wasm_dir()
+    try:
+        component = plotter.trame
+    except (AttributeError, ImportError) as err:  # pragma: no cover - depends on the installation
+        raise ImportError("the 'html' backend needs trame-pyvista (pip install 'trame-pyvista[jupyter]'), "
+                          "or set PYVISTA_JUPYTER_BACKEND=static") from err
+    with contextlib.redirect_stdout(io.StringIO()):  # the trame server it starts announces itself on stdout
+        return component.export_html(None).getvalue()
+
+
+def _css_colour(rgba) -> str:
+    r, g, b = (int(round(255 * float(c))) for c in rgba[:3])
+    return f"rgb({r},{g},{b})"
+
+
+def _format(fmt: str, value: float) -> str:
+    try:
+        text = fmt.format(value) if "{" in fmt else fmt % value
+    except (ValueError, TypeError):
+        text = f"{value:.3g}"
+    return text.strip()
+
+
+def _props(renderer):
+    props = renderer.GetViewProps()
+    props.InitTraversal()
+    return [props.GetNextProp() for _ in range(props.GetNumberOfItems())]
+
+
+# vtkCornerAnnotation slots: 0 lower left, 1 lower right, 2 upper left, 3 upper right, 4-7 edges.
+_CORNERS = {0: "left:6px;bottom:4px", 1: "right:6px;bottom:4px", 2: "left:6px;top:4px", 3: "right:6px;top:4px",
+            4: "left:50%;bottom:4px;transform:translateX(-50%)", 5: "right:6px;top:50%",
+            6: "left:6px;top:50%", 7: "left:50%;top:4px;transform:translateX(-50%)"}
+
+
+def _captions(plotter, width: int, height: int) -> list[str]:
+    """The scene's 2D texts as absolutely placed HTML, one per text, in the viewport of its subplot."""
+    out = []
+    for renderer in plotter.renderers:
+        x0, y0, x1, y1 = renderer.GetViewport()
+        box = (f"position:absolute;left:{100 * x0:.3f}%;top:{100 * (1 - y1):.3f}%;width:{100 * (x1 - x0):.3f}%;"
+               f"height:{100 * (y1 - y0):.3f}%;pointer-events:none")
+        texts = []
+        for prop in _props(renderer):
+            if not prop.GetVisibility():
+                continue
+            if prop.IsA("vtkCornerAnnotation"):
+                for slot, where in _CORNERS.items():
+                    text = prop.GetText(slot)
+                    if text:
+                        # A corner annotation scales its font with the window: about twice its size in pixels.
+                        texts.append((where, text, prop.GetTextProperty(), 2.1))
+            elif prop.IsA("vtkTextActor"):
+                x, y = prop.GetPosition()
+                vw, vh = max((x1 - x0) * width, 1), max((y1 - y0) * height, 1)
+                tp = prop.GetTextProperty()
+                # Honour the text's justification: its anchor is a left/centre/right, bottom/centre/top point.
+                dx = {0: 0, 1: -50, 2: -100}[tp.GetJustification()]
+                dy = {0: 0, 1: 50, 2: 100}[tp.GetVerticalJustification()]
+                where = (f"left:{100 * x / vw:.2f}%;bottom:{100 * y / vh:.2f}%;"
+                         f"transform:translate({dx}%,{dy}%)")
+                texts.append((where, prop.GetInput(), tp, 0.85))  # font size in pixels (pyvista doubled it)
+        if texts:
+            spans = []
+            for where, text, prop, scale in texts:
+                size = max(12, int(round(scale * prop.GetFontSize())))
+                colour = _css_colour(prop.GetColor())
+                style = f"position:absolute;{where};font:{size}px sans-serif;color:{colour};white-space:pre"
+                if prop.GetBackgroundOpacity() > 0:
+                    style += f";background:{_css_colour(prop.GetBackgroundColor())};padding:0 5px;line-height:1.1"
+                spans.append(f'<div style="{style}">{html.escape(str(text))}</div>')
+            out.append(f'<div style="{box}">{"".join(spans)}</div>')
+    return out
+
+
+def _scene_html(plotter) -> str:
+    width, height = (int(v) for v in plotter.window_size)
+    page = _vtkjs_page(plotter)  # before the overlays are read: export renders the scene
+    frame = (f'<iframe class="csgnb-scene" title="3D view: drag to rotate, scroll to zoom" '
+             f'srcdoc="{html.escape(page, quote=True)}" '
+             f'style="position:absolute;left:0;top:0;width:100%;height:100%;border:1px solid #ddd"></iframe>')
+    view = (f'<div style="position:relative;width:{width}px;height:{height}px;flex:none">'
+            f'{frame}{"".join(_captions(plotter, width, height))}</div>')
+    hint = ('<div style="font:12px sans-serif;color:#666;margin-top:2px">3D view: drag to rotate, '
+            'shift-drag to pan, scroll to zoom</div>')
+    return f'<div class="csgnb-view">{view}{hint}</div>'

@@ -1,0 +1,143 @@
+"""Compiling csgnb's numba kernels ahead of use, with a progress bar: the set-up runs it, notebooks call it first.
+
+numba compiles a kernel the first time it is called with new argument types; csgnb caches the machine code on
+disk (``NUMBA_CACHE_DIR``, see :mod:`csgnb._jit`), keyed on the source of the whole package. So the first run
+after an install or an edit of csgnb compiles for one to three minutes, and every later run loads the kernels from
+the cache in seconds. :func:`warm_up` runs one small, typical workload per part of the package so that this
+happens up front, visibly, instead of as a silent ``[*]`` in the middle of a notebook.
+
+``python -m csgnb.warmup`` warms every part (``scripts/demo.sh`` and ``scripts/lab.sh`` call it).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+
+import numpy as np
+
+__all__ = ["PARTS", "warm_up"]
+
+
+def _exact() -> None:
+    from csgnb import exact
+
+    for width in exact.WIDTHS:
+        planes = exact.plane_from_points([[0, 0, 0]], [[7, 0, 0]], [[0, 5, 0]], width=width)
+        cut = exact.to_wide([[1, 0, 0, -1], [0, 1, 0, -2], [0, 0, 3, -1]], width)
+        x = exact.intersect_3_planes(cut[0], cut[1], cut[2])
+        exact.classify_vertex(x, planes[0])
+        exact.classify_vertex(exact.homogeneous_points([[1, 2, 3]], width), planes)
+        exact.to_double_position(x)
+        exact.points_equal(x, x)
+        exact.signed_distance([[1, 2, 3]], planes)
+        exact.are_planes_parallel(planes, planes)
+    exact.quantize(np.array([[0.0, 0.0, 0.0], [1.0, 2.0, 3.0]]), width=256)
+
+
+def _mesh() -> None:
+    from csgnb import exact
+    from csgnb.mesh import MeshStore, cut
+
+    for naive in (False, True):
+        store = MeshStore(exact.to_wide([[2, 3, 5, -19]], 128))
+        box = store.add_box([0, 0, 0], [4, 4, 4])
+        parts = cut(store, box, 0, naive=naive)
+        store.exact_volume(parts.negative)
+        store.check_cell(parts.positive)
+        store.positions(store.cell_vertices(parts.negative))
+
+
+def _bsp() -> None:
+    from csgnb.bsp import BSP, DIFFERENCE, extract_cells, random_bsp, tangent_plane_bsp
+
+    a, b = BSP.box([0, 0, 0], [4, 4, 4]), BSP.box([2, 2, 2], [6, 6, 6])
+    for result in (a | b, a & b, a - b, a ^ b, a.merge(b, DIFFERENCE, simplify=False)):
+        result.volume()
+        result.surface().is_closed()
+    axes = np.array([[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]])
+    faces = [[0, 2, 4], [2, 1, 4], [1, 3, 4], [3, 0, 4], [2, 0, 5], [1, 2, 5], [3, 1, 5], [0, 3, 5]]
+    octahedron = BSP.from_mesh(axes * [3, 2, 4] + 4, faces)
+    (a - octahedron).classify([[1, 1, 1]])
+    tree = random_bsp(8, seed=0, extent=16, max_normal=5)
+    BSP(tree, [-16] * 3, [16] * 3).volume()
+    for naive in (False, True):
+        extract_cells(tangent_plane_bsp(16), [-8192] * 3, [8192] * 3, naive=naive)
+
+
+def _quadric() -> None:
+    import csgnb.quadric as cq
+
+    q = cq.hyperboloid_one_sheet((1.0, 0.8, 1.2))
+    planes = cq.sampling_planes(q)
+    cq.signed_distance(q, [[0.0, 0.0, 0.0], [3.0, 0.0, 0.0]])
+    q.value(np.zeros((2, 3)))
+    q.normal(np.ones((2, 3)))
+    q.intersect_lines(np.zeros((2, 3)), np.ones((2, 3)))
+    cq.distortion(planes[1].alpha, np.array([0.1]), np.array([0.2]))
+    cq.distortion_bounds(planes[1].alpha, [[0.1, 0.1, 0.2, 0.2]])
+    for region in cq.low_distortion_regions(q, (-2, -2, -2), (2, 2, 2))[:4]:
+        cq.region_mesh(planes[region.plane], region, 4, 1.0)
+
+
+def _sampling() -> None:
+    import csgnb.csg as csg
+    from csgnb.sampling import sample_csg
+
+    solid = (csg.sphere((0, 0, 0), 1.0, "A") & csg.sphere((0.8, 0, 0), 1.0, "B")) | csg.box(
+        (0.2, 0.2, -0.3), (1.2, 1.0, 0.3), "C")
+    sample_csg(solid, 0.2)
+    sample_csg(solid, 0.2, trace=True)
+    sample_csg(solid, 0.2, distortion="sqrt3", refine=False)
+
+
+#: The parts :func:`warm_up` knows, in the order of the two pipelines.
+PARTS = {"exact": _exact, "mesh": _mesh, "bsp": _bsp, "quadric": _quadric, "sampling": _sampling}
+
+
+def warm_up(*parts: str, progress: bool = True) -> dict[str, float]:
+    """Compile (or load from the cache) the kernels of ``parts`` (default: all of :data:`PARTS`).
+
+    Prints what it does and shows a ``tqdm`` progress bar (a widget in a notebook) unless ``progress=False``.
+    Returns the seconds spent per part.
+    """
+    names = list(parts) or list(PARTS)
+    unknown = [p for p in names if p not in PARTS]
+    if unknown:
+        raise ValueError(f"unknown part(s) {unknown}: warm_up knows {list(PARTS)}")
+    if progress:
+        from tqdm.auto import tqdm
+
+        print("Preparing csgnb's numba kernels for " + ", ".join(names) + ": compiled on the first run after an "
+              "install or an edit (1-3 minutes), loaded from the cache (NUMBA_CACHE_DIR) afterwards.", flush=True)
+        bar = tqdm(names, desc="numba kernels", unit="part", leave=False)
+    else:
+        bar = names
+    seconds = {}
+    for name in bar:
+        if progress:
+            bar.set_postfix_str(name)
+        t0 = time.perf_counter()
+        PARTS[name]()
+        seconds[name] = time.perf_counter() - t0
+    if progress:
+        bar.close()
+        print(f"Kernels ready ({sum(seconds.values()):.0f} s).", flush=True)
+    return seconds
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m csgnb.warmup", description=__doc__.splitlines()[0])
+    parser.add_argument("parts", nargs="*", help=f"parts to warm, of {', '.join(PARTS)} (default: all)")
+    args = parser.parse_args(argv)
+    try:
+        seconds = warm_up(*args.parts)
+    except ValueError as err:
+        parser.error(str(err))
+    print("  " + ", ".join(f"{k} {v:.1f} s" for k, v in seconds.items()), file=sys.stderr)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

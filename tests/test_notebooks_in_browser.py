@@ -1,0 +1,351 @@
+"""Every notebook in a real browser: JupyterLab on 127.0.0.1, driven by headless Chromium through playwright.
+
+For each ``notebooks/*.ipynb`` (any chapter present is covered), on a *copy* of the notebooks so that
+JupyterLab's autosave never rewrites the committed files:
+
+1. open it, clear its outputs, click Run -> Run All Cells and wait until every code cell has run;
+2. assert that no cell wrote to stderr (errors, tracebacks, warnings);
+3. write screenshots of the whole notebook, page by page, to ``out/browser/<notebook>-NN.png``;
+4. operate every widget with real input -- a slider by arrow keys on its handle, a dropdown by choosing another
+   option, a button by a click, a 3D view by a mouse drag -- and assert that the output it drives changed, still
+   holds its pictures and shows no warning or error.
+
+The kernel runs with ``PYVISTA_JUPYTER_BACKEND=html`` (what ``scripts/lab.sh`` uses), so 3D views are the
+interactive, self-contained vtk.js scenes of :mod:`csgnb.display`.
+
+Needs Debian's ``chromium`` (``/usr/bin/chromium``; ``scripts/setup.sh`` installs it as root) and the ``playwright``
+Python package (a dev dependency). Playwright's own browser download is never used. ``CSGNB_BROWSER`` overrides
+the browser path.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import shutil
+import socket
+import subprocess
+import sys
+import time
+import urllib.request
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+NOTEBOOKS = sorted(p.name for p in (ROOT / "notebooks").glob("*.ipynb"))
+SHOTS = ROOT / "out" / "browser"
+CHROMIUM = os.environ.get("CSGNB_BROWSER", "/usr/bin/chromium")
+CHROMIUM_ARGS = [
+    "--no-sandbox",
+    "--disable-gpu",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+    "--no-first-run",
+    "--disable-quic",
+    "--enable-unsafe-swiftshader",  # software WebGL for the vtk.js scenes (headless, no GPU)
+]
+VIEWPORT = {"width": 1400, "height": 1000}
+RUN_ALL_TIMEOUT = float(os.environ.get("CSGNB_BROWSER_TIMEOUT", 600))  # seconds per notebook
+MAX_PAGES = 40  # screenshots per notebook
+
+# Controls a user operates; everything else under a cell's output area is output they drive.
+CONTROLS = ".widget-slider, .widget-dropdown, .widget-button, .widget-toggle-buttons, .widget-checkbox"
+STDERR = '[data-mime-type="application/vnd.jupyter.stderr"]'
+SCENE = "iframe.csgnb-scene"
+
+# A summary of a cell's output with the controls taken out: text, one hash per picture, and the count of
+# pictures. A control's own readout changing does not count as its output changing.
+SIGNATURE_JS = """
+(cell) => {
+  const area = cell.querySelector('.jp-Cell-outputArea') || cell;
+  const copy = area.cloneNode(true);
+  copy.querySelectorAll("__CONTROLS__").forEach((n) => n.remove());
+  const hash = (s) => {
+    let h = 0;
+    for (let i = 0; i < s.length; i++) { h = (h * 31 + s.charCodeAt(i)) | 0; }
+    return h;
+  };
+  const pictures = [];
+  copy.querySelectorAll('img').forEach((i) => pictures.push('img:' + hash(i.getAttribute('src') || '')));
+  copy.querySelectorAll('iframe').forEach(
+    (f) => pictures.push('frame:' + hash(f.getAttribute('srcdoc') || f.src || '')));
+  return {text: copy.innerText, pictures: pictures};
+}
+""".replace("__CONTROLS__", CONTROLS)
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+class Lab:
+    """A JupyterLab server on 127.0.0.1 over a copy of the notebooks, with settings of its own."""
+
+    def __init__(self, workdir: Path):
+        self.root = workdir / "notebooks"
+        shutil.copytree(ROOT / "notebooks", self.root)
+        settings = workdir / "settings"
+        (settings / "@jupyterlab" / "notebook-extension").mkdir(parents=True)
+        (settings / "@jupyterlab" / "apputils-extension").mkdir(parents=True)
+        # Every cell stays in the DOM (no virtual scrolling), so every widget can be found and operated.
+        (settings / "@jupyterlab" / "notebook-extension" / "tracker.jupyterlab-settings").write_text(
+            json.dumps({"windowingMode": "none"}))
+        # No news or update checks: nothing may leave 127.0.0.1.
+        (settings / "@jupyterlab" / "apputils-extension" / "notification.jupyterlab-settings").write_text(
+            json.dumps({"fetchNews": "false", "checkForUpdates": False}))
+        env = dict(os.environ)
+        env.update(
+            PYVISTA_JUPYTER_BACKEND="html",
+            PYVISTA_OFF_SCREEN="true",
+            CSGNB_OUT_DIR=str(workdir / "out"),
+            JUPYTERLAB_SETTINGS_DIR=str(settings),
+            JUPYTERLAB_WORKSPACES_DIR=str(workdir / "workspaces"),
+            JUPYTER_RUNTIME_DIR=str(workdir / "runtime"),
+        )
+        self.port = _free_port()
+        self.url = f"http://127.0.0.1:{self.port}"
+        cmd = [sys.executable, "-m", "jupyterlab", "--no-browser", "--ip=127.0.0.1", f"--port={self.port}",
+               "--ServerApp.token=", "--ServerApp.password=", "--ServerApp.disable_check_xsrf=True",
+               f"--ServerApp.root_dir={self.root}", "--LabApp.check_for_updates_class="
+               "jupyterlab.NeverCheckForUpdate"]
+        if hasattr(os, "getuid") and os.getuid() == 0:
+            cmd.append("--allow-root")
+        self.log = open(workdir / "jupyterlab.log", "w")  # noqa: SIM115 (closed in stop)
+        self.proc = subprocess.Popen(cmd, env=env, stdout=self.log, stderr=subprocess.STDOUT, cwd=self.root)
+        deadline = time.monotonic() + 120
+        while True:
+            try:
+                urllib.request.urlopen(f"{self.url}/api/status", timeout=2).read()
+                break
+            except OSError:
+                if self.proc.poll() is not None or time.monotonic() > deadline:
+                    self.stop()
+                    raise RuntimeError(f"JupyterLab did not start; see {workdir / 'jupyterlab.log'}") from None
+                time.sleep(0.5)
+
+    def api(self, method: str, path: str):
+        request = urllib.request.Request(f"{self.url}{path}", method=method)
+        with urllib.request.urlopen(request, timeout=30) as response:
+            body = response.read()
+        return json.loads(body) if body else None
+
+    def shut_down_kernels(self) -> None:
+        for session in self.api("GET", "/api/sessions"):
+            self.api("DELETE", f"/api/sessions/{session['id']}")
+
+    def stop(self) -> None:
+        if self.proc.poll() is None:
+            self.proc.terminate()  # our own server, by its process handle
+            try:
+                self.proc.wait(timeout=30)
+            except subprocess.TimeoutExpired:
+                self.proc.kill()
+                self.proc.wait()
+        self.log.close()
+
+
+@pytest.fixture(scope="module")
+def lab(tmp_path_factory):
+    server = Lab(tmp_path_factory.mktemp("lab"))
+    yield server
+    server.stop()
+
+
+@pytest.fixture(scope="module")
+def browser():
+    if not Path(CHROMIUM).exists():
+        pytest.fail(f"the browser test needs Debian's chromium at {CHROMIUM}: run `bash scripts/setup.sh` as root "
+                    "or `apt-get install -y --no-install-recommends chromium` (or set CSGNB_BROWSER)")
+    from playwright.sync_api import sync_playwright
+
+    with sync_playwright() as p:
+        chromium = p.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS, headless=True)
+        yield chromium
+        chromium.close()
+
+
+# --- helpers driving one notebook page -------------------------------------------------------------------------
+
+
+def _kernel_idle(page) -> bool:
+    return page.locator(".jp-Notebook-ExecutionIndicator[data-status='idle']").count() > 0
+
+
+def _wait_idle(page, timeout: float) -> None:
+    deadline = time.monotonic() + timeout
+    settled = 0
+    while settled < 3:  # idle three polls in a row: a callback's busy spell can be very short
+        if time.monotonic() > deadline:
+            raise AssertionError(f"the kernel did not become idle within {timeout:.0f} s")
+        settled = settled + 1 if _kernel_idle(page) else 0
+        page.wait_for_timeout(200)
+
+
+def _menu(page, menu: str, command: str) -> None:
+    page.locator(f'.lm-MenuBar-item:has-text("{menu}")').first.click()
+    page.locator(f'.lm-Menu-item[data-command="{command}"]').first.click()
+
+
+def _stderr_texts(root) -> list[str]:
+    return [t.strip()[:2000] for t in root.locator(STDERR).all_inner_texts()]
+
+
+def _run_all(page, name: str) -> None:
+    _menu(page, "Edit", "editmenu:clear-all")
+    page.wait_for_function(
+        "() => [...document.querySelectorAll('.jp-CodeCell .jp-InputPrompt')].every(p => !/\\d/.test(p.innerText))")
+    _menu(page, "Run", "runmenu:run-all")
+    deadline = time.monotonic() + RUN_ALL_TIMEOUT
+    prompts = page.locator(".jp-CodeCell .jp-InputPrompt")
+    while True:
+        texts = prompts.all_inner_texts()
+        done = all(re.search(r"\[\d+\]", t) for t in texts)
+        if done and _kernel_idle(page):
+            break
+        if _stderr_texts(page) and _kernel_idle(page):
+            break  # stopped at an error: reported below
+        if time.monotonic() > deadline:
+            pending = sum(not re.search(r"\[\d+\]", t) for t in texts)
+            raise AssertionError(f"{name}: Run All did not finish within {RUN_ALL_TIMEOUT:.0f} s "
+                                 f"({pending} of {len(texts)} code cells not run)")
+        page.wait_for_timeout(500)
+    _wait_idle(page, 60)
+
+
+def _screenshots(page, stem: str) -> list[Path]:
+    SHOTS.mkdir(parents=True, exist_ok=True)
+    for old in SHOTS.glob(f"{stem}-*.png"):
+        old.unlink()
+    scroller = page.locator(".jp-NotebookPanel .jp-WindowedPanel-outer").first
+    height, view = scroller.evaluate("(e) => [e.scrollHeight, e.clientHeight]")
+    paths = []
+    for k in range(min(MAX_PAGES, max(1, -(-height // max(view - 60, 1))))):
+        scroller.evaluate("(e, y) => { e.scrollTop = y; }", k * (view - 60))
+        page.wait_for_timeout(400)
+        path = SHOTS / f"{stem}-{k + 1:02d}.png"
+        page.screenshot(path=str(path))
+        paths.append(path)
+    scroller.evaluate("(e) => { e.scrollTop = 0; }")
+    return paths
+
+
+def _signature(cell) -> dict:
+    return cell.evaluate(SIGNATURE_JS)
+
+
+def _problems(cell) -> list[str]:
+    found = _stderr_texts(cell)
+    text = cell.locator(".jp-Cell-outputArea").inner_text()
+    found += [line for line in text.splitlines() if re.search(r"\b\w*(Warning|Error)\b", line)]
+    return found
+
+
+def _operate(page, cell, control, describe: str, act) -> None:
+    """Apply `act` to `control`; the cell's output must change, keep its pictures and show no problem."""
+    before = _signature(cell)
+    act()
+    deadline = time.monotonic() + 120
+    while _signature(cell) == before:
+        if time.monotonic() > deadline:
+            raise AssertionError(f"{describe}: its output did not change")
+        page.wait_for_timeout(250)
+    _wait_idle(page, 120)
+    page.wait_for_timeout(500)
+    after = _signature(cell)
+    problems = _problems(cell)
+    assert not problems, f"{describe}: the output shows {problems}"
+    assert len(after["pictures"]) >= len(before["pictures"]), (
+        f"{describe}: the output lost pictures ({len(before['pictures'])} -> {len(after['pictures'])})")
+
+
+def _slider(page, cell, slider, describe):
+    handle = slider.locator(".noUi-handle").first
+    readout = slider.locator(".widget-readout").first
+
+    def act():
+        old = readout.inner_text()
+        handle.focus()
+        page.keyboard.press("ArrowRight")
+        page.wait_for_timeout(200)
+        if readout.inner_text() == old:  # at the maximum: go the other way
+            page.keyboard.press("ArrowLeft")
+
+    _operate(page, cell, slider, describe, act)
+
+
+def _dropdown(page, cell, dropdown, describe):
+    select = dropdown.locator("select").first
+    options = select.locator("option").all_inner_texts()
+    current = select.evaluate("(s) => s.selectedIndex")
+    _operate(page, cell, dropdown, describe,
+             lambda: select.select_option(index=(current + 1) % len(options)))
+
+
+def _button(page, cell, button, describe):
+    _operate(page, cell, button, describe, lambda: button.click())
+
+
+def _scene(page, frame, describe):
+    """A 3D view must render and turn under a mouse drag (vtk.js in the iframe)."""
+    frame.scroll_into_view_if_needed()
+    canvas = frame.content_frame.locator("canvas").first
+    canvas.wait_for(state="visible", timeout=60_000)
+    page.wait_for_timeout(500)
+    before = frame.screenshot()
+    box = frame.bounding_box()
+    x, y = box["x"] + box["width"] / 2, box["y"] + box["height"] / 2
+    page.mouse.move(x, y)
+    page.mouse.down()
+    page.mouse.move(x + 0.25 * box["width"], y + 0.1 * box["height"], steps=12)
+    page.mouse.up()
+    page.wait_for_timeout(500)
+    after = frame.screenshot()
+    assert after != before, f"{describe}: dragging did not turn the view"
+
+
+def _operate_widgets(page, name: str) -> list[str]:
+    done = []
+    cells = page.locator(".jp-Notebook .jp-CodeCell")
+    for i in range(cells.count()):
+        cell = cells.nth(i)
+        area = cell.locator(".jp-Cell-outputArea")
+        kinds = [(".widget-slider", _slider), (".widget-dropdown", _dropdown), (".widget-button", _button)]
+        for selector, operate in kinds:
+            for k in range(area.locator(selector).count()):
+                control = area.locator(selector).nth(k)
+                label = control.locator(".widget-label").first.inner_text() if control.locator(
+                    ".widget-label").count() else control.inner_text()
+                describe = f"{name}, code cell {i + 1}, {selector[8:]} {label.strip()!r}"
+                operate(page, cell, control, describe)
+                done.append(describe)
+        for k in range(area.locator(SCENE).count()):
+            describe = f"{name}, code cell {i + 1}, 3D view {k + 1}"
+            _scene(page, area.locator(SCENE).nth(k), describe)
+            done.append(describe)
+    return done
+
+
+@pytest.mark.parametrize("name", NOTEBOOKS)
+def test_notebook_in_browser(lab, browser, name):
+    page = browser.new_page(viewport=VIEWPORT)
+    try:
+        page.goto(f"{lab.url}/lab/tree/{name}?reset", timeout=120_000)
+        page.locator(".jp-NotebookPanel .jp-Cell").first.wait_for(timeout=120_000)
+        _wait_idle(page, 120)
+        page.keyboard.press("Control+b")  # hide the file browser: the notebook gets the whole width
+        _run_all(page, name)
+        errors = _stderr_texts(page)
+        _screenshots(page, Path(name).stem)
+        assert not errors, f"{name}: Run All wrote to stderr:\n" + "\n---\n".join(errors)
+        operated = _operate_widgets(page, name)
+        print(f"{name}: operated {len(operated)} widgets and views")
+        for line in operated:
+            print("  ", line)
+    finally:
+        page.close()
+        lab.shut_down_kernels()

@@ -1,0 +1,21 @@
+"""csgnb.warmup: runs the workloads it names, refuses parts it does not know."""
+
+import pytest
+
+from csgnb import warmup
+
+
+def test_warm_up_returns_the_seconds_per_part():
+    seconds = warmup.warm_up("quadric", progress=False)
+    assert list(seconds) == ["quadric"] and seconds["quadric"] >= 0
+
+
+def test_unknown_parts_are_named_in_the_error():
+    with pytest.raises(ValueError, match=r"\['octree'\].*exact"):
+        warmup.warm_up("exact", "octree")
+
+
+def test_command_line_rejects_unknown_parts(capsys):
+    with pytest.raises(SystemExit):
+        warmup.main(["nope"])
+    assert "unknown part" in capsys.readouterr().err
