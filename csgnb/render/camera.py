@@ -7,11 +7,11 @@ very same ray through a pixel):
   through its centre, screen coordinates ``x = (2 (j + ½) / W - 1) · tx``,
   ``y = (1 - 2 (i + ½) / H) · ty`` (``tx``, ``ty``: half extents of the image plane at distance 1
   for a perspective camera, in world units for an orthographic one);
-* perspective: origin the eye, direction ``normalize(f + x r + y u)``; orthographic: origin
-  ``eye + x r + y u``, direction ``f``. Directions are unit vectors, so a ray parameter ``t`` is a
-  distance: from the eye (perspective) or from the image plane through the eye (orthographic);
-* ``depth`` buffers hold that ``t``; only ``t > 0`` is visible (the near plane is the eye / the
-  image plane). Views are from outside the object, as in the paper (§7.1).
+* perspective: origin the eye, direction ``d = f + x r + y u``; orthographic: origin
+  ``eye + x r + y u``, direction ``d = f``. As ``d·f = 1`` the ray parameter z of ``o + z d`` is
+  the view-space depth (distance from the image plane through the eye, along ``f``);
+* ``depth`` buffers hold that z; only ``z > 0`` is visible (the near plane is the eye plane).
+  Views are from outside the object, as in the paper (§7.1).
 """
 
 from __future__ import annotations

@@ -51,8 +51,8 @@ class Frame:
     """The buffers of one rendered image (row 0 at the top).
 
     camera : Camera.
-    depth : (H, W) float64 — ray parameter t of the visible point (distance from the eye, or from
-        the image plane for an orthographic camera); +inf where empty.
+    depth : (H, W) float64 — view-space depth z of the visible point (its distance from the
+        image plane through the eye, along ``camera.forward``); +inf where empty.
     normal : (H, W, 3) float32 — unit outward normal of the visible quadric (eq. 4), 0 where empty.
     quadric : (H, W) int32 — normal-form index of the visible quadric, -1 where empty.
     term : (H, W) int32 — its intersection term, -1 where empty.
@@ -90,7 +90,8 @@ class Frame:
         """Return the visible surface points of covered pixels : (k, 3) float64 (row-major order)."""
         rows, cols = np.nonzero(self.covered)
         o, v = self.camera.rays(rows, cols)
-        return o + self.depth[rows, cols][:, None] * v
+        # z is measured along forward: the unit ray reaches depth z at t = z / (v·f)
+        return o + (self.depth[rows, cols] / (v @ self.camera.forward))[:, None] * v
 
     # -- colour ------------------------------------------------------------------------------------
     def shaded(self, color_by: str = "quadric", *, lit: bool = True, lighting: Lighting | None = None,

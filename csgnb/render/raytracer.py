@@ -21,7 +21,7 @@ from numba import prange
 from csgnb._jit import jit
 from csgnb.render.camera import Camera
 from csgnb.render.frame import Frame, RenderStats
-from csgnb.render.rays import pixel_ray, quadric_rows, ray_roots
+from csgnb.render.rays import quadric_rows, ray_polynomials, ray_roots
 from csgnb.render.scene import as_normal_form, check_camera
 from csgnb.render.shading import quadric_colors, shade, surface_normals
 
@@ -32,12 +32,13 @@ RAYTRACE_TILE = 16
 
 
 @jit(parallel=True, error_model="numpy")
-def _raytrace_kernel(cam, X, Y, Q, term_start, max_term, tile, depth, qid, tid):
-    """Fill depth (t), qid and tid (H, W) per pixel with the nearest entry into a term."""
+def _raytrace_kernel(cam, X, Y, P, term_start, max_term, tile, depth, qid, tid):
+    """Fill depth (view z), qid and tid (H, W) per pixel with the nearest entry into a term."""
     H, W = depth.shape
     nty = (H + tile - 1) // tile
     ntx = (W + tile - 1) // tile
     n_terms = term_start.shape[0] - 1
+    persp = cam[18] == 0.0
     for tt in prange(nty * ntx):
         hit_t = np.empty(2 * max_term)
         hit_k = np.empty(2 * max_term, dtype=np.int64)
@@ -46,7 +47,8 @@ def _raytrace_kernel(cam, X, Y, Q, term_start, max_term, tile, depth, qid, tid):
         j0 = (tt % ntx) * tile
         for i in range(i0, min(i0 + tile, H)):
             for j in range(j0, min(j0 + tile, W)):
-                ox, oy, oz, vx, vy, vz = pixel_ray(cam, X, Y, i, j)
+                x, y = X[j], Y[i]
+                dd = 1.0 + (x * x + y * y) if persp else 1.0
                 best = math.inf
                 bq = -1
                 bt = -1
@@ -57,7 +59,7 @@ def _raytrace_kernel(cam, X, Y, Q, term_start, max_term, tile, depth, qid, tid):
                     nh = 0
                     possible = True
                     for k in range(s0, s0 + m):
-                        t1, t2, gamma = ray_roots(Q, k, ox, oy, oz, vx, vy, vz)
+                        t1, t2, gamma = ray_roots(P, k, x, y, dd)
                         ins = gamma < 0.0
                         inside[k - s0] = ins
                         if ins:
@@ -139,7 +141,8 @@ def raytrace(shape, camera: Camera, *, color_by: str = "quadric", lit: bool = Tr
     qid = np.empty((H, W), dtype=np.int32)
     tid = np.empty((H, W), dtype=np.int32)
     t1 = time.perf_counter()
-    _raytrace_kernel(cam, X, Y, Q, ts, max(max_term, 1), RAYTRACE_TILE, depth, qid, tid)
+    P = ray_polynomials(cam, Q)
+    _raytrace_kernel(cam, X, Y, P, ts, max(max_term, 1), RAYTRACE_TILE, depth, qid, tid)
     t2 = time.perf_counter()
     normal = surface_normals(cam, X, Y, Q, depth, qid)
     palette = quadric_colors(nf)

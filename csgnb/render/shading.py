@@ -14,7 +14,7 @@ import numpy as np
 from numba import prange
 
 from csgnb._jit import jit
-from csgnb.render.rays import pixel_ray, row_gradient
+from csgnb.render.rays import ray_direction, ray_point, row_gradient
 
 __all__ = [
     "COLOR_MODES",
@@ -47,14 +47,16 @@ _TAB20 = np.array([
 
 
 class Lighting:
-    """Light parameters: ``ambient``, ``diffuse``, ``specular`` weights and ``shininess``."""
+    """Light parameters: ``ambient``, ``diffuse``, ``specular`` weights and the Blinn-Phong exponent
+    ``shininess`` (rounded to a power of two, 1 … 1024)."""
 
     def __init__(self, ambient: float = 0.22, diffuse: float = 0.78, specular: float = 0.25,
-                 shininess: float = 40.0) -> None:
+                 shininess: float = 32.0) -> None:
         self.ambient, self.diffuse, self.specular, self.shininess = ambient, diffuse, specular, shininess
 
     def array(self) -> np.ndarray:
-        return np.array([self.ambient, self.diffuse, self.specular, self.shininess], dtype=np.float64)
+        squarings = int(round(math.log2(min(max(float(self.shininess), 1.0), 1024.0))))
+        return np.array([self.ambient, self.diffuse, self.specular, squarings], dtype=np.float64)
 
 
 def quadric_colors(normal_form) -> np.ndarray:
@@ -83,7 +85,7 @@ def overdraw_colors(top: int = 30) -> np.ndarray:
 
 @jit(parallel=True, error_model="numpy")
 def _normals_kernel(cam, X, Y, Q, depth, qid, normal):
-    """normal[i, j] = N(p) of quadric ``qid[i, j]`` at p = o + t v (eq. 4); zero where empty."""
+    """normal[i, j] = N(p) of quadric ``qid[i, j]`` at p = o + z d (eq. 4); zero where empty."""
     H, W = depth.shape
     for i in prange(H):
         for j in range(W):
@@ -93,9 +95,8 @@ def _normals_kernel(cam, X, Y, Q, depth, qid, normal):
                 normal[i, j, 1] = 0.0
                 normal[i, j, 2] = 0.0
                 continue
-            ox, oy, oz, vx, vy, vz = pixel_ray(cam, X, Y, i, j)
-            t = depth[i, j]
-            g0, g1, g2 = row_gradient(Q, k, ox + t * vx, oy + t * vy, oz + t * vz)
+            px, py, pz = ray_point(cam, X[j], Y[i], depth[i, j])
+            g0, g1, g2 = row_gradient(Q, k, px, py, pz)
             n2 = g0 * g0 + g1 * g1 + g2 * g2
             inv = 1.0 / math.sqrt(n2) if n2 > 0.0 else 0.0
             normal[i, j, 0] = g0 * inv
@@ -113,7 +114,8 @@ def _shade_kernel(cam, X, Y, normal, key, palette, light, lit, background, rgb):
     lz = -0.45 * cam[8] + 0.6 * cam[11] - 0.66 * cam[5]
     ln = 1.0 / math.sqrt(lx * lx + ly * ly + lz * lz)
     lx, ly, lz = lx * ln, ly * ln, lz * ln
-    amb, dif, spe, shin = light[0], light[1], light[2], light[3]
+    amb, dif, spe = light[0], light[1], light[2]
+    shin = int(light[3])
     for i in prange(H):
         for j in range(W):
             c = key[i, j]
@@ -125,7 +127,9 @@ def _shade_kernel(cam, X, Y, normal, key, palette, light, lit, background, rgb):
             f = 1.0
             s = 0.0
             if lit:
-                _, _, _, vx, vy, vz = pixel_ray(cam, X, Y, i, j)
+                dx, dy, dz, dd = ray_direction(cam, X[j], Y[i])
+                inv = 1.0 / math.sqrt(dd)
+                vx, vy, vz = dx * inv, dy * inv, dz * inv
                 nx, ny, nz = normal[i, j, 0], normal[i, j, 1], normal[i, j, 2]
                 if nx * vx + ny * vy + nz * vz > 0.0:  # seen from behind: light the side we see
                     nx, ny, nz = -nx, -ny, -nz
@@ -135,7 +139,10 @@ def _shade_kernel(cam, X, Y, normal, key, palette, light, lit, background, rgb):
                 hx, hy, hz = lx - vx, ly - vy, lz - vz
                 hn = math.sqrt(hx * hx + hy * hy + hz * hz)
                 if hn > 0.0 and key_l > 0.0:
-                    s = spe * max(0.0, (nx * hx + ny * hy + nz * hz) / hn) ** shin
+                    c_h = max(0.0, (nx * hx + ny * hy + nz * hz) / hn)
+                    for _ in range(shin):  # shininess 2^shin by squaring (pow costs an exp and a log)
+                        c_h = c_h * c_h
+                    s = spe * c_h
             for ch in range(3):
                 v = palette[c, ch] * f + s
                 rgb[i, j, ch] = np.uint8(max(0.0, min(255.0, v * 255.0 + 0.5)))

@@ -33,7 +33,7 @@ from numba import prange
 from csgnb._jit import jit
 from csgnb.render.camera import Camera
 from csgnb.render.frame import Frame, RenderStats
-from csgnb.render.rays import EPS, pixel_ray, ray_roots, row_gradient, row_value
+from csgnb.render.rays import EPS, ray_direction, ray_point, ray_polynomials, ray_roots, row_gradient, row_value
 from csgnb.render.scene import check_camera, check_cloud
 from csgnb.render.shading import quadric_colors, shade, surface_normals
 
@@ -87,19 +87,6 @@ def _prepare_kernel(Q, lam, pos, nrm, rad, ids, SD):
 
 
 @jit(error_model="numpy", inline="always")
-def _project(cam, px, py, pz):
-    """Return (col, row, view depth) of a world point (pixel centres at integers)."""
-    dx, dy, dz = px - cam[0], py - cam[1], pz - cam[2]
-    xc = dx * cam[6] + dy * cam[7] + dz * cam[8]
-    yc = dx * cam[9] + dy * cam[10] + dz * cam[11]
-    zc = dx * cam[3] + dy * cam[4] + dz * cam[5]
-    if cam[18] == 0.0:
-        xc = xc / zc
-        yc = yc / zc
-    return (xc / cam[14] + 1.0) * (0.5 * cam[16]) - 0.5, (1.0 - yc / cam[15]) * (0.5 * cam[17]) - 0.5, zc
-
-
-@jit(error_model="numpy", inline="always")
 def _tangent_range(c, z, R):
     """Slopes (lo, hi) of the lines x = m z through the eye tangent to the disc (c, z), radius R; z > R."""
     d = z * z - R * R
@@ -107,44 +94,57 @@ def _tangent_range(c, z, R):
     return (c * z - s) / d, (c * z + s) / d
 
 
+@jit(error_model="numpy", inline="always")
+def _to_camera(cam, x, y, z):
+    """Return a world vector (x, y, z) in camera coordinates (right, up, forward)."""
+    return (x * cam[6] + y * cam[7] + z * cam[8], x * cam[9] + y * cam[10] + z * cam[11],
+            x * cam[3] + y * cam[4] + z * cam[5])
+
+
 @jit(parallel=True, error_model="numpy")
-def _footprint_kernel(cam, SD, footprint, cull, bbox, hull, nh, flag):
-    """Per splat: flag (0 drawn, 1 culled, 2 off screen), pixel rectangle, footprint hull."""
+def _footprint_kernel(cam, SD, footprint, cull, bbox, hull, nh, flag, zmin):
+    """Per splat: flag (0 drawn, 1 culled, 2 off screen), pixel rectangle, footprint hull, nearest depth."""
     n = SD.shape[0]
     W, H = cam[16], cam[17]
     ortho = cam[18] != 0.0
+    # pixel coordinates: col = X · sx + cx, row = -Y · sy + cy (X, Y screen coordinates)
+    sx, cx = 0.5 * W / cam[14], 0.5 * W - 0.5
+    sy, cy = 0.5 * H / cam[15], 0.5 * H - 0.5
     n_chunks = (n + _CHUNK - 1) // _CHUNK
     for c in prange(n_chunks):
-        cx = np.empty(8)
-        cy = np.empty(8)
+        px = np.empty(8)
+        py = np.empty(8)
         order = np.empty(8, dtype=np.int64)
         hx = np.empty(17)
         hy = np.empty(17)
         for k in range(c * _CHUNK, min(n, (c + 1) * _CHUNK)):
-            sx, sy, sz, r = SD[k, 0], SD[k, 1], SD[k, 2], SD[k, 3]
+            r = SD[k, 3]
             nx, ny, nz, gn = SD[k, 4], SD[k, 5], SD[k, 6], SD[k, 7]
             rho = SD[k, 10]
             nh[k] = 0
+            bbox[k, 0], bbox[k, 1], bbox[k, 2], bbox[k, 3] = 0, 0, -1, -1
+            ex, ey, ez = SD[k, 0] - cam[0], SD[k, 1] - cam[1], SD[k, 2] - cam[2]
+            Sx, Sy, Sz = _to_camera(cam, ex, ey, ez)
             if cull and gn > 0.0:
                 if ortho:
                     facing = gn * (cam[3] * nx + cam[4] * ny + cam[5] * nz)
                     bound = 2.0 * rho * r
                 else:
-                    ex, ey, ez = sx - cam[0], sy - cam[1], sz - cam[2]
-                    dist = math.sqrt(ex * ex + ey * ey + ez * ez)
                     facing = gn * (ex * nx + ey * ny + ez * nz)
-                    bound = rho * r * (r + 2.0 * dist)
-                if facing > bound * (1.0 + 1e-9) + 1e-300:
+                    bound = rho * r * (r + 2.0 * math.sqrt(ex * ex + ey * ey + ez * ez))
+                if facing > bound * (1.0 + 1e-9):
                     flag[k] = 1
-                    bbox[k, 0], bbox[k, 1], bbox[k, 2], bbox[k, 3] = 0, 0, -1, -1
                     continue
             R = r * (1.0 + FOOTPRINT_MARGIN)
+            zmin[k] = Sz - R
+            if not ortho and Sz + R <= 0.0:
+                flag[k] = 2
+                continue
             use_sphere = footprint == 0 or gn == 0.0
             c_lo, c_hi, r_lo, r_hi = 0.0, 0.0, 0.0, 0.0
             whole = False
-            behind = False
             if not use_sphere:
-                # surface-aligned box: tangents t1, t2 ⟂ n, heights [hlo, hhi] along n
+                # surface-aligned box: tangents t1, t2 ⟂ n, heights [h0, h1] along n
                 if abs(nx) < 0.6:
                     ax, ay, az = 0.0, nz, -ny
                 else:
@@ -152,113 +152,132 @@ def _footprint_kernel(cam, SD, footprint, cull, bbox, hull, nh, flag):
                 an = 1.0 / math.sqrt(ax * ax + ay * ay + az * az)
                 t1x, t1y, t1z = ax * an, ay * an, az * an
                 t2x, t2y, t2z = ny * t1z - nz * t1y, nz * t1x - nx * t1z, nx * t1y - ny * t1x
+                T1x, T1y, T1z = _to_camera(cam, t1x, t1y, t1z)
+                T2x, T2y, T2z = _to_camera(cam, t2x, t2y, t2z)
+                Nx, Ny, Nz = _to_camera(cam, nx, ny, nz)
                 grow = FOOTPRINT_MARGIN * r
                 h0, h1 = SD[k, 8] - grow, SD[k, 9] + grow
                 near = False
+                zlo = math.inf
                 for v in range(8):
                     a = R if (v & 1) else -R
                     b = R if (v & 2) else -R
                     h = h1 if (v & 4) else h0
-                    px = sx + a * t1x + b * t2x + h * nx
-                    py = sy + a * t1y + b * t2y + h * ny
-                    pz = sz + a * t1z + b * t2z + h * nz
-                    col, row, zc = _project(cam, px, py, pz)
-                    if not ortho and not zc > 1e-9 * r:
-                        near = True
-                        break
-                    cx[v] = col
-                    cy[v] = row
+                    Cx = Sx + a * T1x + b * T2x + h * Nx
+                    Cy = Sy + a * T1y + b * T2y + h * Ny
+                    Cz = Sz + a * T1z + b * T2z + h * Nz
+                    zlo = min(zlo, Cz)
+                    if ortho:
+                        px[v], py[v] = Cx * sx + cx, cy - Cy * sy
+                    else:
+                        if not Cz > 1e-9 * r:
+                            near = True
+                            break
+                        inv = 1.0 / Cz
+                        px[v], py[v] = Cx * inv * sx + cx, cy - Cy * inv * sy
                 if near:
                     use_sphere = True
                 else:
+                    zmin[k] = zlo
                     # convex hull (Andrew's monotone chain) of the 8 projected corners
                     for v in range(8):
                         order[v] = v
                     for v in range(1, 8):
                         w = order[v]
                         u = v - 1
-                        while u >= 0 and (cx[order[u]] > cx[w] or (cx[order[u]] == cx[w] and cy[order[u]] > cy[w])):
+                        while u >= 0 and (px[order[u]] > px[w] or (px[order[u]] == px[w] and py[order[u]] > py[w])):
                             order[u + 1] = order[u]
                             u -= 1
                         order[u + 1] = w
                     m = 0
                     for v0 in range(8):
                         w = order[v0]
-                        while m >= 2 and ((hx[m - 1] - hx[m - 2]) * (cy[w] - hy[m - 2])
-                                          - (hy[m - 1] - hy[m - 2]) * (cx[w] - hx[m - 2])) <= 0.0:
+                        while m >= 2 and ((hx[m - 1] - hx[m - 2]) * (py[w] - hy[m - 2])
+                                          - (hy[m - 1] - hy[m - 2]) * (px[w] - hx[m - 2])) <= 0.0:
                             m -= 1
-                        hx[m] = cx[w]
-                        hy[m] = cy[w]
+                        hx[m] = px[w]
+                        hy[m] = py[w]
                         m += 1
                     lower = m + 1
                     for v0 in range(6, -1, -1):
                         w = order[v0]
-                        while m >= lower and ((hx[m - 1] - hx[m - 2]) * (cy[w] - hy[m - 2])
-                                              - (hy[m - 1] - hy[m - 2]) * (cx[w] - hx[m - 2])) <= 0.0:
+                        while m >= lower and ((hx[m - 1] - hx[m - 2]) * (py[w] - hy[m - 2])
+                                              - (hy[m - 1] - hy[m - 2]) * (px[w] - hx[m - 2])) <= 0.0:
                             m -= 1
-                        hx[m] = cx[w]
-                        hy[m] = cy[w]
+                        hx[m] = px[w]
+                        hy[m] = py[w]
                         m += 1
                     m -= 1  # the first point closes the chain
-                    c_lo, c_hi, r_lo, r_hi = cx[0], cx[0], cy[0], cy[0]
-                    for v in range(8):
-                        c_lo = min(c_lo, cx[v])
-                        c_hi = max(c_hi, cx[v])
-                        r_lo = min(r_lo, cy[v])
-                        r_hi = max(r_hi, cy[v])
+                    c_lo, c_hi, r_lo, r_hi = hx[0], hx[0], hy[0], hy[0]
+                    for v in range(1, m):
+                        c_lo = min(c_lo, hx[v])
+                        c_hi = max(c_hi, hx[v])
+                        r_lo = min(r_lo, hy[v])
+                        r_hi = max(r_hi, hy[v])
                     if 3 <= m <= 6:
                         nh[k] = m
                         for v in range(m):
                             hull[k, 2 * v] = hx[v]
                             hull[k, 2 * v + 1] = hy[v]
             if use_sphere:
-                ex, ey, ez = sx - cam[0], sy - cam[1], sz - cam[2]
-                xc = ex * cam[6] + ey * cam[7] + ez * cam[8]
-                yc = ex * cam[9] + ey * cam[10] + ez * cam[11]
-                zc = ex * cam[3] + ey * cam[4] + ez * cam[5]
                 if ortho:
-                    c_lo = ((xc - R) / cam[14] + 1.0) * (0.5 * W) - 0.5
-                    c_hi = ((xc + R) / cam[14] + 1.0) * (0.5 * W) - 0.5
-                    r_lo = (1.0 - (yc + R) / cam[15]) * (0.5 * H) - 0.5
-                    r_hi = (1.0 - (yc - R) / cam[15]) * (0.5 * H) - 0.5
-                elif zc + R <= 0.0:
-                    behind = True
-                elif zc - R <= 1e-9 * R:
+                    c_lo, c_hi = (Sx - R) * sx + cx, (Sx + R) * sx + cx
+                    r_lo, r_hi = cy - (Sy + R) * sy, cy - (Sy - R) * sy
+                elif Sz - R <= 1e-9 * R:
                     whole = True
                 else:
-                    m_lo, m_hi = _tangent_range(xc, zc, R)
-                    c_lo = (m_lo / cam[14] + 1.0) * (0.5 * W) - 0.5
-                    c_hi = (m_hi / cam[14] + 1.0) * (0.5 * W) - 0.5
-                    m_lo, m_hi = _tangent_range(yc, zc, R)
-                    r_lo = (1.0 - m_hi / cam[15]) * (0.5 * H) - 0.5
-                    r_hi = (1.0 - m_lo / cam[15]) * (0.5 * H) - 0.5
-            if behind:
-                flag[k] = 2
-                bbox[k, 0], bbox[k, 1], bbox[k, 2], bbox[k, 3] = 0, 0, -1, -1
-                continue
+                    m_lo, m_hi = _tangent_range(Sx, Sz, R)
+                    c_lo, c_hi = m_lo * sx + cx, m_hi * sx + cx
+                    m_lo, m_hi = _tangent_range(Sy, Sz, R)
+                    r_lo, r_hi = cy - m_hi * sy, cy - m_lo * sy
             if whole:
                 j0, i0, j1, i1 = 0, 0, int(W) - 1, int(H) - 1
             else:
-                j0 = int(max(0.0, math.ceil(max(c_lo, -1.0))))
-                i0 = int(max(0.0, math.ceil(max(r_lo, -1.0))))
-                j1 = int(min(W - 1.0, math.floor(min(c_hi, W))))
-                i1 = int(min(H - 1.0, math.floor(min(r_hi, H))))
+                j0 = int(math.ceil(max(c_lo, -1.0)))
+                i0 = int(math.ceil(max(r_lo, -1.0)))
+                j1 = int(math.floor(min(c_hi, W)))
+                i1 = int(math.floor(min(r_hi, H)))
+                j0, i0 = max(j0, 0), max(i0, 0)
+                j1, i1 = min(j1, int(W) - 1), min(i1, int(H) - 1)
             if j1 < j0 or i1 < i0:
                 flag[k] = 2
-                bbox[k, 0], bbox[k, 1], bbox[k, 2], bbox[k, 3] = 0, 0, -1, -1
                 continue
             flag[k] = 0
             bbox[k, 0], bbox[k, 1], bbox[k, 2], bbox[k, 3] = j0, i0, j1, i1
 
 
+_BUCKETS = 4096
+
+
 @jit(error_model="numpy")
-def _bin_kernel(bbox, flag, tile, ntx, nty, start, items):
-    """Counting sort of drawn splats into tiles: tile t holds items[start[t]:start[t + 1]]; returns the pair count."""
+def _bin_kernel(bbox, flag, zmin, tile, ntx, nty, start, items):
+    """Counting sort of the drawn splats into tiles, front to back within a tile (by nearest depth,
+    in 4096 buckets): tile t holds items[start[t]:start[t + 1]]. Returns the pair count (if it
+    exceeds ``items``, nothing is written: grow it and call again)."""
     n = bbox.shape[0]
-    count = np.zeros(ntx * nty + 1, dtype=np.int64)
+    lo, hi = math.inf, -math.inf
+    drawn = 0
     for k in range(n):
-        if flag[k] != 0:
-            continue
+        if flag[k] == 0:
+            lo = min(lo, zmin[k])
+            hi = max(hi, zmin[k])
+            drawn += 1
+    scale = (_BUCKETS - 1) / (hi - lo) if hi > lo else 0.0
+    bucket = np.zeros(_BUCKETS + 1, dtype=np.int64)
+    for k in range(n):
+        if flag[k] == 0:
+            bucket[int((zmin[k] - lo) * scale) + 1] += 1
+    for b in range(_BUCKETS):
+        bucket[b + 1] += bucket[b]
+    order = np.empty(drawn, dtype=np.int32)
+    for k in range(n):
+        if flag[k] == 0:
+            b = int((zmin[k] - lo) * scale)
+            order[bucket[b]] = k
+            bucket[b] += 1
+    count = np.zeros(ntx * nty + 1, dtype=np.int64)
+    for o in range(drawn):
+        k = order[o]
         for ty in range(bbox[k, 1] // tile, bbox[k, 3] // tile + 1):
             for tx in range(bbox[k, 0] // tile, bbox[k, 2] // tile + 1):
                 count[ty * ntx + tx + 1] += 1
@@ -269,9 +288,8 @@ def _bin_kernel(bbox, flag, tile, ntx, nty, start, items):
     if total > items.shape[0]:
         return total
     fill = start[:-1].copy()
-    for k in range(n):
-        if flag[k] != 0:
-            continue
+    for o in range(drawn):
+        k = order[o]
         for ty in range(bbox[k, 1] // tile, bbox[k, 3] // tile + 1):
             for tx in range(bbox[k, 0] // tile, bbox[k, 2] // tile + 1):
                 t = ty * ntx + tx
@@ -281,67 +299,103 @@ def _bin_kernel(bbox, flag, tile, ntx, nty, start, items):
 
 
 @jit(parallel=True, error_model="numpy")
-def _raster_kernel(cam, X, Y, Q, ctol, SD, SI, cidx, bbox, hull, nh, start, items, tile, ntx, local, clip,
-                   rtol, depth, winner, od):
-    """Rasterize the binned footprints tile by tile: fragments, local ray-tracing, clipping, depth test."""
+def _raster_kernel(cam, X, Y, P, Q, ctol, SD, SI, cidx, bbox, hull, nh, zmin, start, items, tile, ntx, local,
+                   clip, rtol, depth, winner, qwin, qclip, od):
+    """Rasterize the binned footprints tile by tile: fragments, local ray-tracing, clipping, depth test.
+
+    Two per-pixel memos skip fragments before any arithmetic without changing the image. A
+    quadric's roots at a pixel do not depend on the splat, and neither does clipping (a clip
+    quadric missing from a splat's clip set is negative within r of it, so such a root would fail
+    that splat's distance test): once every root of q in (0, depth) is clipped at a pixel, no
+    later fragment of q can change it. ``qwin[i, j]``: the visible quadric when that holds for it
+    (its earlier root, if any, is clipped — for a hole's far wall, the second root, the near wall
+    is); ``qclip[i, j]``: a quadric all of whose roots in (0, depth) are clipped there.
+    """
     H, W = depth.shape
     nty = (H + tile - 1) // tile
+    persp = cam[18] == 0.0
     for t in prange(ntx * nty):
         ti0 = (t // ntx) * tile
         tj0 = (t % ntx) * tile
         ti1 = min(ti0 + tile, H) - 1
         tj1 = min(tj0 + tile, W) - 1
+        # hull edges of the current splat: y range, x at the lower y, dx/dy (no division per row)
+        ey0 = np.empty(6)
+        ey1 = np.empty(6)
+        ex0 = np.empty(6)
+        esl = np.empty(6)
         for b in range(start[t], start[t + 1]):
             k = items[b]
             sx, sy, sz, r = SD[k, 0], SD[k, 1], SD[k, 2], SD[k, 3]
-            nx, ny, nz = SD[k, 4], SD[k, 5], SD[k, 6]
             rr = (r + rtol) * (r + rtol)
             q, c0, cn = SI[k, 0], SI[k, 1], SI[k, 2]
+            zk = zmin[k]
             m = nh[k]
+            ne = 0
+            for e in range(m):
+                xa, ya = hull[k, 2 * e], hull[k, 2 * e + 1]
+                e1 = e + 1 if e + 1 < m else 0
+                xb, yb = hull[k, 2 * e1], hull[k, 2 * e1 + 1]
+                if ya == yb:
+                    continue  # a horizontal edge: its end points belong to its neighbours
+                if ya > yb:
+                    xa, ya, xb, yb = xb, yb, xa, ya
+                ey0[ne], ey1[ne], ex0[ne] = ya, yb, xa
+                esl[ne] = (xb - xa) / (yb - ya)
+                ne += 1
             for i in range(max(bbox[k, 1], ti0), min(bbox[k, 3], ti1) + 1):
                 ja, jb = bbox[k, 0], bbox[k, 2]
                 if m > 0:
                     # the hull's span on this row: min / max over the edges that straddle it
                     lo, hi = math.inf, -math.inf
                     yc = float(i)
-                    for e in range(m):
-                        x0, y0 = hull[k, 2 * e], hull[k, 2 * e + 1]
-                        e1 = e + 1 if e + 1 < m else 0
-                        x1, y1 = hull[k, 2 * e1], hull[k, 2 * e1 + 1]
-                        if (y0 <= yc <= y1 or y1 <= yc <= y0) and y0 != y1:
-                            x = x0 + (yc - y0) * (x1 - x0) / (y1 - y0)
+                    for e in range(ne):
+                        if ey0[e] <= yc <= ey1[e]:
+                            x = ex0[e] + (yc - ey0[e]) * esl[e]
                             lo = min(lo, x)
                             hi = max(hi, x)
                     if hi < lo:
                         continue
                     ja = max(ja, int(math.ceil(lo)))
                     jb = min(jb, int(math.floor(hi)))
+                y = Y[i]
                 for j in range(max(ja, tj0), min(jb, tj1) + 1):
                     od[i, j] += 1
-                    ox, oy, oz, vx, vy, vz = pixel_ray(cam, X, Y, i, j)
                     best = depth[i, j]
+                    if zk >= best or qwin[i, j] == q or qclip[i, j] == q:
+                        continue  # early depth test; this quadric is resolved at this pixel
+                    x = X[j]
                     if local == 0:  # a flat disc on the tangent plane
-                        den = nx * vx + ny * vy + nz * vz
+                        nx, ny, nz = SD[k, 4], SD[k, 5], SD[k, 6]
+                        dx, dy, dz, _ = ray_direction(cam, x, y)
+                        den = nx * dx + ny * dy + nz * dz
                         if den == 0.0:
                             continue
-                        tt = (nx * (sx - ox) + ny * (sy - oy) + nz * (sz - oz)) / den
-                        if not (tt > 0.0 and tt < best):
+                        ox, oy, oz = ray_point(cam, x, y, 0.0)
+                        zz = (nx * (sx - ox) + ny * (sy - oy) + nz * (sz - oz)) / den
+                        if not (zz > 0.0 and zz < best):
                             continue
-                        dx, dy, dz = ox + tt * vx - sx, oy + tt * vy - sy, oz + tt * vz - sz
-                        if dx * dx + dy * dy + dz * dz <= rr:
-                            depth[i, j] = tt
+                        px, py, pz = ray_point(cam, x, y, zz)
+                        ex, ey, ez = px - sx, py - sy, pz - sz
+                        if ex * ex + ey * ey + ez * ez <= rr:
+                            depth[i, j] = zz
                             winner[i, j] = k
                         continue
-                    t1, t2, _ = ray_roots(Q, q, ox, oy, oz, vx, vy, vz)
+                    dd = 1.0 + (x * x + y * y) if persp else 1.0
+                    z1, z2, _ = ray_roots(P, q, x, y, dd)
+                    # done: every root of q in (0, new depth) is clipped here (splat-independent)
+                    done = True
+                    won = False
                     for root in range(2):
-                        tt = t1 if root == 0 else t2
-                        if not tt < best:
+                        zz = z1 if root == 0 else z2
+                        if not zz < best:
                             break  # NaN or behind the visible point: the other root is too
-                        if not tt > 0.0:
+                        if not zz > 0.0:
                             continue
-                        px, py, pz = ox + tt * vx, oy + tt * vy, oz + tt * vz
-                        dx, dy, dz = px - sx, py - sy, pz - sz
-                        if dx * dx + dy * dy + dz * dz > rr:
+                        px, py, pz = ray_point(cam, x, y, zz)
+                        ex, ey, ez = px - sx, py - sy, pz - sz
+                        if ex * ex + ey * ey + ez * ez > rr:
+                            done = False  # beyond this splat's radius: another splat may take it
                             continue
                         ok = True
                         if clip:
@@ -351,9 +405,14 @@ def _raster_kernel(cam, X, Y, Q, ctol, SD, SI, cidx, bbox, hull, nh, start, item
                                     ok = False
                                     break
                         if ok:
-                            depth[i, j] = tt
+                            depth[i, j] = zz
                             winner[i, j] = k
+                            won = True
                             break
+                    if won:
+                        qwin[i, j] = q if done else -1
+                    elif done:
+                        qclip[i, j] = q
 
 
 @jit(parallel=True, error_model="numpy")
@@ -411,6 +470,7 @@ class SplatRenderer:
         self._bbox = np.empty((n, 4), dtype=np.int32)
         self._nh = np.empty(n, dtype=np.int32)
         self._flag = np.empty(n, dtype=np.int8)
+        self._zmin = np.empty(n)
         self._items = np.empty(2 * n + 1024, dtype=np.int32)
 
     def clip_tolerances(self, camera: Camera) -> np.ndarray:
@@ -462,21 +522,24 @@ class SplatRenderer:
         ctol = self.clip_tolerances(camera)
         rtol = 64.0 * EPS * max(self.extent, float(np.max(np.abs(camera.eye))), 1.0)
         _footprint_kernel(cam, self.SD, FOOTPRINTS.index(footprint), bool(backface_culling), self._bbox,
-                          self._hull, self._nh, self._flag)
+                          self._hull, self._nh, self._flag, self._zmin)
+        P = ray_polynomials(cam, self.Q)
         t1 = time.perf_counter()
         ntx, nty = (W + tile - 1) // tile, (H + tile - 1) // tile
         start = np.empty(ntx * nty + 1, dtype=np.int64)
-        total = _bin_kernel(self._bbox, self._flag, tile, ntx, nty, start, self._items)
+        total = _bin_kernel(self._bbox, self._flag, self._zmin, tile, ntx, nty, start, self._items)
         if total > len(self._items):
             self._items = np.empty(int(total * 1.25) + 1024, dtype=np.int32)
-            _bin_kernel(self._bbox, self._flag, tile, ntx, nty, start, self._items)
+            _bin_kernel(self._bbox, self._flag, self._zmin, tile, ntx, nty, start, self._items)
         t2 = time.perf_counter()
         depth = np.full((H, W), np.inf)
         winner = np.full((H, W), -1, dtype=np.int32)
+        qwin = np.full((H, W), -1, dtype=np.int32)
+        qclip = np.full((H, W), -1, dtype=np.int32)
         od = np.zeros((H, W), dtype=np.int32)
         li = LOCAL_MODES.index(local)
-        _raster_kernel(cam, X, Y, self.Q, ctol, self.SD, self.SI, self.cidx, self._bbox, self._hull, self._nh,
-                       start, self._items, tile, ntx, li, bool(clip), rtol, depth, winner, od)
+        _raster_kernel(cam, X, Y, P, self.Q, ctol, self.SD, self.SI, self.cidx, self._bbox, self._hull, self._nh,
+                       self._zmin, start, self._items, tile, ntx, li, bool(clip), rtol, depth, winner, qwin, qclip, od)
         t3 = time.perf_counter()
         qid = np.empty((H, W), dtype=np.int32)
         tid = np.empty((H, W), dtype=np.int32)
