@@ -300,7 +300,7 @@ def _bin_kernel(bbox, flag, zmin, tile, ntx, nty, start, items):
 
 @jit(parallel=True, error_model="numpy")
 def _raster_kernel(cam, X, Y, P, Q, ctol, SD, SI, cidx, bbox, hull, nh, zmin, start, items, tile, ntx, local,
-                   clip, rtol, depth, winner, qwin, qclip, od):
+                   clip, rtol, depth, winner, qwin, qclip, qlast, zr1, zr2, od):
     """Rasterize the binned footprints tile by tile: fragments, local ray-tracing, clipping, depth test.
 
     Two per-pixel memos skip fragments before any arithmetic without changing the image. A
@@ -309,7 +309,9 @@ def _raster_kernel(cam, X, Y, P, Q, ctol, SD, SI, cidx, bbox, hull, nh, zmin, st
     that splat's distance test): once every root of q in (0, depth) is clipped at a pixel, no
     later fragment of q can change it. ``qwin[i, j]``: the visible quadric when that holds for it
     (its earlier root, if any, is clipped — for a hole's far wall, the second root, the near wall
-    is); ``qclip[i, j]``: a quadric all of whose roots in (0, depth) are clipped there.
+    is); ``qclip[i, j]``: a quadric all of whose roots in (0, depth) are clipped there. And
+    ``qlast``, ``zr1``, ``zr2`` keep the roots of the last quadric computed at each pixel: the
+    overlapping splats of one surface reuse them.
     """
     H, W = depth.shape
     nty = (H + tile - 1) // tile
@@ -381,8 +383,14 @@ def _raster_kernel(cam, X, Y, P, Q, ctol, SD, SI, cidx, bbox, hull, nh, zmin, st
                             depth[i, j] = zz
                             winner[i, j] = k
                         continue
-                    dd = 1.0 + (x * x + y * y) if persp else 1.0
-                    z1, z2, _ = ray_roots(P, q, x, y, dd)
+                    if qlast[i, j] == q:  # the roots of q here are known (bit for bit the same)
+                        z1, z2 = zr1[i, j], zr2[i, j]
+                    else:
+                        dd = 1.0 + (x * x + y * y) if persp else 1.0
+                        z1, z2, _ = ray_roots(P, q, x, y, dd)
+                        qlast[i, j] = q
+                        zr1[i, j] = z1
+                        zr2[i, j] = z2
                     # done: every root of q in (0, new depth) is clipped here (splat-independent)
                     done = True
                     won = False
@@ -472,6 +480,16 @@ class SplatRenderer:
         self._flag = np.empty(n, dtype=np.int8)
         self._zmin = np.empty(n)
         self._items = np.empty(2 * n + 1024, dtype=np.int32)
+        self._memo = None
+
+    def _scratch(self, H: int, W: int):
+        """Per-pixel memo buffers of the raster kernel, kept between frames of one size."""
+        if self._memo is None or self._memo[0].shape != (H, W):
+            self._memo = tuple(np.empty((H, W), dtype=np.int32) for _ in range(3)) + (
+                np.empty((H, W)), np.empty((H, W)))
+        for a in self._memo[:3]:
+            a.fill(-1)
+        return self._memo
 
     def clip_tolerances(self, camera: Camera) -> np.ndarray:
         """Return CLIP_TOLERANCE · κ per quadric : (n_q,) float64 (κ at the scene's extent, eye included)."""
@@ -534,12 +552,12 @@ class SplatRenderer:
         t2 = time.perf_counter()
         depth = np.full((H, W), np.inf)
         winner = np.full((H, W), -1, dtype=np.int32)
-        qwin = np.full((H, W), -1, dtype=np.int32)
-        qclip = np.full((H, W), -1, dtype=np.int32)
+        qwin, qclip, qlast, zr1, zr2 = self._scratch(H, W)
         od = np.zeros((H, W), dtype=np.int32)
         li = LOCAL_MODES.index(local)
         _raster_kernel(cam, X, Y, P, self.Q, ctol, self.SD, self.SI, self.cidx, self._bbox, self._hull, self._nh,
-                       self._zmin, start, self._items, tile, ntx, li, bool(clip), rtol, depth, winner, qwin, qclip, od)
+                       self._zmin, start, self._items, tile, ntx, li, bool(clip), rtol, depth, winner, qwin, qclip, qlast, zr1,
+                       zr2, od)
         t3 = time.perf_counter()
         qid = np.empty((H, W), dtype=np.int32)
         tid = np.empty((H, W), dtype=np.int32)
