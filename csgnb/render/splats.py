@@ -364,7 +364,7 @@ def _raster_kernel(cam, X, Y, P, Q, ctol, SD, SI, cidx, bbox, hull, nh, zmin, st
                 for j in range(max(ja, tj0), min(jb, tj1) + 1):
                     od[i, j] += 1
                     best = depth[i, j]
-                    if zk >= best or qwin[i, j] == q or qclip[i, j] == q:
+                    if zk > best or qwin[i, j] == q or qclip[i, j] == q:
                         continue  # early depth test; this quadric is resolved at this pixel
                     x = X[j]
                     if local == 0:  # a flat disc on the tangent plane
@@ -396,10 +396,12 @@ def _raster_kernel(cam, X, Y, P, Q, ctol, SD, SI, cidx, bbox, hull, nh, zmin, st
                     won = False
                     for root in range(2):
                         zz = z1 if root == 0 else z2
-                        if not zz < best:
+                        if not zz <= best:
                             break  # NaN or behind the visible point: the other root is too
                         if not zz > 0.0:
                             continue
+                        if zz == best and not (winner[i, j] >= 0 and q < SI[winner[i, j], 0]):
+                            continue  # a tie goes to the lower quadric index (the reference's term order)
                         px, py, pz = ray_point(cam, x, y, zz)
                         ex, ey, ez = px - sx, py - sy, pz - sz
                         if ex * ex + ey * ey + ez * ez > rr:
