@@ -15,6 +15,7 @@ from csgnb.render.frame import Frame, RenderStats
 from csgnb.render.raytracer import raytrace
 from csgnb.render.shading import CLIP_COLORS, COLOR_MODES, Lighting, overdraw_colors, quadric_colors
 from csgnb.render.splats import FOOTPRINTS, LOCAL_MODES, SplatRenderer, render, renderer_for
+from csgnb.render.viewer import Viewer
 
 __all__ = [
     "Camera",
@@ -35,4 +36,5 @@ __all__ = [
     "Lighting",
     "overdraw_colors",
     "quadric_colors",
+    "Viewer",
 ]

@@ -24,8 +24,8 @@ import numpy as np
 from csgnb._jit import jit
 
 __all__ = [
-    "inline_jit", "quadric_rows", "ray_polynomials", "ray_point", "ray_direction", "ray_roots", "row_value", "row_gradient", "EPS",
-    "POLY_COLUMNS",
+    "inline_jit", "quadric_rows", "ray_polynomials", "ray_point", "ray_direction", "ray_roots", "row_value",
+    "row_gradient", "EPS", "POLY_COLUMNS",
 ]
 
 #: IEEE division (x/0 → inf/NaN), LLVM-inlined into the loops that call them (no per-call

@@ -37,7 +37,10 @@ from csgnb.render.rays import EPS, ray_direction, ray_point, ray_polynomials, ra
 from csgnb.render.scene import check_camera, check_cloud
 from csgnb.render.shading import quadric_colors, shade, surface_normals
 
-__all__ = ["SplatRenderer", "render", "renderer_for", "FOOTPRINTS", "LOCAL_MODES", "TILE", "FOOTPRINT_MARGIN", "CLIP_TOLERANCE"]
+__all__ = [
+    "SplatRenderer", "render", "renderer_for", "FOOTPRINTS", "LOCAL_MODES", "TILE", "FOOTPRINT_MARGIN",
+    "CLIP_TOLERANCE",
+]
 
 #: ``footprint=`` choices: the sphere's screen rectangle (§6 step 1) or the surface-aligned box (§6.1).
 FOOTPRINTS = ("sphere", "box")
@@ -558,8 +561,8 @@ class SplatRenderer:
         od = np.zeros((H, W), dtype=np.int32)
         li = LOCAL_MODES.index(local)
         _raster_kernel(cam, X, Y, P, self.Q, ctol, self.SD, self.SI, self.cidx, self._bbox, self._hull, self._nh,
-                       self._zmin, start, self._items, tile, ntx, li, bool(clip), rtol, depth, winner, qwin, qclip, qlast, zr1,
-                       zr2, od)
+                       self._zmin, start, self._items, tile, ntx, li, bool(clip), rtol, depth, winner, qwin, qclip,
+                       qlast, zr1, zr2, od)
         t3 = time.perf_counter()
         qid = np.empty((H, W), dtype=np.int32)
         tid = np.empty((H, W), dtype=np.int32)
