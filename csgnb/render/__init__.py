@@ -9,7 +9,7 @@ export (:mod:`.frame`, shading in :mod:`.shading`); :func:`compare` checks pixel
 (:mod:`.agreement`); :class:`Viewer` is the interactive notebook viewer (:mod:`.viewer`).
 """
 
-from csgnb.render.agreement import Agreement, compare, edge_mask
+from csgnb.render.agreement import Agreement, compare, edge_mask, verify
 from csgnb.render.camera import PROJECTIONS, Camera
 from csgnb.render.frame import Frame, RenderStats
 from csgnb.render.raytracer import raytrace
@@ -27,6 +27,7 @@ __all__ = [
     "Frame",
     "RenderStats",
     "compare",
+    "verify",
     "Agreement",
     "edge_mask",
     "FOOTPRINTS",

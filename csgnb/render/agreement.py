@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["Agreement", "compare", "edge_mask", "DEPTH_TOLERANCE", "REQUIRED_FRACTION", "DEPTH_JUMP"]
+__all__ = ["Agreement", "compare", "verify", "edge_mask", "DEPTH_TOLERANCE", "REQUIRED_FRACTION", "DEPTH_JUMP"]
 
 #: Relative depth tolerance of an agreeing pixel.
 DEPTH_TOLERANCE = 1e-9
@@ -127,3 +127,20 @@ def compare(frame, reference, *, rel: float = DEPTH_TOLERANCE) -> Agreement:
         disagree=int(dis.sum()), off_edge=int((dis & ~edge).sum()), disagree_mask=dis & ~holes & ~extra,
         hole_mask=holes, extra_mask=extra, edge=edge, frame_covered=fc, reference_covered=rc,
     )
+
+
+def verify(cloud, camera, shape=None, **options):
+    """Render ``cloud`` as splats and its shape with the reference; return (Agreement, splats, reference).
+
+    shape : the CSG object the cloud should have been sampled from (default: the cloud's own
+    normal form); GeometryError if the cloud belongs to another shape. ``options`` go to ``render``.
+    """
+    from csgnb.render.raytracer import raytrace
+    from csgnb.render.scene import check_cloud, check_same_shape
+    from csgnb.render.splats import render
+
+    check_cloud(cloud)
+    nf = cloud.normal_form if shape is None else check_same_shape(cloud, shape)
+    splats = render(cloud, camera, **options)
+    reference = raytrace(nf, camera, color_by=options.get("color_by", "quadric"))
+    return compare(splats, reference), splats, reference
