@@ -1,0 +1,139 @@
+"""Rendering the sampling paper's Table 2 models: splats against the reference ray tracer, 1920×1080.
+
+The five models and three splat sizes of ``bench_sampling.py`` (the same builders, sampled with
+the sampler's defaults: distortion bounds, no reduced radii — ``--reduce-radius`` samples with
+them, but the sampler's reduced radii leave a one-pixel hole on the 80-quadric "large" row, which
+the comparison reports), seen by ``Camera.fit`` from azimuth -60°, elevation 35° (about screen
+filling). In one process per model: the reference ray tracer (best of ``--rt-repeat``), then for
+each splat size the splat renderer (prepared once, not timed; best of ``--repeat`` frames) and
+the pixel comparison of the two. Kernels are compiled (or loaded from the cache) by an untimed
+first call. Threads: numba's default (all cores) unless ``--threads``. Also the 640×480 viewer
+frame (render and JPEG encoding, as the notebook viewer does) of the 80-quadric model.
+
+    python benchmarks/bench_render.py --json /tmp/bench_render.json
+
+``--json PATH`` writes ``{"models": [{"name", "quadrics", "splat", "samples", "splat_ms",
+"raytrace_ms", "speedup", "fragments", "overdraw", "covered", "disagree_fraction", "disagree",
+"holes", "off_edge", "stages_ms"}], "viewer_640x480_ms": ..., "viewer_640x480": [...], "threads": ...}``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib.util
+import json
+import os
+import pathlib
+import sys
+import time
+
+
+def _args(argv):
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--repeat", type=int, default=5, help="splat frames per row, best is kept")
+    parser.add_argument("--rt-repeat", type=int, default=1, help="ray-traced frames per model, best is kept")
+    parser.add_argument("--width", type=int, default=1920)
+    parser.add_argument("--height", type=int, default=1080)
+    parser.add_argument("--threads", type=int, help="numba threads (default: all cores)")
+    parser.add_argument("--reduce-radius", action="store_true",
+                        help="sample with reduced radii (§6.1, Figure 13e); off by default, see the module docstring")
+    parser.add_argument("--only", nargs="*", help="model names to run (default: all)")
+    parser.add_argument("--json", metavar="PATH", help="write the figures here")
+    return parser.parse_args(argv)
+
+
+#: Table 2's render columns (ms, RTX 2080 Ti): (quadrics, splat) → (ours, ray tracing).
+PAPER_RENDER = {
+    (3, "large"): (0.34, 0.36), (3, "medium"): (0.23, 0.36), (3, "small"): (0.27, 0.36),
+    (5, "large"): (0.27, 1.14), (5, "medium"): (0.18, 1.14), (5, "small"): (0.26, 1.14),
+    (21, "large"): (0.45, 0.72), (21, "medium"): (0.39, 0.72), (21, "small"): (0.33, 0.72),
+    (31, "large"): (0.96, 4.43), (31, "medium"): (0.87, 4.43), (31, "small"): (0.69, 4.43),
+    (80, "large"): (0.32, 9.15), (80, "medium"): (0.34, 9.15), (80, "small"): (0.47, 9.15),
+}  # fmt: skip
+
+
+def main(argv=None) -> None:
+    args = _args(argv)
+    import numba
+
+    if args.threads:
+        numba.set_num_threads(args.threads)
+    threads = numba.get_num_threads()
+    # bench_sampling defaults NUMBA_NUM_THREADS to 1 on import: pin it to what numba runs with
+    os.environ["NUMBA_NUM_THREADS"] = str(numba.config.NUMBA_NUM_THREADS)
+    here = pathlib.Path(__file__).resolve().parent
+    spec = importlib.util.spec_from_file_location("bench_sampling", here / "bench_sampling.py")
+    bench_sampling = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(bench_sampling)
+
+    import csgnb.csg as csg
+    from csgnb.render import Camera, SplatRenderer, Viewer, compare, raytrace
+    from csgnb.sampling import sample_csg
+
+    W, H = args.width, args.height
+    rows, viewer = [], []
+    print(f"Table 2, render columns: {W}x{H}, {threads} thread(s); splats vs the reference ray tracer "
+          "(figures under load are provisional)")
+    print(f"{'model':18s} {'q':>3s} {'splat':6s} {'samples':>8s} {'splats ms':>9s} {'rt ms':>8s} {'ratio':>6s} "
+          f"{'fragments':>10s} {'overdraw':>8s} {'disagree':>8s} {'holes':>5s} {'paper ms':>9s} {'paper rt':>8s}")
+    for name, (build, radii) in bench_sampling.MODELS.items():
+        if args.only and name not in args.only:
+            continue
+        shape = build()
+        n_quadrics = len(csg.graph_leaves(shape))
+        clouds = {s: sample_csg(shape, r, reduce_radius=args.reduce_radius) for s, r in radii.items()}
+        cam = Camera.fit(next(iter(clouds.values())), W, H, azimuth=-60.0, elevation=35.0)
+        nf = next(iter(clouds.values())).normal_form
+        raytrace(nf, cam.with_size(32, 18))  # compile / load outside the timing
+        rt_ms, ref = float("inf"), None
+        for _ in range(max(1, args.rt_repeat)):
+            ref = raytrace(nf, cam)
+            rt_ms = min(rt_ms, ref.stats.ms)
+        for splat, cloud in clouds.items():
+            renderer = SplatRenderer(cloud)
+            renderer.render(cam.with_size(32, 18))
+            best, stages, frame = float("inf"), {}, None
+            for _ in range(max(1, args.repeat)):
+                frame = renderer.render(cam)
+                if frame.stats.ms < best:
+                    best, stages = frame.stats.ms, dict(frame.stats.timings)
+            a = compare(frame, ref)
+            paper = PAPER_RENDER.get((n_quadrics, splat), (float("nan"), float("nan")))
+            row = {
+                "name": name, "quadrics": n_quadrics, "splat": splat, "samples": len(cloud), "splat_ms": best,
+                "raytrace_ms": rt_ms, "speedup": rt_ms / best, "fragments": frame.stats.fragments,
+                "overdraw": frame.stats.overdraw, "covered": a.covered, "disagree_fraction": a.disagree_fraction,
+                "disagree": a.disagree, "holes": a.holes, "off_edge": a.off_edge,
+                "stages_ms": {k: round(v, 2) for k, v in stages.items()},
+            }
+            rows.append(row)
+            print(f"{name:18s} {n_quadrics:3d} {splat:6s} {len(cloud):8d} {best:9.1f} {rt_ms:8.0f} {rt_ms / best:6.1f} "
+                  f"{frame.stats.fragments:10d} {frame.stats.overdraw:8.2f} {a.disagree:8d} {a.holes:5d} "
+                  f"{paper[0]:9.2f} {paper[1]:8.2f}")
+            if n_quadrics == max(q for q, _ in PAPER_RENDER):
+                v = Viewer(cloud, cam.with_size(640, 480), size=(640, 480))
+                times = []
+                for _ in range(max(3, args.repeat)):
+                    t0 = time.perf_counter()
+                    v.update()
+                    times.append(1e3 * (time.perf_counter() - t0))
+                    v.camera = v.camera.orbited(2.0)
+                viewer.append({"splat": splat, "ms": min(times), "render_ms": v.frame.stats.ms})
+        sys.stdout.flush()
+    for row in rows:
+        if row["quadrics"] == 80:
+            print(f"  stages, {row['name']} {row['splat']}: " +
+                  ", ".join(f"{k} {v:.1f}" for k, v in row["stages_ms"].items()))
+    viewer_ms = max((v["ms"] for v in viewer), default=float("nan"))
+    for v in viewer:
+        print(f"viewer 640x480, 80 quadrics, {v['splat']:6s}: {v['ms']:.1f} ms per frame "
+              f"(render {v['render_ms']:.1f} ms, the rest JPEG encoding)")
+    if args.json:
+        with open(args.json, "w") as fh:
+            json.dump({"models": rows, "viewer_640x480_ms": viewer_ms, "viewer_640x480": viewer, "threads": threads,
+                       "size": [W, H], "reduce_radius": args.reduce_radius}, fh, indent=2)
+        print(f"wrote {args.json}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,117 @@
+"""Input checks shared by the renderers: shapes to normal forms, cameras, sample clouds."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from csgnb.csg.normal_form import NormalForm, to_normal_form
+from csgnb.errors import GeometryError
+from csgnb.render.camera import Camera
+from csgnb.render.rays import quadric_rows
+
+__all__ = ["as_normal_form", "check_camera", "check_cloud", "check_same_shape", "ON_QUADRIC"]
+
+#: A sample is on its quadric when |Q(s)| ≤ ON_QUADRIC · (|∇Q(s)| · scale + |Q|-scale) — far
+#: above rounding, far below any offset between different surfaces.
+ON_QUADRIC = 1e-7
+
+
+def as_normal_form(shape) -> NormalForm:
+    """Return the normal form of ``shape`` (Node, Quadric, NormalForm or SampleCloud)."""
+    from csgnb.sampling.cloud import SampleCloud
+
+    if isinstance(shape, SampleCloud):
+        return shape.normal_form
+    if isinstance(shape, NormalForm):
+        nf = shape
+    else:
+        try:
+            nf = to_normal_form(shape)
+        except TypeError as exc:
+            raise TypeError(
+                f"expected a CSG node, a Quadric, a NormalForm or a SampleCloud, got {type(shape).__name__}"
+            ) from exc
+    if nf.n_terms == 0:
+        raise GeometryError("the CSG object is empty: its normal form has no term (e.g. A ∩ ¬A); nothing to render")
+    return nf
+
+
+def check_camera(camera) -> Camera:
+    """Return ``camera`` if it is a Camera, else raise TypeError."""
+    if not isinstance(camera, Camera):
+        raise TypeError(f"expected a csgnb.render.Camera, got {type(camera).__name__}; "
+                        "build one with Camera.look_at, Camera.orbit or Camera.fit")
+    return camera
+
+
+def check_cloud(cloud):
+    """Validate a SampleCloud for rendering; return its quadric rows (n_q, 10) float64.
+
+    Raises TypeError for another type and GeometryError for an empty cloud, inconsistent arrays
+    (ids or clip indices out of range) or samples that are not on their quadrics (a cloud whose
+    normal form belongs to another shape).
+    """
+    from csgnb.sampling.cloud import SampleCloud
+
+    if not isinstance(cloud, SampleCloud):
+        raise TypeError(f"expected a csgnb.sampling.SampleCloud (from sample_csg), got {type(cloud).__name__}")
+    n = len(cloud.positions)
+    if n == 0:
+        raise GeometryError("the sample cloud is empty: nothing to render; sample a non-empty CSG surface")
+    nq = len(cloud.normal_form)
+    for name, arr, shape in (("positions", cloud.positions, (n, 3)), ("radii", cloud.radii, (n,)),
+                             ("quadric_ids", cloud.quadric_ids, (n,)), ("clip_start", cloud.clip_start, (n,)),
+                             ("clip_count", cloud.clip_count, (n,))):
+        if np.shape(arr) != shape:
+            raise GeometryError(f"cloud.{name} has shape {np.shape(arr)}, expected {shape}")
+    ids = np.asarray(cloud.quadric_ids)
+    if ids.min() < 0 or ids.max() >= nq:
+        raise GeometryError(f"cloud quadric ids span [{ids.min()}, {ids.max()}] but its normal form has {nq} "
+                            "quadrics: the cloud and its normal form do not belong together")
+    cidx = np.asarray(cloud.clip_indices)
+    end = np.asarray(cloud.clip_start, dtype=np.int64) + np.asarray(cloud.clip_count, dtype=np.int64)
+    if np.any(np.asarray(cloud.clip_count) < 0) or np.any(np.asarray(cloud.clip_start) < 0) or \
+            (n and end.max() > len(cidx)) or (len(cidx) and (cidx.min() < 0 or cidx.max() >= nq)):
+        raise GeometryError("cloud clip sets point outside its clip indices or normal form")
+    pos = np.asarray(cloud.positions, dtype=np.float64)
+    rad = np.asarray(cloud.radii, dtype=np.float64)
+    if not (np.all(np.isfinite(pos)) and np.all(np.isfinite(rad)) and np.all(rad > 0.0)):
+        raise GeometryError("cloud positions must be finite and radii positive")
+    Q = np.ascontiguousarray(cloud.quadric_buffer(np.float64))
+    _check_on_quadrics(Q, pos, ids)
+    return Q
+
+
+def _check_on_quadrics(Q, pos, ids) -> None:
+    A = np.zeros((len(Q), 4, 4))
+    iu = np.triu_indices(4)
+    A[:, iu[0], iu[1]] = Q
+    A[:, iu[1], iu[0]] = Q
+    h = np.column_stack([pos, np.ones(len(pos))])
+    M = A[ids]
+    val = np.einsum("ni,nij,nj->n", h, M, h)
+    grad = np.einsum("nij,nj->ni", M[:, :3, :], h)
+    scale = np.abs(M).max(axis=(1, 2)) * (1.0 + np.abs(pos).max(axis=1)) ** 2
+    bad = np.abs(val) > ON_QUADRIC * (np.linalg.norm(grad, axis=1) * (1.0 + np.abs(pos).max(axis=1)) + scale)
+    if np.any(bad):
+        k = int(np.flatnonzero(bad)[0])
+        raise GeometryError(
+            f"{int(bad.sum())} of {len(pos)} samples are not on their quadric (sample {k}: Q = {val[k]:.3g}): "
+            "the cloud was not sampled from this normal form (a cloud from another shape?)"
+        )
+
+
+def check_same_shape(cloud, shape) -> NormalForm:
+    """Return the normal form of ``shape``, or raise GeometryError if ``cloud`` was sampled from another one."""
+    nf = as_normal_form(shape)
+    mine = cloud.normal_form
+    if nf is mine:
+        return nf
+    same = (len(nf) == len(mine) and np.array_equal(nf.term_start, mine.term_start)
+            and np.array_equal(quadric_rows(nf.quadrics), quadric_rows(mine.quadrics)))
+    if not same:
+        raise GeometryError(
+            f"the cloud was sampled from another shape: its normal form is {mine!r}, the shape's is {nf!r}; "
+            "sample this shape (sample_csg) or pass the cloud's own shape"
+        )
+    return mine

@@ -1,0 +1,627 @@
+"""The splat renderer of §6: local quadric ray-tracing and clipping per fragment, tiled on the CPU.
+
+A frame is four kernels, each a data-parallel loop that maps one-to-one onto a GPU pass:
+
+1. ``_footprint_kernel`` (per splat): back-face culling and the splat's screen footprint — the
+   bounding rectangle of its sphere (s, r) (the paper's screen-aligned quad) or the convex hull
+   of its surface-aligned box (§6.1), as up to six screen vertices and a pixel rectangle;
+2. ``_bin_kernel``: splats → screen tiles (a counting sort: the tile's list of splat indices);
+3. ``_raster_kernel`` (per tile, ``prange``): for every pixel of every footprint (a *fragment*)
+   intersect the pixel ray with the splat's own quadric (eq. 5), keep the nearest root that lies
+   within r of the sample, discard it if a quadric of its clip set is positive there, depth test;
+4. normals and shading of the visible points (:mod:`.shading`).
+
+Bounds (all conservative, derived here from the quadric, not from the sampler's internals). For a
+sample s on Q with g = ∇Q(s) = 2(As + m) ≠ 0 and x = p − s, |x| ≤ r, p on Q:
+``gᵀx + xᵀAx = 0``, so the height over the tangent plane is ``n·x = -xᵀAx / |g|`` ∈
+``[-max(λ_max, 0), -min(λ_min, 0)] · r² / |g|`` (λ the eigenvalues of A): the surface-aligned box
+of eq. 23, from the quadric instead of the distortion bound. And ``(p - e)·∇Q(p) ≥ (s - e)·g -
+ρ r² - 2 ρ r |s - e|`` (ρ the spectral radius of A; ``v·g - 2ρr`` for an orthographic direction
+v): when positive, every point of the splat faces away from the eye and the splat is culled — a
+point seen from outside faces the eye, so culling never changes the image of an outside view.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+import weakref
+
+import numpy as np
+from numba import prange
+
+from csgnb._jit import jit
+from csgnb.render.camera import Camera
+from csgnb.render.frame import Frame, RenderStats
+from csgnb.render.rays import EPS, ray_direction, ray_point, ray_polynomials, ray_roots, row_gradient, row_value
+from csgnb.render.scene import check_camera, check_cloud
+from csgnb.render.shading import quadric_colors, shade, surface_normals
+
+__all__ = [
+    "SplatRenderer", "render", "renderer_for", "FOOTPRINTS", "LOCAL_MODES", "TILE", "FOOTPRINT_MARGIN",
+    "CLIP_TOLERANCE",
+]
+
+#: ``footprint=`` choices: the sphere's screen rectangle (§6 step 1) or the surface-aligned box (§6.1).
+FOOTPRINTS = ("sphere", "box")
+
+#: ``local=`` choices: flat discs on the tangent plane (classical splats, Figure 11a) or local
+#: quadric ray-tracing (Figure 11b–c).
+LOCAL_MODES = ("disc", "quadric")
+
+#: Tile edge in pixels for binning and the parallel raster loop.
+TILE = 64
+
+#: Relative growth of every footprint (box extents, sphere radius): keeps the pixel-centre test
+#: conservative against the rounding of projection and rays (≈1e-13 px) by a wide margin.
+FOOTPRINT_MARGIN = 1e-7
+
+#: A clip quadric discards a fragment when Q(p) > CLIP_TOLERANCE · κ, κ bounding |Q| over the
+#: scene (sum of the absolute terms at the scene's largest coordinate). Rounding of p and of Q(p)
+#: stays far below it, so a point exactly on a feature edge is not lost to rounding (a hole);
+#: geometrically it admits points within ~1e-14 relative of the clip surface.
+CLIP_TOLERANCE = 64.0 * EPS
+
+_CHUNK = 1024
+
+
+@jit(parallel=True, error_model="numpy")
+def _prepare_kernel(Q, lam, pos, nrm, rad, ids, SD):
+    """Static per-splat data SD (n, 12): s, r, unit normal, |∇Q(s)|, box heights, ρ."""
+    n = pos.shape[0]
+    for k in prange(n):
+        q = ids[k]
+        sx, sy, sz, r = pos[k, 0], pos[k, 1], pos[k, 2], rad[k]
+        g0, g1, g2 = row_gradient(Q, q, sx, sy, sz)
+        gn = 2.0 * math.sqrt(g0 * g0 + g1 * g1 + g2 * g2)
+        rho = max(abs(lam[q, 0]), abs(lam[q, 1]))
+        SD[k, 0], SD[k, 1], SD[k, 2], SD[k, 3] = sx, sy, sz, r
+        if gn > 0.0:
+            inv = 2.0 / gn
+            SD[k, 4], SD[k, 5], SD[k, 6] = g0 * inv, g1 * inv, g2 * inv
+            SD[k, 8] = max(-r, -max(lam[q, 1], 0.0) * r * r / gn)
+            SD[k, 9] = min(r, -min(lam[q, 0], 0.0) * r * r / gn)
+        else:  # a cone's apex: no tangent plane; the box becomes the cube around the ball
+            SD[k, 4], SD[k, 5], SD[k, 6] = nrm[k, 0], nrm[k, 1], nrm[k, 2]
+            SD[k, 8], SD[k, 9] = -r, r
+        SD[k, 7] = gn
+        SD[k, 10] = rho
+        SD[k, 11] = 0.0
+
+
+@jit(error_model="numpy", inline="always")
+def _tangent_range(c, z, R):
+    """Slopes (lo, hi) of the lines x = m z through the eye tangent to the disc (c, z), radius R; z > R."""
+    d = z * z - R * R
+    s = R * math.sqrt(max(c * c + d, 0.0))
+    return (c * z - s) / d, (c * z + s) / d
+
+
+@jit(error_model="numpy", inline="always")
+def _to_camera(cam, x, y, z):
+    """Return a world vector (x, y, z) in camera coordinates (right, up, forward)."""
+    return (x * cam[6] + y * cam[7] + z * cam[8], x * cam[9] + y * cam[10] + z * cam[11],
+            x * cam[3] + y * cam[4] + z * cam[5])
+
+
+@jit(parallel=True, error_model="numpy")
+def _footprint_kernel(cam, SD, footprint, cull, bbox, hull, nh, flag, zmin):
+    """Per splat: flag (0 drawn, 1 culled, 2 off screen), pixel rectangle, footprint hull, nearest depth."""
+    n = SD.shape[0]
+    W, H = cam[16], cam[17]
+    ortho = cam[18] != 0.0
+    # pixel coordinates: col = X · sx + cx, row = -Y · sy + cy (X, Y screen coordinates)
+    sx, cx = 0.5 * W / cam[14], 0.5 * W - 0.5
+    sy, cy = 0.5 * H / cam[15], 0.5 * H - 0.5
+    n_chunks = (n + _CHUNK - 1) // _CHUNK
+    for c in prange(n_chunks):
+        px = np.empty(8)
+        py = np.empty(8)
+        order = np.empty(8, dtype=np.int64)
+        hx = np.empty(17)
+        hy = np.empty(17)
+        for k in range(c * _CHUNK, min(n, (c + 1) * _CHUNK)):
+            r = SD[k, 3]
+            nx, ny, nz, gn = SD[k, 4], SD[k, 5], SD[k, 6], SD[k, 7]
+            rho = SD[k, 10]
+            nh[k] = 0
+            bbox[k, 0], bbox[k, 1], bbox[k, 2], bbox[k, 3] = 0, 0, -1, -1
+            ex, ey, ez = SD[k, 0] - cam[0], SD[k, 1] - cam[1], SD[k, 2] - cam[2]
+            Sx, Sy, Sz = _to_camera(cam, ex, ey, ez)
+            if cull and gn > 0.0:
+                if ortho:
+                    facing = gn * (cam[3] * nx + cam[4] * ny + cam[5] * nz)
+                    bound = 2.0 * rho * r
+                else:
+                    facing = gn * (ex * nx + ey * ny + ez * nz)
+                    bound = rho * r * (r + 2.0 * math.sqrt(ex * ex + ey * ey + ez * ez))
+                if facing > bound * (1.0 + 1e-9):
+                    flag[k] = 1
+                    continue
+            R = r * (1.0 + FOOTPRINT_MARGIN)
+            zmin[k] = Sz - R
+            if not ortho and Sz + R <= 0.0:
+                flag[k] = 2
+                continue
+            use_sphere = footprint == 0 or gn == 0.0
+            c_lo, c_hi, r_lo, r_hi = 0.0, 0.0, 0.0, 0.0
+            whole = False
+            if not use_sphere:
+                # surface-aligned box: tangents t1, t2 ⟂ n, heights [h0, h1] along n
+                if abs(nx) < 0.6:
+                    ax, ay, az = 0.0, nz, -ny
+                else:
+                    ax, ay, az = -nz, 0.0, nx
+                an = 1.0 / math.sqrt(ax * ax + ay * ay + az * az)
+                t1x, t1y, t1z = ax * an, ay * an, az * an
+                t2x, t2y, t2z = ny * t1z - nz * t1y, nz * t1x - nx * t1z, nx * t1y - ny * t1x
+                T1x, T1y, T1z = _to_camera(cam, t1x, t1y, t1z)
+                T2x, T2y, T2z = _to_camera(cam, t2x, t2y, t2z)
+                Nx, Ny, Nz = _to_camera(cam, nx, ny, nz)
+                grow = FOOTPRINT_MARGIN * r
+                h0, h1 = SD[k, 8] - grow, SD[k, 9] + grow
+                near = False
+                zlo = math.inf
+                for v in range(8):
+                    a = R if (v & 1) else -R
+                    b = R if (v & 2) else -R
+                    h = h1 if (v & 4) else h0
+                    Cx = Sx + a * T1x + b * T2x + h * Nx
+                    Cy = Sy + a * T1y + b * T2y + h * Ny
+                    Cz = Sz + a * T1z + b * T2z + h * Nz
+                    zlo = min(zlo, Cz)
+                    if ortho:
+                        px[v], py[v] = Cx * sx + cx, cy - Cy * sy
+                    else:
+                        if not Cz > 1e-9 * r:
+                            near = True
+                            break
+                        inv = 1.0 / Cz
+                        px[v], py[v] = Cx * inv * sx + cx, cy - Cy * inv * sy
+                if near:
+                    use_sphere = True
+                else:
+                    zmin[k] = zlo
+                    # convex hull (Andrew's monotone chain) of the 8 projected corners
+                    for v in range(8):
+                        order[v] = v
+                    for v in range(1, 8):
+                        w = order[v]
+                        u = v - 1
+                        while u >= 0 and (px[order[u]] > px[w] or (px[order[u]] == px[w] and py[order[u]] > py[w])):
+                            order[u + 1] = order[u]
+                            u -= 1
+                        order[u + 1] = w
+                    m = 0
+                    for v0 in range(8):
+                        w = order[v0]
+                        while m >= 2 and ((hx[m - 1] - hx[m - 2]) * (py[w] - hy[m - 2])
+                                          - (hy[m - 1] - hy[m - 2]) * (px[w] - hx[m - 2])) <= 0.0:
+                            m -= 1
+                        hx[m] = px[w]
+                        hy[m] = py[w]
+                        m += 1
+                    lower = m + 1
+                    for v0 in range(6, -1, -1):
+                        w = order[v0]
+                        while m >= lower and ((hx[m - 1] - hx[m - 2]) * (py[w] - hy[m - 2])
+                                              - (hy[m - 1] - hy[m - 2]) * (px[w] - hx[m - 2])) <= 0.0:
+                            m -= 1
+                        hx[m] = px[w]
+                        hy[m] = py[w]
+                        m += 1
+                    m -= 1  # the first point closes the chain
+                    c_lo, c_hi, r_lo, r_hi = hx[0], hx[0], hy[0], hy[0]
+                    for v in range(1, m):
+                        c_lo = min(c_lo, hx[v])
+                        c_hi = max(c_hi, hx[v])
+                        r_lo = min(r_lo, hy[v])
+                        r_hi = max(r_hi, hy[v])
+                    if 3 <= m <= 6:
+                        nh[k] = m
+                        for v in range(m):
+                            hull[k, 2 * v] = hx[v]
+                            hull[k, 2 * v + 1] = hy[v]
+            if use_sphere:
+                if ortho:
+                    c_lo, c_hi = (Sx - R) * sx + cx, (Sx + R) * sx + cx
+                    r_lo, r_hi = cy - (Sy + R) * sy, cy - (Sy - R) * sy
+                elif Sz - R <= 1e-9 * R:
+                    whole = True
+                else:
+                    m_lo, m_hi = _tangent_range(Sx, Sz, R)
+                    c_lo, c_hi = m_lo * sx + cx, m_hi * sx + cx
+                    m_lo, m_hi = _tangent_range(Sy, Sz, R)
+                    r_lo, r_hi = cy - m_hi * sy, cy - m_lo * sy
+            if whole:
+                j0, i0, j1, i1 = 0, 0, int(W) - 1, int(H) - 1
+            else:
+                j0 = int(math.ceil(max(c_lo, -1.0)))
+                i0 = int(math.ceil(max(r_lo, -1.0)))
+                j1 = int(math.floor(min(c_hi, W)))
+                i1 = int(math.floor(min(r_hi, H)))
+                j0, i0 = max(j0, 0), max(i0, 0)
+                j1, i1 = min(j1, int(W) - 1), min(i1, int(H) - 1)
+            if j1 < j0 or i1 < i0:
+                flag[k] = 2
+                continue
+            flag[k] = 0
+            bbox[k, 0], bbox[k, 1], bbox[k, 2], bbox[k, 3] = j0, i0, j1, i1
+
+
+_BUCKETS = 4096
+
+
+@jit(error_model="numpy")
+def _bin_kernel(bbox, flag, zmin, tile, ntx, nty, start, items):
+    """Counting sort of the drawn splats into tiles, front to back within a tile (by nearest depth,
+    in 4096 buckets): tile t holds items[start[t]:start[t + 1]]. Returns the pair count (if it
+    exceeds ``items``, nothing is written: grow it and call again)."""
+    n = bbox.shape[0]
+    lo, hi = math.inf, -math.inf
+    drawn = 0
+    for k in range(n):
+        if flag[k] == 0:
+            lo = min(lo, zmin[k])
+            hi = max(hi, zmin[k])
+            drawn += 1
+    scale = (_BUCKETS - 1) / (hi - lo) if hi > lo else 0.0
+    bucket = np.zeros(_BUCKETS + 1, dtype=np.int64)
+    for k in range(n):
+        if flag[k] == 0:
+            bucket[int((zmin[k] - lo) * scale) + 1] += 1
+    for b in range(_BUCKETS):
+        bucket[b + 1] += bucket[b]
+    order = np.empty(drawn, dtype=np.int32)
+    for k in range(n):
+        if flag[k] == 0:
+            b = int((zmin[k] - lo) * scale)
+            order[bucket[b]] = k
+            bucket[b] += 1
+    count = np.zeros(ntx * nty + 1, dtype=np.int64)
+    for o in range(drawn):
+        k = order[o]
+        for ty in range(bbox[k, 1] // tile, bbox[k, 3] // tile + 1):
+            for tx in range(bbox[k, 0] // tile, bbox[k, 2] // tile + 1):
+                count[ty * ntx + tx + 1] += 1
+    start[0] = 0
+    for t in range(ntx * nty):
+        start[t + 1] = start[t] + count[t + 1]
+    total = start[ntx * nty]
+    if total > items.shape[0]:
+        return total
+    fill = start[:-1].copy()
+    for o in range(drawn):
+        k = order[o]
+        for ty in range(bbox[k, 1] // tile, bbox[k, 3] // tile + 1):
+            for tx in range(bbox[k, 0] // tile, bbox[k, 2] // tile + 1):
+                t = ty * ntx + tx
+                items[fill[t]] = k
+                fill[t] += 1
+    return total
+
+
+@jit(parallel=True, error_model="numpy")
+def _raster_kernel(cam, X, Y, P, Q, ctol, SD, SI, cidx, bbox, hull, nh, zmin, start, items, tile, ntx, local,
+                   clip, rtol, depth, winner, qwin, qclip, qlast, zr1, zr2, od):
+    """Rasterize the binned footprints tile by tile: fragments, local ray-tracing, clipping, depth test.
+
+    Two per-pixel memos skip fragments before any arithmetic without changing the image. A
+    quadric's roots at a pixel do not depend on the splat, and neither does clipping (a clip
+    quadric missing from a splat's clip set is negative within r of it, so such a root would fail
+    that splat's distance test): once every root of q in (0, depth) is clipped at a pixel, no
+    later fragment of q can change it. ``qwin[i, j]``: the visible quadric when that holds for it
+    (its earlier root, if any, is clipped — for a hole's far wall, the second root, the near wall
+    is); ``qclip[i, j]``: a quadric all of whose roots in (0, depth) are clipped there. And
+    ``qlast``, ``zr1``, ``zr2`` keep the roots of the last quadric computed at each pixel: the
+    overlapping splats of one surface reuse them.
+    """
+    H, W = depth.shape
+    nty = (H + tile - 1) // tile
+    persp = cam[18] == 0.0
+    for t in prange(ntx * nty):
+        ti0 = (t // ntx) * tile
+        tj0 = (t % ntx) * tile
+        ti1 = min(ti0 + tile, H) - 1
+        tj1 = min(tj0 + tile, W) - 1
+        # hull edges of the current splat: y range, x at the lower y, dx/dy (no division per row)
+        ey0 = np.empty(6)
+        ey1 = np.empty(6)
+        ex0 = np.empty(6)
+        esl = np.empty(6)
+        for b in range(start[t], start[t + 1]):
+            k = items[b]
+            sx, sy, sz, r = SD[k, 0], SD[k, 1], SD[k, 2], SD[k, 3]
+            rr = (r + rtol) * (r + rtol)
+            q, c0, cn = SI[k, 0], SI[k, 1], SI[k, 2]
+            zk = zmin[k]
+            m = nh[k]
+            ne = 0
+            for e in range(m):
+                xa, ya = hull[k, 2 * e], hull[k, 2 * e + 1]
+                e1 = e + 1 if e + 1 < m else 0
+                xb, yb = hull[k, 2 * e1], hull[k, 2 * e1 + 1]
+                if ya == yb:
+                    continue  # a horizontal edge: its end points belong to its neighbours
+                if ya > yb:
+                    xa, ya, xb, yb = xb, yb, xa, ya
+                ey0[ne], ey1[ne], ex0[ne] = ya, yb, xa
+                esl[ne] = (xb - xa) / (yb - ya)
+                ne += 1
+            for i in range(max(bbox[k, 1], ti0), min(bbox[k, 3], ti1) + 1):
+                ja, jb = bbox[k, 0], bbox[k, 2]
+                if m > 0:
+                    # the hull's span on this row: min / max over the edges that straddle it
+                    lo, hi = math.inf, -math.inf
+                    yc = float(i)
+                    for e in range(ne):
+                        if ey0[e] <= yc <= ey1[e]:
+                            x = ex0[e] + (yc - ey0[e]) * esl[e]
+                            lo = min(lo, x)
+                            hi = max(hi, x)
+                    if hi < lo:
+                        continue
+                    ja = max(ja, int(math.ceil(lo)))
+                    jb = min(jb, int(math.floor(hi)))
+                y = Y[i]
+                for j in range(max(ja, tj0), min(jb, tj1) + 1):
+                    od[i, j] += 1
+                    best = depth[i, j]
+                    if zk > best or qwin[i, j] == q or qclip[i, j] == q:
+                        continue  # early depth test; this quadric is resolved at this pixel
+                    x = X[j]
+                    if local == 0:  # a flat disc on the tangent plane
+                        nx, ny, nz = SD[k, 4], SD[k, 5], SD[k, 6]
+                        dx, dy, dz, _ = ray_direction(cam, x, y)
+                        den = nx * dx + ny * dy + nz * dz
+                        if den == 0.0:
+                            continue
+                        ox, oy, oz = ray_point(cam, x, y, 0.0)
+                        zz = (nx * (sx - ox) + ny * (sy - oy) + nz * (sz - oz)) / den
+                        if not (zz > 0.0 and zz < best):
+                            continue
+                        px, py, pz = ray_point(cam, x, y, zz)
+                        ex, ey, ez = px - sx, py - sy, pz - sz
+                        if ex * ex + ey * ey + ez * ez <= rr:
+                            depth[i, j] = zz
+                            winner[i, j] = k
+                        continue
+                    if qlast[i, j] == q:  # the roots of q here are known (bit for bit the same)
+                        z1, z2 = zr1[i, j], zr2[i, j]
+                    else:
+                        dd = 1.0 + (x * x + y * y) if persp else 1.0
+                        z1, z2, _ = ray_roots(P, q, x, y, dd)
+                        qlast[i, j] = q
+                        zr1[i, j] = z1
+                        zr2[i, j] = z2
+                    # done: every root of q in (0, new depth) is clipped here (splat-independent)
+                    done = True
+                    won = False
+                    for root in range(2):
+                        zz = z1 if root == 0 else z2
+                        if not zz <= best:
+                            break  # NaN or behind the visible point: the other root is too
+                        if not zz > 0.0:
+                            continue
+                        if zz == best and not (winner[i, j] >= 0 and q < SI[winner[i, j], 0]):
+                            continue  # a tie goes to the lower quadric index (the reference's term order)
+                        px, py, pz = ray_point(cam, x, y, zz)
+                        ex, ey, ez = px - sx, py - sy, pz - sz
+                        if ex * ex + ey * ey + ez * ez > rr:
+                            done = False  # beyond this splat's radius: another splat may take it
+                            continue
+                        ok = True
+                        if clip:
+                            for c in range(c0, c0 + cn):
+                                kq = cidx[c]
+                                if row_value(Q, kq, px, py, pz) > ctol[kq]:
+                                    ok = False
+                                    break
+                        if ok:
+                            depth[i, j] = zz
+                            winner[i, j] = k
+                            won = True
+                            break
+                    if won:
+                        qwin[i, j] = q if done else -1
+                    elif done:
+                        qclip[i, j] = q
+
+
+@jit(parallel=True, error_model="numpy")
+def _resolve_kernel(winner, SI, nrm, term_of, local, qid, tid, ccount, normal):
+    """Per pixel, from the visible splat: quadric, term, clip-set size (and the disc normal)."""
+    H, W = winner.shape
+    for i in prange(H):
+        for j in range(W):
+            k = winner[i, j]
+            if k < 0:
+                qid[i, j] = -1
+                tid[i, j] = -1
+                ccount[i, j] = -1
+                continue
+            q = SI[k, 0]
+            qid[i, j] = q
+            tid[i, j] = term_of[q]
+            ccount[i, j] = SI[k, 2]
+            if local == 0:
+                normal[i, j, 0] = nrm[k, 0]
+                normal[i, j, 1] = nrm[k, 1]
+                normal[i, j, 2] = nrm[k, 2]
+
+
+class SplatRenderer:
+    """Render one SampleCloud from any camera; keeps the view-independent per-splat data.
+
+    ``SplatRenderer(cloud).render(camera)`` is what :func:`render` does; build one when rendering
+    many frames (the viewer, benchmarks) to prepare the cloud once.
+    """
+
+    def __init__(self, cloud) -> None:
+        self.Q = check_cloud(cloud)
+        self.cloud = cloud
+        nf = cloud.normal_form
+        self.normal_form = nf
+        n = len(cloud.positions)
+        lam = np.array([[q.eigenvalues[0], q.eigenvalues[-1]] for q in nf.quadrics], dtype=np.float64)
+        self.SD = np.empty((n, 12))
+        _prepare_kernel(self.Q, lam, np.ascontiguousarray(cloud.positions, dtype=np.float64),
+                        np.ascontiguousarray(cloud.normals, dtype=np.float64),
+                        np.ascontiguousarray(cloud.radii, dtype=np.float64),
+                        np.ascontiguousarray(cloud.quadric_ids, dtype=np.int32), self.SD)
+        self.SI = np.ascontiguousarray(np.column_stack([cloud.quadric_ids, cloud.clip_start, cloud.clip_count]),
+                                       dtype=np.int32)
+        self.cidx = np.ascontiguousarray(cloud.clip_indices, dtype=np.int32)
+        if len(self.cidx) == 0:
+            self.cidx = np.zeros(1, dtype=np.int32)
+        self.term_of = np.ascontiguousarray(nf.term_of, dtype=np.int32)
+        self.normals = np.ascontiguousarray(cloud.normals, dtype=np.float64)
+        self.palette = quadric_colors(nf)
+        self.extent = float(np.max(np.abs(cloud.positions)) + np.max(cloud.radii))
+        # scratch, reused across frames
+        self._hull = np.empty((n, 12))
+        self._bbox = np.empty((n, 4), dtype=np.int32)
+        self._nh = np.empty(n, dtype=np.int32)
+        self._flag = np.empty(n, dtype=np.int8)
+        self._zmin = np.empty(n)
+        self._items = np.empty(2 * n + 1024, dtype=np.int32)
+        self._memo = None
+
+    def _scratch(self, H: int, W: int):
+        """Per-pixel memo buffers of the raster kernel, kept between frames of one size."""
+        if self._memo is None or self._memo[0].shape != (H, W):
+            self._memo = tuple(np.empty((H, W), dtype=np.int32) for _ in range(3)) + (
+                np.empty((H, W)), np.empty((H, W)))
+        for a in self._memo[:3]:
+            a.fill(-1)
+        return self._memo
+
+    def clip_tolerances(self, camera: Camera) -> np.ndarray:
+        """Return CLIP_TOLERANCE · κ per quadric : (n_q,) float64 (κ at the scene's extent, eye included)."""
+        R = max(self.extent, float(np.max(np.abs(camera.eye))), 1.0)
+        A = np.abs(self.Q)
+        quad = A[:, 0] + A[:, 4] + A[:, 7] + 2.0 * (A[:, 1] + A[:, 2] + A[:, 5])
+        lin = 2.0 * (A[:, 3] + A[:, 6] + A[:, 8])
+        return CLIP_TOLERANCE * (quad * R * R + lin * R + A[:, 9])
+
+    def render(self, camera: Camera, *, footprint: str = "box", backface_culling: bool = True,
+               local: str = "quadric", clip: bool = True, color_by: str = "quadric", lit: bool = True,
+               tile: int = TILE) -> Frame:
+        """Return the splat render of the cloud (§6).
+
+        Parameters
+        ----------
+        camera : Camera
+        footprint : "box" or "sphere"
+            Surface-aligned box (§6.1) or the sphere's screen rectangle (§6 step 1) per splat.
+        backface_culling : bool
+            Drop splats all of whose points face away from the eye (§6.1; outside views).
+        local : "quadric" or "disc"
+            Local quadric ray-tracing, or flat discs on the tangent plane (classical splats).
+        clip : bool
+            Local clipping with the sample's clip set (§6 step 3).
+        color_by : str
+            See ``shading.COLOR_MODES``.
+        tile : int
+            Tile edge in pixels (binning and the parallel loop).
+
+        Returns
+        -------
+        Frame
+            With the overdraw buffer and counts (``stats.fragments``, ``stats.overdraw``).
+        """
+        t0 = time.perf_counter()
+        check_camera(camera)
+        if footprint not in FOOTPRINTS:
+            raise ValueError(f"footprint must be one of {FOOTPRINTS}, got {footprint!r}")
+        if local not in LOCAL_MODES:
+            raise ValueError(f"local must be one of {LOCAL_MODES}, got {local!r}")
+        tile = int(tile)
+        if not 4 <= tile <= 1024:
+            raise ValueError(f"tile must be in [4, 1024] pixels, got {tile}")
+        cam = camera.params()
+        X, Y = camera.screen_axes()
+        H, W = camera.shape
+        ctol = self.clip_tolerances(camera)
+        rtol = 64.0 * EPS * max(self.extent, float(np.max(np.abs(camera.eye))), 1.0)
+        _footprint_kernel(cam, self.SD, FOOTPRINTS.index(footprint), bool(backface_culling), self._bbox,
+                          self._hull, self._nh, self._flag, self._zmin)
+        P = ray_polynomials(cam, self.Q)
+        t1 = time.perf_counter()
+        ntx, nty = (W + tile - 1) // tile, (H + tile - 1) // tile
+        start = np.empty(ntx * nty + 1, dtype=np.int64)
+        total = _bin_kernel(self._bbox, self._flag, self._zmin, tile, ntx, nty, start, self._items)
+        if total > len(self._items):
+            self._items = np.empty(int(total * 1.25) + 1024, dtype=np.int32)
+            _bin_kernel(self._bbox, self._flag, self._zmin, tile, ntx, nty, start, self._items)
+        t2 = time.perf_counter()
+        depth = np.full((H, W), np.inf)
+        winner = np.full((H, W), -1, dtype=np.int32)
+        qwin, qclip, qlast, zr1, zr2 = self._scratch(H, W)
+        od = np.zeros((H, W), dtype=np.int32)
+        li = LOCAL_MODES.index(local)
+        _raster_kernel(cam, X, Y, P, self.Q, ctol, self.SD, self.SI, self.cidx, self._bbox, self._hull, self._nh,
+                       self._zmin, start, self._items, tile, ntx, li, bool(clip), rtol, depth, winner, qwin, qclip,
+                       qlast, zr1, zr2, od)
+        t3 = time.perf_counter()
+        qid = np.empty((H, W), dtype=np.int32)
+        tid = np.empty((H, W), dtype=np.int32)
+        ccount = np.empty((H, W), dtype=np.int32)
+        if li == 0:
+            normal = np.zeros((H, W, 3), dtype=np.float32)
+            _resolve_kernel(winner, self.SI, self.normals, self.term_of, li, qid, tid, ccount, normal)
+        else:
+            _resolve_kernel(winner, self.SI, self.normals, self.term_of, li, qid, tid, ccount,
+                            np.empty((1, 1, 3), dtype=np.float32))
+            normal = surface_normals(cam, X, Y, self.Q, depth, qid)
+        t4 = time.perf_counter()
+        frame = Frame(camera, depth, normal, qid, tid, np.empty((0, 0, 3), np.uint8), od, ccount, winner,
+                      stats=None, normal_form=self.normal_form, _palette=self.palette)
+        if color_by == "quadric":
+            rgb = shade(cam, X, Y, normal, qid, self.palette, lit=lit)
+        else:
+            rgb = frame.shaded(color_by, lit=lit)
+        t5 = time.perf_counter()
+        covered = int(np.count_nonzero(qid >= 0))
+        fragments = int(od.sum(dtype=np.int64))
+        flags = np.bincount(self._flag, minlength=3)
+        stats = RenderStats(
+            "splats", covered, fragments, fragments / covered if covered else 0.0,
+            int(flags[0]), int(flags[1]), int(flags[2]), 1e3 * (time.perf_counter() - t0),
+            {"footprints": 1e3 * (t1 - t0), "binning": 1e3 * (t2 - t1), "raster": 1e3 * (t3 - t2),
+             "normals": 1e3 * (t4 - t3), "shade": 1e3 * (t5 - t4)},
+        )
+        return Frame(camera, depth, normal, qid, tid, rgb, od, ccount, winner, stats, self.normal_form, self.palette)
+
+
+_RENDERERS: dict[int, tuple[weakref.ref, SplatRenderer]] = {}
+
+
+def renderer_for(cloud) -> SplatRenderer:
+    """Return a (cached) SplatRenderer of ``cloud``: the last few clouds keep their prepared data."""
+    key = id(cloud)
+    hit = _RENDERERS.get(key)
+    if hit is not None and hit[0]() is cloud:
+        return hit[1]
+    r = SplatRenderer(cloud)
+    try:
+        ref = weakref.ref(cloud)
+    except TypeError:  # pragma: no cover - dataclasses support weak references
+        return r
+    _RENDERERS[key] = (ref, r)
+    while len(_RENDERERS) > 4:
+        _RENDERERS.pop(next(iter(_RENDERERS)))
+    return r
+
+
+def render(cloud, camera: Camera, **options) -> Frame:
+    """Return the splat render of ``cloud`` seen by ``camera`` (§6, §6.1).
+
+    Options as :meth:`SplatRenderer.render` (``footprint``, ``backface_culling``, ``local``,
+    ``clip``, ``color_by``, ``lit``, ``tile``). Raises TypeError for a non-cloud or non-camera,
+    GeometryError for an empty cloud or one whose samples are not on its normal form's quadrics.
+    """
+    if not isinstance(camera, Camera):
+        check_camera(camera)
+    return renderer_for(cloud).render(camera, **options)
+

@@ -1,0 +1,177 @@
+"""An interactive notebook viewer: drag to orbit, wheel to zoom, splats next to the reference.
+
+The image is an ``ipywidgets.Image`` re-rendered on every (throttled) mouse move while a button
+is held; mouse events come from ``ipyevents`` (sliders for azimuth, elevation and zoom work
+everywhere, also without it). With a reference (``shape=`` or ``reference=True``) the viewer
+shows splats, the ray-traced reference and their difference side by side; the slower reference
+is re-rendered when the drag ends.
+"""
+
+from __future__ import annotations
+
+import time
+
+from csgnb.render.agreement import compare
+from csgnb.render.camera import Camera
+from csgnb.render.frame import Frame
+from csgnb.render.raytracer import raytrace
+from csgnb.render.scene import check_same_shape
+from csgnb.render.splats import renderer_for
+
+__all__ = ["Viewer"]
+
+#: Degrees of orbit per pixel of drag.
+DRAG_DEGREES = 0.4
+
+
+class Viewer:
+    """Interactive splat viewer of a SampleCloud in a notebook.
+
+    Parameters
+    ----------
+    cloud : SampleCloud
+    camera : Camera or None — initial view (default: ``Camera.fit`` of the cloud at ``size``).
+    shape : CSG node / NormalForm or None — show the reference ray tracer and the difference too
+        (GeometryError if the cloud was sampled from another shape); ``reference=True`` uses the
+        cloud's own normal form.
+    size : (width, height) of each image.
+    render options (``footprint``, ``backface_culling``, ``color_by``, ...) go to ``render``.
+
+    ``viewer.widget`` is the ipywidgets box; displaying the viewer shows it. ``viewer.frame`` is
+    the last splat frame, ``viewer.frame_ms`` its render time.
+    """
+
+    def __init__(self, cloud, camera: Camera | None = None, *, shape=None, reference: bool = False,
+                 size=(640, 480), **options) -> None:
+        import ipywidgets as widgets
+
+        self.renderer = renderer_for(cloud)
+        self.cloud = cloud
+        self.reference_shape = None
+        if shape is not None:
+            self.reference_shape = check_same_shape(cloud, shape)
+        elif reference:
+            self.reference_shape = cloud.normal_form
+        w, h = size
+        self.camera = camera.with_size(w, h) if camera is not None else Camera.fit(cloud, w, h)
+        self.options = options
+        self.frame = None
+        self.frame_ms = 0.0
+        layout = widgets.Layout(width=f"{w}px", height=f"{h}px")
+        self.image = widgets.Image(format="jpeg", layout=layout)
+        images = [self.image]
+        if self.reference_shape is not None:
+            self.reference_image = widgets.Image(format="jpeg", layout=layout)
+            self.difference_image = widgets.Image(format="png", layout=layout)
+            images += [self.reference_image, self.difference_image]
+        self.label = widgets.HTML()
+        slider = dict(continuous_update=True, readout_format=".0f", layout=widgets.Layout(width="32%"))
+        az, el = self._angles()
+        self.azimuth = widgets.FloatSlider(value=az, min=-180, max=180, step=1, description="azimuth", **slider)
+        self.elevation = widgets.FloatSlider(value=el, min=-89, max=89, step=1, description="elevation", **slider)
+        self.zoom = widgets.FloatLogSlider(value=1.0, base=2, min=-2, max=3, step=0.05, description="zoom",
+                                           continuous_update=True, layout=widgets.Layout(width="32%"))
+        self._base = self.camera
+        self._syncing = False
+        for s in (self.azimuth, self.elevation, self.zoom):
+            s.observe(self._on_slider, names="value")
+        self.widget = widgets.VBox([widgets.HBox(images), widgets.HBox([self.azimuth, self.elevation, self.zoom]),
+                                    self.label])
+        self.events = None
+        try:
+            from ipyevents import Event
+        except ImportError:  # pragma: no cover - ipyevents is a dependency; sliders still work
+            self.label.value = "(install ipyevents to drag; sliders work)"
+        else:
+            self.events = Event(source=self.image, watched_events=["mousedown", "mouseup", "mousemove", "mouseleave",
+                                                                    "wheel"],
+                                prevent_default_action=True, throttle_or_debounce="throttle", wait=15)
+            self.events.on_dom_event(self._on_event)
+        self._drag = None
+        self.update(reference=True)
+
+    # -- rendering -------------------------------------------------------------------------------
+    def _angles(self) -> tuple[float, float]:
+        import math
+
+        import numpy as np
+
+        from csgnb.render.camera import _plane_axes
+
+        up = self.camera.up / np.linalg.norm(self.camera.up)
+        off = self.camera.eye - self.camera.target
+        x, y = _plane_axes(up)
+        az = math.degrees(math.atan2(float(off @ y), float(off @ x)))
+        el = math.degrees(math.asin(max(-1.0, min(1.0, float(off @ up) / float(np.linalg.norm(off))))))
+        return az, el
+
+    def update(self, reference: bool = False) -> None:
+        """Re-render the splats (and the reference and difference when ``reference``)."""
+        t0 = time.perf_counter()
+        self.frame = self.renderer.render(self.camera, **self.options)
+        self.frame_ms = 1e3 * (time.perf_counter() - t0)
+        self.image.value = self.frame.png_bytes(fmt="jpeg")
+        text = (f"splats: {self.frame_ms:.1f} ms per frame ({self.frame.stats.covered} pixels, "
+                f"overdraw {self.frame.stats.overdraw:.1f})")
+        if self.reference_shape is not None and reference:
+            ref = raytrace(self.reference_shape, self.camera, color_by=self.options.get("color_by", "quadric"))
+            self.reference_image.value = ref.png_bytes(fmt="jpeg")
+            agreement = compare(self.frame, ref)
+            self.difference_image.value = self.frame.png_bytes(agreement.picture())
+            self._last_reference = (ref.stats.ms, agreement)
+        if self.reference_shape is not None and hasattr(self, "_last_reference"):
+            ms, agreement = self._last_reference
+            stale = "" if reference else " (reference updates when the drag ends)"
+            text += (f" · ray tracing: {ms:.0f} ms · agree {agreement.fraction:.4%}, holes {agreement.holes}"
+                     f"{stale}")
+        self.label.value = text
+
+    # -- interaction -----------------------------------------------------------------------------
+    def _set_camera(self, camera: Camera, reference: bool) -> None:
+        self.camera = camera
+        self._syncing = True
+        try:
+            az, el = self._angles()
+            self.azimuth.value, self.elevation.value = az, el
+        finally:
+            self._syncing = False
+        self.update(reference=reference)
+
+    def _on_slider(self, change) -> None:
+        if self._syncing:
+            return
+        cam = Camera.orbit(self._base.target, self.azimuth.value, self.elevation.value,
+                           self._base.distance / self.zoom.value, self._base.width, self._base.height,
+                           up=self._base.up, fov=self._base.fov, projection=self._base.projection,
+                           ortho_height=self._base.ortho_height / self.zoom.value)
+        self.camera = cam
+        self.update(reference=True)
+
+    def _on_event(self, event: dict) -> None:
+        kind = event.get("type")
+        if kind == "mousedown":
+            self._drag = (event.get("clientX", 0), event.get("clientY", 0))
+        elif kind == "mousemove" and self._drag is not None:
+            x, y = event.get("clientX", 0), event.get("clientY", 0)
+            dx, dy = x - self._drag[0], y - self._drag[1]
+            self._drag = (x, y)
+            self._set_camera(self.camera.orbited(-DRAG_DEGREES * dx, DRAG_DEGREES * dy), reference=False)
+        elif kind in ("mouseup", "mouseleave") and self._drag is not None:
+            self._drag = None
+            self.update(reference=True)
+        elif kind == "wheel":
+            zoom = 1.1 if event.get("deltaY", 0) < 0 else 1 / 1.1
+            self._base = self._base.orbited(zoom=zoom)
+            self._set_camera(self.camera.orbited(zoom=zoom), reference=True)
+
+    def drag(self, dx: float, dy: float) -> Frame:
+        """Orbit as a mouse drag by (dx, dy) pixels would (for scripts and tests); return the frame."""
+        self._on_event({"type": "mousedown", "clientX": 0, "clientY": 0})
+        self._on_event({"type": "mousemove", "clientX": dx, "clientY": dy})
+        self._on_event({"type": "mouseup", "clientX": dx, "clientY": dy})
+        return self.frame
+
+    def _ipython_display_(self) -> None:
+        from IPython.display import display
+
+        display(self.widget)

@@ -1,0 +1,192 @@
+"""The splat renderer: pixel-perfect against the reference ray tracer, overdraw reductions that
+leave the image unchanged, failure on a thinned cloud, modes, export, viewer, bad input."""
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from csgnb.errors import GeometryError
+from csgnb.render import Camera, SplatRenderer, Viewer, compare, raytrace, render, verify
+from csgnb.sampling import sample_csg
+from tests.render_models import all_models, figure2, figure15, tour_part
+
+MODELS = all_models()
+#: (azimuth, elevation, projection) of the views every model is checked from
+VIEWS = [(-60, 30, "perspective"), (30, 60, "orthographic"), (150, -20, "perspective")]
+SIZE = (120, 90)
+
+_clouds: dict = {}
+
+
+def cloud_of(name, rel):
+    """Sample model ``name`` with splat radius ``rel`` × its extent (cached per session)."""
+    key = (name, rel)
+    if key not in _clouds:
+        shape = MODELS[name]()
+        ext = np.ptp(sample_csg(shape, 1.0).positions, axis=0).max()
+        _clouds[key] = (shape, sample_csg(shape, rel * ext))
+    return _clouds[key]
+
+
+def assert_pixel_perfect(agreement):
+    assert agreement.covered > 500
+    assert agreement.holes == 0, f"{agreement.holes} holes"
+    assert agreement.fraction >= 0.999, agreement
+    assert agreement.off_edge == 0, agreement
+
+
+@pytest.mark.parametrize("name", list(MODELS))
+@pytest.mark.parametrize("rel", [0.02, 0.06])
+def test_splats_are_pixel_perfect(name, rel):
+    shape, cloud = cloud_of(name, rel)
+    for az, el, proj in VIEWS:
+        cam = Camera.fit(cloud, *SIZE, azimuth=az, elevation=el, projection=proj)
+        a, splats, ref = verify(cloud, cam, shape)
+        assert_pixel_perfect(a)
+        # agreeing pixels have bit-identical depths: both renderers solve the same equation
+        same = (splats.quadric == ref.quadric) & ref.covered
+        assert np.array_equal(splats.depth[same], ref.depth[same])
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", list(MODELS))
+def test_splats_are_pixel_perfect_at_640x480(name):
+    shape, cloud = cloud_of(name, 0.03)
+    for az, el, proj in VIEWS:
+        a, _, _ = verify(cloud, Camera.fit(cloud, 640, 480, azimuth=az, elevation=el, projection=proj), shape)
+        assert_pixel_perfect(a)
+
+
+def test_a_thinned_cloud_fails_the_check():
+    shape, cloud = cloud_of("tour", 0.02)
+    keep = np.arange(len(cloud)) % 8 == 0
+    thin = dataclasses.replace(
+        cloud, positions=cloud.positions[keep], normals=cloud.normals[keep], quadric_ids=cloud.quadric_ids[keep],
+        radii=cloud.radii[keep], clip_start=cloud.clip_start[keep], clip_count=cloud.clip_count[keep])
+    cam = Camera.fit(cloud, *SIZE)
+    a, _, _ = verify(thin, cam, shape)
+    assert a.holes > 50 and a.off_edge > 50 and not a.ok
+    assert verify(cloud, cam, shape)[0].ok
+
+
+def _identical(a, b):
+    return np.array_equal(a.quadric, b.quadric) and np.array_equal(a.depth, b.depth)
+
+
+@pytest.mark.parametrize("name", ["figure 2", "tour", "block", "figure 15"])
+def test_each_overdraw_reduction_keeps_the_image_and_lowers_overdraw(name):
+    shape = MODELS[name]()
+    ext = np.ptp(sample_csg(shape, 1.0).positions, axis=0).max()
+    r = 0.04 * ext
+    worst = sample_csg(shape, r, distortion="sqrt3", refine=False)  # Figure 13 (a)-(c)
+    bounds = sample_csg(shape, r)                                      # (d)
+    reduced = sample_csg(shape, r, reduce_radius=True)                 # (e)
+    assert np.array_equal(reduced.positions, bounds.positions) and np.all(reduced.radii <= bounds.radii)
+    cam = Camera.fit(bounds, *SIZE, azimuth=-50, elevation=35)
+    steps = [
+        render(worst, cam, footprint="sphere", backface_culling=False),
+        render(worst, cam, footprint="box", backface_culling=False),
+        render(worst, cam, footprint="box", backface_culling=True),
+        render(bounds, cam),
+        render(reduced, cam),
+    ]
+    ref = raytrace(shape, cam)
+    for k, frame in enumerate(steps):
+        assert_pixel_perfect(compare(frame, ref))
+        if k:
+            assert _identical(frame, steps[k - 1]), f"step {k} changed the image"
+    fragments = [f.stats.fragments for f in steps]
+    assert all(b < a for a, b in zip(fragments[:3], fragments[1:3], strict=False)), fragments
+    assert fragments[3] < fragments[2] or len(bounds) >= len(worst), fragments
+    assert fragments[4] < fragments[3] or np.all(reduced.radii == bounds.radii), fragments
+    assert steps[2].stats.splats_culled > 0.2 * len(worst)
+
+
+def test_clipping_and_local_ray_tracing_are_what_make_it_exact():
+    shape, cloud = cloud_of("figure 15", 0.04)
+    cam = Camera.fit(cloud, *SIZE, azimuth=-60, elevation=30)
+    ref = raytrace(shape, cam)
+    unclipped = compare(render(cloud, cam, clip=False), ref)
+    discs = compare(render(cloud, cam, local="disc", clip=False), ref)
+    assert unclipped.off_edge > 0 and unclipped.extra > 0  # splats stick out over the features
+    assert discs.fraction < 0.5  # flat splats have the wrong depth almost everywhere
+    full = render(cloud, cam, color_by="clip_count")
+    counts = full.clip_count[full.covered]
+    assert counts.min() == 0 and counts.max() >= 2  # Figure 11d: 0, 1 and 2 clip quadrics occur
+
+
+@pytest.mark.parametrize("color_by", ["quadric", "quadric_id", "term", "clip_count", "overdraw", "normal", "white"])
+def test_color_modes_shade_covered_pixels_only(color_by):
+    _, cloud = cloud_of("figure 2", 0.06)
+    f = render(cloud, Camera.fit(cloud, 48, 36), color_by=color_by)
+    assert f.rgb.shape == (36, 48, 3) and f.rgb.dtype == np.uint8
+    shown = f.overdraw > 0 if color_by == "overdraw" else f.covered  # overdraw colours every fragment
+    bg = f.rgb[~shown]
+    assert np.all(bg == bg[0])
+    assert len(np.unique(f.rgb[shown].reshape(-1, 3), axis=0)) > 3 or color_by == "white"
+    assert np.array_equal(f.shaded(color_by), f.rgb)
+
+
+def test_png_and_pyvista_export(tmp_path):
+    from PIL import Image
+
+    shape, cloud = cloud_of("tour", 0.06)
+    f = render(cloud, Camera.fit(cloud, 64, 48))
+    f.save_png(tmp_path / "f.png")
+    assert np.array_equal(np.asarray(Image.open(tmp_path / "f.png").convert("RGB")), f.rgb)
+    pts = f.to_pyvista()
+    assert pts.n_points == int(f.covered.sum())
+    assert np.array_equal(pts.point_data["rgb"], f.rgb[f.covered])
+    # the points sit on their quadrics, where the surface is in the world
+    Q = np.array([cloud.normal_form.quadrics[k].matrix for k in pts.point_data["quadric"]])
+    h = np.column_stack([pts.points, np.ones(pts.n_points)])
+    assert np.max(np.abs(np.einsum("ni,nij,nj->n", h, Q, h))) < 1e-5  # pyvista stores float32 points
+    img = f.to_pyvista("image")
+    assert img.dimensions == (64, 48, 1) and img.n_points == 64 * 48
+    with pytest.raises(ValueError, match="kind"):
+        f.to_pyvista("mesh")
+
+
+def test_viewer_renders_on_drag_and_checks_its_shape():
+    shape, cloud = cloud_of("figure 2", 0.06)
+    v = Viewer(cloud, shape=shape, size=(64, 48))
+    first = v.camera
+    frame = v.drag(40, -10)
+    assert frame.shape == (48, 64) and not np.allclose(v.camera.eye, first.eye)
+    assert "ms per frame" in v.label.value and "holes 0" in v.label.value
+    assert v.reference_image.value and v.difference_image.value
+    v.zoom.value = 2.0
+    assert v.frame.stats.covered > frame.stats.covered
+    with pytest.raises(GeometryError, match="another shape"):
+        Viewer(cloud, shape=tour_part(), size=(32, 24))
+
+
+def test_bad_input_is_a_clear_error():
+    shape, cloud = cloud_of("figure 2", 0.06)
+    cam = Camera.fit(cloud, 32, 24)
+    _, other = cloud_of("tour", 0.06)
+    with pytest.raises(GeometryError, match="another shape"):
+        verify(cloud, cam, tour_part())
+    # a cloud whose normal form is another shape's: its samples are not on those quadrics
+    foreign = dataclasses.replace(cloud, normal_form=figure15().normal_form())
+    with pytest.raises(GeometryError, match="not on their quadric"):
+        render(foreign, cam)
+    mixed = dataclasses.replace(other, normal_form=cloud.normal_form)
+    with pytest.raises(GeometryError, match="do not belong together|not on their quadric"):
+        render(mixed, cam)
+    empty = dataclasses.replace(cloud, positions=np.empty((0, 3)), normals=np.empty((0, 3)),
+                                quadric_ids=np.empty(0, np.int32), radii=np.empty(0),
+                                clip_start=np.empty(0, np.int32), clip_count=np.empty(0, np.int32))
+    with pytest.raises(GeometryError, match="empty"):
+        render(empty, cam)
+    with pytest.raises(TypeError, match="SampleCloud"):
+        render(figure2(), cam)
+    with pytest.raises(TypeError, match="Camera"):
+        render(cloud, (0, 0, 5))
+    for bad in ({"footprint": "quad"}, {"local": "mesh"}, {"color_by": "rainbow"}, {"tile": 0}):
+        with pytest.raises(ValueError):
+            render(cloud, cam, **bad)
+    with pytest.raises(ValueError, match="size"):
+        compare(render(cloud, cam), raytrace(shape, cam.with_size(16, 12)))
+    assert isinstance(SplatRenderer(cloud).render(cam).stats.ms, float)
