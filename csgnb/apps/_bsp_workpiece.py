@@ -27,6 +27,7 @@ import hashlib
 import json
 import os
 import tempfile
+import zipfile
 from fractions import Fraction
 from pathlib import Path
 
@@ -125,6 +126,7 @@ class BSPWorkpiece:
     # -- Booleans -------------------------------------------------------------------
 
     def _tool(self, tool) -> BSP:
+        # A hull's linear BSP is cheap to build; building it first keeps every check in one place.
         if isinstance(tool, ConvexHull):
             if tool.grid is not None and not tool.grid.same_as(self.grid):
                 raise GeometryError(f"the tool lies on {tool.grid}, the workpiece on {self.grid}: quantize both on "
@@ -145,11 +147,10 @@ class BSPWorkpiece:
         return bool(np.any(np.asarray(hi) <= np.array(self.bsp.lo)) or np.any(np.asarray(lo) >= np.array(self.bsp.hi)))
 
     def _apply(self, tool, op: str) -> Fraction:
+        b = self._tool(tool)  # refuses a bad tool before anything else
         before = self.volume()
         if op == "difference" and (before == 0 or self._disjoint(tool)):
-            self._tool(tool)  # still refuse a bad tool
             return Fraction(0)
-        b = self._tool(tool)
         result = getattr(self.bsp, op)(b)
         self.bsp = result
         self._volume = None
@@ -247,7 +248,7 @@ class BSPWorkpiece:
             with np.load(Path(path), allow_pickle=False) as z:
                 header = json.loads(str(z["header"]))
                 arrays = {k: z[k] for k in ("limbs", "plane", "neg", "pos", "label", "box")}
-        except (OSError, EOFError, KeyError, ValueError) as exc:
+        except (OSError, EOFError, KeyError, ValueError, zipfile.BadZipFile) as exc:
             raise ValueError(f"{path} is not a readable workpiece file (truncated or corrupted?): {exc}") from exc
         if header.get("format") != _FORMAT or header.get("version") != _VERSION:
             raise ValueError(f"{path} is a {header.get('format')} v{header.get('version')} file; this reads "
