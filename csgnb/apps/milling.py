@@ -238,6 +238,7 @@ def simulate(workpiece, program: Program, tools, *, chord_tolerance: float = CHO
     if path is not None and path.exists():
         workpiece, records, stock = _resume(path, type(workpiece), key)
     bar = tqdm(total=len(program.moves), initial=len(records), disable=not progress, unit="move", desc="milling")
+    total = sum((r.removed for r in records), Fraction(0))
     try:
         for i in range(len(records), len(program.moves)):
             move = program.moves[i]
@@ -259,11 +260,19 @@ def simulate(workpiece, program: Program, tools, *, chord_tolerance: float = CHO
                 on_move(rec, workpiece)
             if path is not None and (len(records) % checkpoint_every == 0 or len(records) == len(program.moves)):
                 _checkpoint(path, workpiece, records, stock, key)
+            total += rec.removed
             bar.update(1)
-            bar.set_postfix(removed=f"{float(sum(r.removed for r in records[-50:])):.4g} mm³/50")
+            bar.set_postfix(removed=f"{float(total):.5g} mm³", refresh=False)
     finally:
         bar.close()
     return MillingResult(workpiece, records, stock)
+
+
+def _exact_text(v: Fraction) -> str:
+    text = f"{v.numerator}/{v.denominator}" if v.denominator != 1 else str(v.numerator)
+    if len(text) <= 48:
+        return f"exact: {text}"
+    return f"exact: a Fraction of {len(str(v.numerator))}/{len(str(v.denominator))} digits"
 
 
 def summary_table(result: MillingResult) -> str:
@@ -274,8 +283,7 @@ def summary_table(result: MillingResult) -> str:
         f"moves            {len(result.records)}",
         f"cut time         {result.cut_time_s / 60:.2f} min (rapids at the rapid rate)",
         f"stock volume     {float(result.stock_volume):.6g} mm³",
-        f"removed volume   {float(result.removed):.6g} mm³ (exact: {result.removed.numerator}/"
-        f"{result.removed.denominator})",
+        f"removed volume   {float(result.removed):.6g} mm³ ({_exact_text(result.removed)})",
         f"part volume      {float(final):.6g} mm³",
         f"stock - removed == part: {result.stock_volume - result.removed == final} (exact)",
         f"collisions       {len(result.collisions)}",
