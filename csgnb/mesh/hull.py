@@ -34,7 +34,7 @@ from math import gcd
 import numpy as np
 
 from ..errors import GeometryError, InternalError
-from ..exact.budgets import budget, check_mesh_points
+from ..exact.budgets import check_mesh_points
 from ..exact.wide import DEFAULT_WIDTH, to_wide
 
 __all__ = ["BRUTE_FORCE_POINTS", "ConvexHull", "convex_hull", "small_hulls"]
@@ -582,6 +582,3 @@ def small_hulls(points, *, width: int = DEFAULT_WIDTH, grid=None) -> list[Convex
     return out
 
 
-def hull_limits(width: int = DEFAULT_WIDTH) -> int:
-    """The largest |grid coordinate| a hull of ``width`` accepts (the mesh budget, eq. 8)."""
-    return budget(width).max_mesh_coordinate
