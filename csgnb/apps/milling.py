@@ -33,7 +33,7 @@ from .gcode import Move, Program
 from .sweep import straight_sweep
 from .tools import GridTool
 
-__all__ = ["MillingResult", "MoveRecord", "export_stl", "simulate", "summary_table"]
+__all__ = ["MillingResult", "MoveRecord", "export_stl", "move_pieces", "simulate", "summary_table"]
 
 RAPID_RATE = 5000.0
 """Default rapid traverse rate (mm/min) for the time of G0 moves."""
@@ -117,18 +117,34 @@ def _move_time(move: Move, length: float, rapid_rate: float) -> float:
     return 60.0 * length / rate if rate else 0.0
 
 
-def _subtract(workpiece, tool: GridTool, points: np.ndarray) -> tuple[Fraction, int]:
-    removed, pieces = Fraction(0), 0
-    for a, b in zip(points[:-1], points[1:], strict=True):
-        sweep = straight_sweep(tool, a, b)
-        for h in sweep.hulls:
-            removed += workpiece.difference(h)
-        pieces += len(sweep.hulls)
-        if sweep.end_pose is not None:
-            from ..bsp.solid import BSP
+def move_pieces(move: Move, tool: GridTool, chord_tolerance: float = CHORD_TOLERANCE) -> list:
+    """The solids one move subtracts, in order: ``ConvexHull`` sweeps, and for a non-convex tool also the end pose
+    of each straight piece as ``(vertices (n, 3) int64, faces (m, 3))`` grid meshes.
 
-            removed += workpiece.difference(BSP.from_mesh(sweep.end_pose, sweep.faces, width=tool.grid.width))
-            pieces += 1
+    The same pieces :func:`simulate` subtracts, for feeding another engine (a benchmark's peer)
+    the identical tool sweeps: ``hull.to_mesh()`` and ``grid.to_model`` give float meshes.
+    """
+    points = move.points(chord_tolerance)
+    out: list = []
+    for a, b in zip(points[:-1], points[1:], strict=True):
+        if np.array_equal(a, b):
+            continue
+        sweep = straight_sweep(tool, a, b)
+        out += sweep.hulls
+        if sweep.end_pose is not None:
+            out.append((sweep.end_pose, sweep.faces))
+    return out
+
+
+def _subtract(workpiece, tool: GridTool, move: Move, chord_tolerance: float) -> tuple[Fraction, int]:
+    from ..bsp.solid import BSP
+
+    removed, pieces = Fraction(0), 0
+    for piece in move_pieces(move, tool, chord_tolerance):
+        if isinstance(piece, tuple):
+            piece = BSP.from_mesh(piece[0], piece[1], width=tool.grid.width)
+        removed += workpiece.difference(piece)
+        pieces += 1
     return removed, pieces
 
 
@@ -246,7 +262,7 @@ def simulate(workpiece, program: Program, tools, *, chord_tolerance: float = CHO
             tool = _tool_for(move, tools)
             points = move.points(chord_tolerance)
             length = float(np.sum(np.linalg.norm(np.diff(points, axis=0), axis=1)))
-            removed, pieces = _subtract(workpiece, tool, points) if length > 0 else (Fraction(0), 0)
+            removed, pieces = _subtract(workpiece, tool, move, chord_tolerance) if length > 0 else (Fraction(0), 0)
             removed = _mm3(removed, grid)
             collision = None
             if removed > 0 and move.kind == "rapid":
