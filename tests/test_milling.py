@@ -227,3 +227,27 @@ def test_save_and_load_are_bit_exact_and_refuse_damaged_files(flat, tmp_path, mo
         w.save(path)
     assert path.read_bytes() == data
     assert sorted(p.name for p in tmp_path.iterdir()) == ["bad.npz", "short.npz", "w.npz"]
+
+
+def test_a_ball_mill_cut_matches_an_independent_halfspace_intersection():
+    """The first cut of a tilted ball-mill move is vol(hull ∩ stock), a convex polytope: scipy's float64
+    halfspace intersection (qhull, independent of csgnb) agrees with the exact volume to float rounding."""
+    from scipy.spatial import ConvexHull as Qhull
+    from scipy.spatial import HalfspaceIntersection
+
+    ball = tools.ball_end_mill(4, 10, segments=16, rings=4).on(GRID)
+    rng = np.random.default_rng(4)
+    for _ in range(4):
+        a = np.r_[rng.uniform(5, 35), rng.uniform(5, 25), 3.0]
+        b = np.r_[rng.uniform(5, 35), rng.uniform(5, 25), rng.uniform(-4, -1)]
+        w = BSPWorkpiece.box(*STOCK, grid=GRID)
+        (hull,) = sweep.straight_sweep(ball, a, b).hulls
+        removed = w.difference(hull)
+        g = GRID.to_grid(np.array(STOCK, float)).astype(float)
+        box = np.array([[-1, 0, 0, g[0, 0]], [1, 0, 0, -g[1, 0]], [0, -1, 0, g[0, 1]], [0, 1, 0, -g[1, 1]],
+                        [0, 0, -1, g[0, 2]], [0, 0, 1, -g[1, 2]]])
+        H = np.vstack([hull.planes.astype(float), box])
+        tip = GRID.to_grid([b])[0].astype(float) + [0, 0, 0.5 * SCALE]  # inside the ball at the end, below the top
+        assert np.all(H[:, :3] @ tip + H[:, 3] < 0)
+        reference = Qhull(HalfspaceIntersection(H, tip).intersections).volume
+        assert float(removed) == pytest.approx(reference, rel=1e-9)
