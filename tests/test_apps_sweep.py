@@ -171,6 +171,8 @@ def test_drill_sweeps_rotate_and_feed_by_exact_translation():
     f = ds.feed / 32
     assert np.linalg.norm(f) == pytest.approx(1.0, abs=0.05)
     assert f[2] == pytest.approx(-np.cos(np.radians(30)), abs=0.05)
+    assert len(ds.poses) == 6 and np.array_equal(ds.faces, t.faces)
+    np.testing.assert_array_equal(ds.poses[0], sweep.pose_vertices(t, sweep.drill_poses(steps=0)[0]))
     moved = ds.step(6 + 2)
     for h0, h1 in zip(ds.steps[2], moved, strict=True):
         assert np.array_equal(h1.points, h0.points + ds.feed)

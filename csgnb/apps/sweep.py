@@ -248,11 +248,19 @@ class DrillSweeps:
         Grid translation per turn (along the tilted axis, into the material).
     skipped : int
         Flat prisms left out.
+    poses : list of (n, 3) int64
+        The drill's grid vertices at each pose (``poses[k]`` starts step k), with :attr:`faces`.
+        The prisms only cover the path of the drill's *surface* (as in the paper); where a turn's
+        feed jump moves the drill into material, subtract the posed drill itself too
+        (``BSP.from_mesh(pose + turn * feed, faces)``) so no material is left inside it.
+    faces : (m, 3) int64
     """
 
     steps: list[list[ConvexHull]]
     feed: np.ndarray
     skipped: int
+    poses: list[np.ndarray] = field(default_factory=list)
+    faces: np.ndarray | None = None
 
     def __len__(self) -> int:
         return len(self.steps)
@@ -282,7 +290,7 @@ def drill_sweeps(tool: GridTool, position=(0.0, 0.0, 0.0), *, tilt_degrees: floa
         skipped += s
     axis = rotation_about((1, 0, 0), tilt_degrees) @ np.array([0.0, 0.0, -1.0])  # towards the tip
     feed = np.rint(axis * float(feed_per_turn) * tool.grid.scale).astype(np.int64)
-    return DrillSweeps(out, feed, skipped)
+    return DrillSweeps(out, feed, skipped, verts[:-1], tool.faces)
 
 
 def union_hulls(hulls: list[ConvexHull], *, width: int | None = None):
