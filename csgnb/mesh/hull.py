@@ -1,0 +1,584 @@
+"""Exact convex hulls of integer points: integer facet planes, polygon faces, exact volume, a linear BSP.
+
+A :class:`ConvexHull` is the currency of sweeps and tools: a convex tool at two poses, a
+triangle's prism between two poses, a dodecahedron of a carving. Its facets are exact
+integer planes through input points (gcd-reduced, outward), coplanar triangles merged
+into one polygon per plane, so nothing is rounded after quantization.
+
+How a hull is found (:func:`convex_hull`):
+
+* up to :data:`BRUTE_FORCE_POINTS` points: every plane through three of them that has
+  all points on or behind it is a facet plane -- exact by construction;
+* more points: scipy's float hull (qhull) proposes triangles; each becomes an exact
+  integer plane, oriented by an interior point, and is *verified*: all points on or
+  behind it, and the faces built from it (the exact 2-D hull of the points on each
+  plane) close up, every edge shared by exactly two faces in opposite directions.
+  A closed surface of supporting faces is the whole boundary, so a verified result is
+  exact. When verification fails (qhull's float output can be wrong for nearly flat
+  input) an exact gift wrapping on faces runs instead.
+
+Exact arithmetic: all tests run in coordinates local to one input point, where every
+value is a polynomial in coordinate *differences* bounded by the extent E of the point
+set (a normal coefficient by 2E², a signed distance by 12E³). int64 is used while that
+bound is below 2**63, Python ints (object arrays) beyond. Inputs are checked against the
+mesh budget of the hull's width (eq. 8), so every facet plane fits that width's
+predicates.
+"""
+
+from __future__ import annotations
+
+from fractions import Fraction
+from functools import cached_property
+from math import gcd
+
+import numpy as np
+
+from csgnb.errors import GeometryError, InternalError
+from csgnb.exact.budgets import check_mesh_points
+from csgnb.exact.wide import DEFAULT_WIDTH, to_wide
+
+__all__ = ["BRUTE_FORCE_POINTS", "ConvexHull", "convex_hull", "small_hulls"]
+
+BRUTE_FORCE_POINTS = 10
+"""Point sets up to this size are hulled by exact enumeration of point triples (C(10, 3) = 120 planes)."""
+
+_INT64_SAFE = 1 << 62  # a bound below this keeps sums of a few int64 products exact
+
+
+def _object(a: np.ndarray) -> np.ndarray:
+    return a.astype(object)
+
+
+def _maybe_int64(a: np.ndarray) -> np.ndarray:
+    """``a`` as int64 when every value fits, else as an object array of Python ints."""
+    if a.dtype != object:
+        return a.astype(np.int64)
+    if a.size == 0:
+        return np.zeros(a.shape, np.int64)
+    big = max(abs(int(x)) for x in a.reshape(-1))
+    return a.astype(np.int64) if big < (1 << 63) else a
+
+
+def _arith(extent: int, scale: int = 12) -> type:
+    """int64 when ``scale · extent³`` (the largest local signed distance) stays below 2**62, else object."""
+    return np.int64 if scale * extent**3 < _INT64_SAFE else object
+
+
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Exact cross product of (..., 3) integer arrays (int64 or object)."""
+    return np.stack([a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1],
+                     a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2],
+                     a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]], axis=-1)
+
+
+def _reduce_planes(N: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Divide each plane (N, d) by the gcd of its normal (d, a multiple of it for planes through grid points)."""
+    if N.dtype == object:
+        g = np.array([gcd(*(int(x) for x in row)) for row in N], dtype=object)
+    else:
+        g = np.gcd.reduce(np.abs(N), axis=1)
+    g = np.where(g == 0, 1, g)
+    return N // g[:, None], d // g
+
+
+def _polygon_order(L: np.ndarray, normal) -> np.ndarray:
+    """Indices of the strictly convex 2-D hull of coplanar local points ``L`` (m, 3), CCW seen along ``normal``.
+
+    Projects along the normal's dominant axis (which keeps the orientation up to its sign)
+    and runs Andrew's monotone chain with exact integer cross products; collinear points
+    are dropped, so adjacent faces share exactly the edge's two end vertices.
+    """
+    n = [int(x) for x in normal]
+    ax = max(range(3), key=lambda i: abs(n[i]))
+    u, v = (ax + 1) % 3, (ax + 2) % 3
+    pts = sorted({(int(p[u]), int(p[v])): i for i, p in enumerate(L)}.items())
+    if len(pts) < 3:
+        return np.array([i for _, i in pts], np.int64)
+
+    def chain(seq):
+        out = []
+        for (x, y), i in seq:
+            while len(out) >= 2:
+                (x1, y1), _ = out[-2]
+                (x2, y2), _ = out[-1]
+                if (x2 - x1) * (y - y1) - (y2 - y1) * (x - x1) > 0:
+                    break
+                out.pop()
+            out.append(((x, y), i))
+        return out
+
+    lower, upper = chain(pts), chain(pts[::-1])
+    ring = [i for _, i in lower[:-1] + upper[:-1]]
+    if n[ax] < 0:
+        ring = ring[::-1]
+    return np.array(ring, np.int64)
+
+
+class ConvexHull:
+    """An exact convex polytope with integer vertices: outward integer facet planes and polygon faces.
+
+    Build one with :func:`convex_hull` (or :func:`small_hulls` for many small ones).
+
+    Attributes
+    ----------
+    planes : (k, 4) int64, or object (Python ints) where a value does not fit int64
+        One outward plane ``a x + b y + c z + d = 0`` per facet (inside: ``< 0``),
+        ``gcd(a, b, c) = 1``, rows in lexicographic order of the local representation.
+    lo, hi : (3,) int64
+        Bounding box of the vertices.
+    width : int
+        The bit width whose mesh budget (eq. 8) the vertices were checked against.
+    grid : csgnb.exact.Grid or None
+        The grid the coordinates live on, when known (tools and sweeps set it).
+    points : (v, 3) int64
+        The hull's vertices (lazily computed, lexicographically sorted).
+    faces : list of (k_i,) int64
+        One polygon per plane (same order), indices into ``points``, counter-clockwise
+        seen from outside; coplanar input triangles are one polygon.
+    """
+
+    __slots__ = ("_candidates", "_normals", "_d_local", "_origin", "lo", "hi", "width", "grid", "__dict__")
+
+    def __init__(self, candidates: np.ndarray, origin: np.ndarray, normals: np.ndarray, d_local: np.ndarray, *,
+                 width: int, grid=None) -> None:
+        # Internal constructor: ``candidates`` (local int64 points containing all vertices), ``normals`` and
+        # ``d_local`` the verified, reduced facet planes in coordinates local to ``origin``.
+        self._candidates = candidates
+        self._origin = origin
+        self._normals = normals
+        self._d_local = d_local
+        self.lo = candidates.min(axis=0) + origin
+        self.hi = candidates.max(axis=0) + origin
+        self.width = width
+        self.grid = grid
+
+    # -- exact planes -----------------------------------------------------------
+
+    @cached_property
+    def planes(self) -> np.ndarray:
+        """(k, 4) outward facet planes in global coordinates (int64 where every value fits)."""
+        N, o = self._normals, self._origin
+        bound = 3 * int(np.abs(N).max(initial=0)) * int(np.abs(o).max(initial=0))
+        if N.dtype != object and self._d_local.dtype != object and \
+                bound + int(np.abs(self._d_local).max(initial=0)) < _INT64_SAFE:
+            d = self._d_local - N @ o
+            return np.column_stack([N.astype(np.int64), d])
+        No = _object(N)
+        d = _object(self._d_local) - No @ _object(o)
+        return _maybe_int64(np.column_stack([No, d]))
+
+    @property
+    def n_planes(self) -> int:
+        """Number of facets."""
+        return int(self._normals.shape[0])
+
+    def planes_wide(self, width: int | None = None) -> np.ndarray:
+        """The facet planes as a ``(k, 4)`` wide array of ``width`` bits (default: the hull's width).
+
+        Raises :class:`csgnb.PrecisionError` when the vertices exceed the mesh budget of ``width``.
+        """
+        width = self.width if width is None else width
+        if width != self.width:
+            check_mesh_points(np.stack([self.lo, self.hi]), width, "hull box corners")
+        return to_wide(self.planes, width)
+
+    # -- faces and vertices -------------------------------------------------------
+
+    def _side(self, L: np.ndarray) -> np.ndarray:
+        """(n, k) exact signed values n·p + d of local points ``L`` against every facet."""
+        E = int(max(np.abs(L).max(initial=0), np.abs(self._candidates).max(initial=0)))
+        if _arith(E, 24) is np.int64 and self._normals.dtype != object and self._d_local.dtype != object:
+            return L @ self._normals.T + self._d_local[None, :]
+        return _object(L) @ _object(self._normals).T + _object(self._d_local)[None, :]
+
+    @cached_property
+    def _faces_local(self) -> list[np.ndarray]:
+        S = self._side(self._candidates)
+        faces = []
+        for j in range(self.n_planes):
+            on = np.flatnonzero(S[:, j] == 0)
+            ring = _polygon_order(self._candidates[on], self._normals[j])
+            faces.append(on[ring])
+        return faces
+
+    @cached_property
+    def points(self) -> np.ndarray:
+        """(v, 3) int64 hull vertices, lexicographically sorted."""
+        used = np.unique(np.concatenate(self._faces_local)) if self.n_planes else np.zeros(0, np.int64)
+        return self._candidates[used] + self._origin
+
+    @cached_property
+    def faces(self) -> list[np.ndarray]:
+        """One polygon per facet plane: (k_i,) int64 indices into :attr:`points`, CCW seen from outside."""
+        used = np.unique(np.concatenate(self._faces_local))
+        remap = np.full(self._candidates.shape[0], -1, np.int64)
+        remap[used] = np.arange(used.shape[0])
+        return [remap[f] for f in self._faces_local]
+
+    def to_mesh(self) -> tuple[np.ndarray, np.ndarray]:
+        """The boundary as ``(points (v, 3) int64, triangles (t, 3) int64)``, faces fan-triangulated, outward."""
+        tris = [np.column_stack([np.full(len(f) - 2, f[0]), f[1:-1], f[2:]]) for f in self.faces]
+        return self.points, np.concatenate(tris).astype(np.int64)
+
+    def to_polydata(self):
+        """The boundary as a pyvista ``PolyData`` (model units when :attr:`grid` is set, else grid units)."""
+        import pyvista as pv
+
+        pts = self.points.astype(np.float64) if self.grid is None else self.grid.to_model(self.points)
+        cells = np.concatenate([np.r_[len(f), f] for f in self.faces])
+        return pv.PolyData(pts, cells)
+
+    # -- exact queries ----------------------------------------------------------
+
+    def volume(self) -> Fraction:
+        """Exact volume (grid units cubed)."""
+        P = [tuple(int(x) for x in p - self.points[0]) for p in self.points]
+        six = 0
+        for f in self.faces:
+            a = P[f[0]]
+            for i in range(1, len(f) - 1):
+                b, c = P[f[i]], P[f[i + 1]]
+                six += (a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0])
+                        + a[2] * (b[0] * c[1] - b[1] * c[0]))
+        return Fraction(six, 6)
+
+    def contains(self, points, *, strict: bool = False) -> np.ndarray:
+        """Whether integer ``points`` (n, 3) lie in the closed hull (``strict``: in its interior); exact."""
+        p = np.atleast_2d(np.asarray(points))
+        if p.ndim != 2 or p.shape[1] != 3 or p.dtype.kind not in "iu":
+            raise TypeError(f"points must be an (n, 3) integer array, got {p.dtype} {p.shape}")
+        if p.dtype == np.uint64 and p.size and p.max() > np.iinfo(np.int64).max:
+            L = _object(p) - _object(self._origin)
+            S = L @ _object(self._normals).T + _object(self._d_local)[None, :]
+        else:
+            big = int(np.abs(p.astype(object)).max(initial=0)) + int(np.abs(self._origin).max(initial=0))
+            if big < (1 << 62):
+                S = self._side(p.astype(np.int64) - self._origin)
+            else:
+                L = _object(p) - _object(self._origin)
+                S = L @ _object(self._normals).T + _object(self._d_local)[None, :]
+        return np.all(S < 0, axis=1) if strict else np.all(S <= 0, axis=1)
+
+    def translated(self, t) -> ConvexHull:
+        """The hull moved by the integer vector ``t`` (exact: d' = d − n·t), with the same width and grid."""
+        t = np.asarray(t)
+        if t.shape != (3,) or t.dtype.kind not in "iu":
+            raise TypeError(f"a translation must be a (3,) integer vector, got {t.dtype} {t.shape}")
+        moved = ConvexHull(self._candidates, self._origin + t.astype(np.int64), self._normals, self._d_local,
+                           width=self.width, grid=self.grid)
+        check_mesh_points(np.stack([moved.lo, moved.hi]), self.width, "translated hull box corners")
+        for name in ("_faces_local",):
+            if name in self.__dict__:
+                moved.__dict__[name] = self.__dict__[name]
+        return moved
+
+    def to_bsp(self, width: int | None = None, *, margin: int = 1):
+        """The hull as a :class:`csgnb.bsp.BSP`: a linear tree, each facet's positive child an out leaf.
+
+        Node 2i splits by plane i (positive child 2i + 1 out, negative child 2i + 2), the
+        last negative child is the in leaf. The box is the hull's box grown by ``margin``.
+        """
+        from csgnb.bsp.solid import BSP
+        from csgnb.bsp.tree import BSPTree
+
+        k = self.n_planes
+        idx = np.arange(k)
+        plane = np.full(2 * k + 1, -1, np.int32)
+        neg = np.full(2 * k + 1, -1, np.int32)
+        pos = np.full(2 * k + 1, -1, np.int32)
+        label = np.zeros(2 * k + 1, np.int32)
+        plane[2 * idx] = idx
+        neg[2 * idx] = 2 * idx + 2
+        pos[2 * idx] = 2 * idx + 1
+        label[2 * idx] = -1
+        label[2 * k] = 1
+        tree = BSPTree(self.planes_wide(width), plane, neg, pos, label)
+        return BSP(tree, self.lo - margin, self.hi + margin)
+
+    def __repr__(self) -> str:
+        return (f"ConvexHull({self.n_planes} facets, box {self.lo.tolist()}..{self.hi.tolist()}, "
+                f"{self.width}-bit budget)")
+
+
+# ---------------------------------------------------------------------------
+# construction
+
+
+def _checked_points(points, width: int, name: str = "points") -> np.ndarray:
+    P = np.asarray(points)
+    if P.ndim != 2 or P.shape[1] != 3:
+        raise GeometryError(f"{name} must have shape (n, 3), got {P.shape}")
+    if P.dtype.kind not in "iu":
+        raise TypeError(f"{name} must be integer grid points (int64), got dtype {P.dtype}; quantize them with "
+                        "csgnb.exact.Grid.to_grid")
+    if P.dtype == np.uint64 and P.size and P.max() > np.iinfo(np.int64).max:
+        raise GeometryError(f"{name} have values beyond int64")
+    P = P.astype(np.int64)
+    check_mesh_points(P, width, name)
+    return P
+
+
+def _independent(L: np.ndarray) -> np.ndarray | None:
+    """Indices of 4 affinely independent rows of local points (row 0 first), or None if the set is flat."""
+    E = int(np.abs(L).max(initial=0))
+    A = L.astype(_arith(E))
+    nz = np.flatnonzero(np.any(A != 0, axis=1))
+    if nz.size == 0:
+        return None
+    i1 = int(nz[0])
+    c = _cross(A[i1][None, :], A)
+    nc = np.flatnonzero(np.any(c != 0, axis=1))
+    if nc.size == 0:
+        return None
+    i2 = int(nc[0])
+    n = c[i2]
+    det = A @ n
+    nd = np.flatnonzero(det != 0)
+    if nd.size == 0:
+        return None
+    return np.array([0, i1, i2, int(nd[0])])
+
+
+def _flat_error(P: np.ndarray, name: str) -> GeometryError:
+    L = P - P[0]
+    A = L.astype(_arith(int(np.abs(L).max(initial=0))))
+    if not np.any(A):
+        what = "all the same point"
+    elif not np.any(_cross(A[np.flatnonzero(np.any(A != 0, axis=1))[0]][None, :], A)):
+        what = "collinear"
+    else:
+        what = "coplanar"
+    return GeometryError(f"the convex hull of these {len(P)} {name} is degenerate: they are {what}, so it has no "
+                         "volume. A sweep of a flat piece along its own plane has zero volume and can be skipped")
+
+
+def convex_hull(points, *, width: int = DEFAULT_WIDTH, grid=None, name: str = "points") -> ConvexHull:
+    """Return the exact convex hull of integer grid points.
+
+    Parameters
+    ----------
+    points : (n, 3) int64
+        Grid points within the mesh budget of ``width`` (repeated points are fine).
+    width : {128, 192, 256}
+        The predicate width the facet planes must fit (eq. 8).
+    grid : csgnb.exact.Grid, optional
+        Recorded on the hull, so a workpiece can refuse tools from another grid.
+
+    Raises
+    ------
+    GeometryError
+        Fewer than four affinely independent points (a flat, collinear or single-point set).
+    PrecisionError
+        A coordinate above the mesh budget of ``width`` (names the bound of eq. 8).
+    TypeError
+        Non-integer points.
+    """
+    P = np.unique(_checked_points(points, width, name), axis=0)
+    if P.shape[0] < 4:
+        raise _flat_error(P, name) if P.shape[0] else GeometryError(f"the convex hull of no {name} is empty")
+    origin = P[0].copy()
+    L = P - origin
+    basis = _independent(L)
+    if basis is None:
+        raise _flat_error(P, name)
+    if P.shape[0] <= BRUTE_FORCE_POINTS:
+        N, d = _enumerate_facets(L)
+    else:
+        found = _qhull_facets(L, basis)
+        N, d = found if found is not None else _gift_wrap(L)
+    return ConvexHull(L, origin, N, d, width=width, grid=grid)
+
+
+def _sorted_unique_planes(N: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    rows = sorted({tuple(int(x) for x in r) + (int(e),) for r, e in zip(N, d, strict=True)})
+    M = _maybe_int64(np.array(rows, dtype=object))
+    return M[:, :3], M[:, 3]
+
+
+def _enumerate_facets(L: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """All supporting planes through three local points: exact facet enumeration (small sets)."""
+    n = L.shape[0]
+    E = int(np.abs(L).max(initial=0))
+    A = L.astype(_arith(E))
+    i, j, k = (np.array(t) for t in zip(*[(a, b, c) for a in range(n) for b in range(a + 1, n)
+                                          for c in range(b + 1, n)], strict=True))
+    N = _cross(A[j] - A[i], A[k] - A[i])
+    d = -np.einsum("ij,ij->i", N, A[i]) if A.dtype != object else -np.sum(N * A[i], axis=1)
+    S = N @ A.T + d[:, None]
+    below = np.all(S <= 0, axis=1)
+    above = np.all(S >= 0, axis=1)
+    real = np.any(N != 0, axis=1)
+    keep = real & (below | above)
+    sign = np.where(below, 1, -1)
+    N, d = N[keep] * sign[keep, None], d[keep] * sign[keep]
+    N, d = _reduce_planes(N, d)
+    return _sorted_unique_planes(N, d)
+
+
+def _faces_close(L: np.ndarray, N: np.ndarray, d: np.ndarray, S: np.ndarray) -> bool:
+    """Whether the faces of these supporting planes form a closed surface (every edge once each way)."""
+    half = {}
+    for j in range(N.shape[0]):
+        on = np.flatnonzero(S[:, j] == 0)
+        ring = on[_polygon_order(L[on], N[j])]
+        if ring.shape[0] < 3:
+            return False
+        for a, b in zip(ring, np.roll(ring, -1), strict=True):
+            key = (int(a), int(b))
+            if key in half:
+                return False
+            half[key] = j
+    return all((b, a) in half for (a, b) in half)
+
+
+def _qhull_facets(L: np.ndarray, basis: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+    """Facets proposed by qhull and verified exactly; None when qhull fails or a check does not hold."""
+    from scipy.spatial import ConvexHull as _Qhull
+    from scipy.spatial import QhullError
+
+    try:
+        simplices = _Qhull(L.astype(np.float64)).simplices
+    except (QhullError, ValueError):
+        return None
+    E = int(np.abs(L).max(initial=0))
+    A = L.astype(_arith(E, 48))
+    N = _cross(A[simplices[:, 1]] - A[simplices[:, 0]], A[simplices[:, 2]] - A[simplices[:, 0]])
+    d = -np.sum(N * A[simplices[:, 0]], axis=1)
+    # Orient by 4x the centroid of four independent points (strictly inside the hull).
+    c4 = A[basis].sum(axis=0)
+    s = N @ c4 + 4 * d
+    if np.any(s == 0):
+        return None
+    flip = np.where(s > 0, -1, 1)
+    N, d = _reduce_planes(N * flip[:, None], d * flip)
+    N, d = _sorted_unique_planes(N, d)
+    S = (A @ N.T + d[None, :]) if N.dtype != object and A.dtype != object else \
+        _object(L) @ _object(N).T + _object(d)[None, :]
+    if np.any(S > 0) or not _faces_close(L, N, d, S):
+        return None
+    return N, d
+
+
+def _wrap(A: np.ndarray, a: np.ndarray, b: np.ndarray, q: int) -> tuple[np.ndarray, object]:
+    """Rotate the plane through the line (a, b) and point A[q] until it supports every point of ``A``.
+
+    The plane's normal is ``(b - a) × (A[q] - a)``; while a point lies strictly in front,
+    the most distant one replaces q. Each step turns the plane further the same way
+    around the line, and the line lies in a supporting plane, so this ends (exactly).
+    """
+    u = b - a
+    while True:
+        n = _cross(u[None, :], (A[q] - a)[None, :])[0]
+        s = A @ n - (a @ n)
+        best = int(np.argmax(s))
+        if not s[best] > 0:
+            return n, -(a @ n)
+        q = best
+
+
+def _gift_wrap(L: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Exact hull by gift wrapping on faces (a BFS over face edges); slow but never wrong."""
+    E = int(np.abs(L).max(initial=0)) + 1
+    A = L.astype(_arith(E, 48))
+    a = int(np.lexsort(A.T[::-1])[0])  # lexicographic minimum: a vertex on the plane x = min x
+    zero = A[a] - A[a]
+    ez = zero.copy()
+    ez[2] = 1
+    others = np.flatnonzero(np.any(A != A[a], axis=1))
+    n1, _ = _wrap(A, A[a], A[a] + ez, int(others[0]))
+    s1 = A @ n1 - A[a] @ n1
+    # A second point on that supporting plane, then a facet through the line between them.
+    on1 = [i for i in np.flatnonzero(s1 == 0) if i != a]
+    b = int(on1[0])
+    off_line = np.flatnonzero(np.any(_cross((A[b] - A[a])[None, :], A - A[a]) != 0, axis=1))
+    n0, d0 = _wrap(A, A[a], A[b], int(off_line[0]))
+    planes: dict[tuple, tuple[np.ndarray, object]] = {}
+    half: set[tuple[int, int]] = set()
+    todo = [(n0, d0)]
+    while todo:
+        n, dd = todo.pop()
+        (n,), (dd,) = _reduce_planes(n[None, :], np.array([dd], dtype=A.dtype))
+        key = tuple(int(x) for x in n) + (int(dd),)
+        if key in planes:
+            continue
+        planes[key] = (n, dd)
+        s = A @ n + dd
+        on = np.flatnonzero(s == 0)
+        ring = on[_polygon_order(L[on], n)]
+        behind = int(np.flatnonzero(s < 0)[0])
+        for i, j in zip(ring, np.roll(ring, -1), strict=True):
+            half.add((int(i), int(j)))
+            if (int(j), int(i)) not in half:
+                todo.append(_wrap(A, A[j], A[i], behind))
+    if not all((j, i) in half for (i, j) in half):
+        raise InternalError("gift wrapping left an unmatched hull edge")
+    rows = np.array(sorted(planes), dtype=object)
+    M = _maybe_int64(rows)
+    return M[:, :3], M[:, 3]
+
+
+def small_hulls(points, *, width: int = DEFAULT_WIDTH, grid=None) -> list[ConvexHull | None]:
+    """Exact hulls of many small point sets at once (vectorized facet enumeration).
+
+    Parameters
+    ----------
+    points : (m, k, 3) int64
+        ``m`` sets of ``k <= BRUTE_FORCE_POINTS`` grid points each (a triangle at two poses: k = 6).
+
+    Returns
+    -------
+    list of ConvexHull or None
+        ``None`` for a flat set (zero volume: coplanar, collinear or one point), which a
+        union or difference can skip exactly.
+    """
+    P = np.asarray(points)
+    if P.ndim != 3 or P.shape[2] != 3:
+        raise GeometryError(f"points must have shape (m, k, 3), got {P.shape}")
+    m, k = P.shape[0], P.shape[1]
+    if k > BRUTE_FORCE_POINTS:
+        raise GeometryError(f"small_hulls takes at most {BRUTE_FORCE_POINTS} points per set, got {k}; use "
+                            "convex_hull for larger sets")
+    P = _checked_points(P.reshape(-1, 3), width).reshape(m, k, 3)
+    if m == 0:
+        return []
+    origin = P[:, 0, :]
+    L = P - origin[:, None, :]
+    E = int(np.abs(L).max(initial=0))
+    if _arith(E) is not np.int64:  # enormous pieces: the general exact path, one by one
+        out = []
+        for S in P:
+            try:
+                out.append(convex_hull(S, width=width, grid=grid))
+            except GeometryError:
+                out.append(None)
+        return out
+    tri = np.array([(a, b, c) for a in range(k) for b in range(a + 1, k) for c in range(b + 1, k)])
+    Ai, Aj, Ak = L[:, tri[:, 0]], L[:, tri[:, 1]], L[:, tri[:, 2]]  # (m, t, 3)
+    N = _cross(Aj - Ai, Ak - Ai)
+    d = -np.einsum("mtc,mtc->mt", N, Ai)
+    S = np.einsum("mtc,mpc->mtp", N, L) + d[:, :, None]  # (m, t, k)
+    below = np.all(S <= 0, axis=2)
+    above = np.all(S >= 0, axis=2)
+    real = np.any(N != 0, axis=2) & ~np.all(S == 0, axis=2)
+    keep = real & (below | above)
+    sign = np.where(below, 1, -1)
+    N = N * sign[:, :, None]
+    d = d * sign
+    g = np.gcd.reduce(np.abs(N), axis=2)
+    g = np.where(g == 0, 1, g)
+    N, d = N // g[:, :, None], d // g
+    mid, tid = np.nonzero(keep)
+    rows = np.column_stack([mid, N[mid, tid], d[mid, tid]])
+    rows = np.unique(rows, axis=0)
+    starts = np.searchsorted(rows[:, 0], np.arange(m + 1))
+    out: list[ConvexHull | None] = []
+    for h in range(m):
+        r = rows[starts[h]:starts[h + 1]]
+        if r.shape[0] < 4:  # flat: no supporting plane with a point strictly behind
+            out.append(None)
+            continue
+        out.append(ConvexHull(np.unique(L[h], axis=0), origin[h].copy(), np.ascontiguousarray(r[:, 1:4]),
+                              np.ascontiguousarray(r[:, 4]), width=width, grid=grid))
+    return out
+
+

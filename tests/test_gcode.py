@@ -1,0 +1,212 @@
+"""The G-code parser: every supported word on hand-written lines, arcs in all planes and both forms,
+absolute/incremental, inch/mm, and each unsupported or malformed line a clear error with its line number.
+
+Expected arc centres and mid-points are worked out by hand in the comments (clockwise = seen
+from the positive end of the plane normal: +Z for G17, +Y for G18, +X for G19).
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+
+import numpy as np
+import pytest
+
+from csgnb.apps.gcode import Arc, GCodeError, Linear, Rapid, parse, parse_file
+from csgnb.apps.sweep import arc_polyline, arc_segments
+
+
+def one(text, **kw):
+    p = parse(text, **kw)
+    return p.moves
+
+
+def test_every_supported_word_on_hand_written_lines():
+    p = parse("""%
+(a header comment) G21 G90 G17 G94 G40 G49 G80 G54
+N10 G0 Z5 ; rapid up
+N20 T3 M6 S12000 M3 M8
+N30 X10 Y-2.5
+N40 G1 Z-1 F150
+G2 X20 Y-2.5 I5 J0
+G3 X10 Y-2.5 R5
+M5 M9
+M4 S800
+G1 X.5 F+200
+M30
+G0 X99 (after the end: not read)
+%""")
+    assert p.end_line == 12
+    kinds = [m.kind for m in p]
+    assert kinds == ["rapid", "rapid", "linear", "arc", "arc", "linear"]
+    m0, m1, m2, m3, m4, m5 = p.moves
+    assert m0.label == 10 and m0.line == 3 and m0.tool is None and not m0.spindle_on
+    np.testing.assert_array_equal(m0.end, [0, 0, 5])
+    assert m1.tool == 3 and m1.spindle == 12000 and m1.spindle_on and m1.label == 30
+    np.testing.assert_array_equal(m1.end, [10, -2.5, 5])  # the modal G0 goes on
+    assert isinstance(m2, Linear) and m2.feed == 150 and m2.label == 40
+    assert isinstance(m3, Arc) and m3.clockwise and m3.plane == "XY" and m3.feed == 150
+    np.testing.assert_array_equal(m3.center, [15, -2.5, -1])
+    assert isinstance(m4, Arc) and not m4.clockwise
+    np.testing.assert_allclose(m4.center, [15, -2.5, -1])
+    assert m5.spindle == 800 and m5.spindle_on and m5.feed == 200  # M4: on, reversed
+    np.testing.assert_array_equal(m5.end, [0.5, -2.5, -1])
+    assert m3.start is not None and np.array_equal(m3.start, m2.end)
+    assert not p.warnings
+
+
+@pytest.mark.parametrize("code, start, center, mid", [
+    # G17, clockwise from +Z: from angle 180° down through 90° -> (15, 5)
+    ("G17 G2 X20 Y0 I5 J0", (10, 0, 0), (15, 0, 0), (15, 5, 0)),
+    ("G17 G3 X20 Y0 I5 J0", (10, 0, 0), (15, 0, 0), (15, -5, 0)),
+    # G18 (u = Z, v = X, normal +Y): start at (u, v) = (0, -5), angle -90°, clockwise to -180° -> z = -5
+    ("G18 G2 X20 Z0 I5 K0", (10, 0, 0), (15, 0, 0), (15, 0, -5)),
+    ("G18 G3 X20 Z0 I5 K0", (10, 0, 0), (15, 0, 0), (15, 0, 5)),
+    # G19 (u = Y, v = Z, normal +X): start at angle 180°, clockwise to 90° -> z = +5
+    ("G19 G2 Y20 Z0 J5 K0", (0, 10, 0), (0, 15, 0), (0, 15, 5)),
+    ("G19 G3 Y20 Z0 J5 K0", (0, 10, 0), (0, 15, 0), (0, 15, -5)),
+    # R form, quarter arcs from (0,0) to (5,5): clockwise small arc centred right of the chord at (5, 0)
+    ("G17 G2 X5 Y5 R5", (0, 0, 0), (5, 0, 0), (5 - 5 / math.sqrt(2), 5 / math.sqrt(2), 0)),
+    ("G17 G3 X5 Y5 R5", (0, 0, 0), (0, 5, 0), (5 / math.sqrt(2), 5 - 5 / math.sqrt(2), 0)),
+    # R < 0: the 270° arc about the other centre; clockwise about (0, 5) from -90° the long way, via (-5, 5)
+    ("G17 G2 X5 Y5 R-5", (0, 0, 0), (0, 5, 0), (-5, 5, 0)),
+    ("G17 G3 X5 Y5 R-5", (0, 0, 0), (5, 0, 0), (10, 0, 0)),
+    # R form in the other planes: G18 quarter from (x, z) = (0, 0) to (5, 5)
+    ("G18 G2 X5 Z5 R5", (0, 0, 0), (0, 0, 5), (5 / math.sqrt(2), 0, 5 - 5 / math.sqrt(2))),
+    ("G19 G2 Y5 Z5 R5", (0, 0, 0), (0, 5, 0), (0, 5 - 5 / math.sqrt(2), 5 / math.sqrt(2))),
+])
+def test_arcs_in_all_planes_and_both_forms(code, start, center, mid):
+    (m,) = one(f"F100\n{code}", start=start)
+    np.testing.assert_allclose(m.center, center, atol=1e-12)
+    pts = m.points(1e-4)
+    np.testing.assert_array_equal(pts[0], start)
+    np.testing.assert_array_equal(pts[-1], m.end)
+    r = m.radius
+    n = m.normal
+    rel = pts - m.center
+    np.testing.assert_allclose(np.linalg.norm(rel - np.outer(rel @ n, n), axis=1), r, rtol=1e-9)
+    # The arc passes through the expected mid-point (within one chord of a polyline point).
+    chord = np.max(np.linalg.norm(np.diff(pts, axis=0), axis=1))
+    assert np.min(np.linalg.norm(pts - np.array(mid), axis=1)) <= chord
+    # and turns the right way: its mid-sample is nearer the expected mid-point than the opposite one.
+    opposite = 2 * np.array(m.center) - np.array(mid)
+    opposite = opposite - ((opposite - np.array(m.center)) @ n) * n
+    assert np.linalg.norm(pts[len(pts) // 2] - mid) < np.linalg.norm(pts[len(pts) // 2] - opposite)
+
+
+def test_full_circle_and_helix():
+    (m,) = one("G17 G2 I5 J0 F100", start=(0, 0, 0))
+    np.testing.assert_array_equal(m.start, m.end)
+    assert m.length(1e-5) == pytest.approx(2 * math.pi * 5, rel=1e-5)
+    (h,) = one("G17 G3 X10 Y0 Z-3 I5 F100", start=(0, 0, 0))
+    pts = h.points(0.01)
+    assert np.all(np.diff(pts[:, 2]) < 0) and pts[-1, 2] == -3
+    chord = np.max(np.linalg.norm(np.diff(pts, axis=0), axis=1))
+    assert np.min(np.linalg.norm(pts[:, :2] - [5, -5], axis=1)) <= chord
+
+
+def test_chord_tolerance_is_respected():
+    for r, tol in [(5.0, 0.01), (50.0, 0.001), (0.5, 0.1)]:
+        pts = arc_polyline((r, 0, 0), (-r, 0, 0), (0, 0, 0), (0, 0, 1), False, tolerance=tol)
+        mids = (pts[1:] + pts[:-1]) / 2
+        assert np.all(r - np.linalg.norm(mids, axis=1) <= tol * (1 + 1e-9))
+        assert len(pts) - 1 == arc_segments(r, math.pi, tol)
+
+
+def test_absolute_incremental_inch_mm():
+    moves = one("""G21 G90 G0 X1 Y2 Z3
+G91 G0 X1 Y1 Z-1
+G0 X1
+G20 G0 X1
+G90 G0 X1
+G21 G0 Y5
+G20 F10 G1 X0
+G21 G1 X1
+G20 G91 G2 X0.2 Y0 I0.1 J0
+""")
+    ends = [m.end.tolist() for m in moves]
+    assert ends[:6] == [[1, 2, 3], [2, 3, 2], [3, 3, 2], [3 + 25.4, 3, 2], [25.4, 3, 2], [25.4, 5, 2]]
+    assert moves[6].feed == pytest.approx(254.0) and moves[6].end.tolist() == [0, 5, 2]
+    assert moves[7].feed == pytest.approx(10.0)  # F10 read in mm once G21 is back
+    arc = moves[8]
+    np.testing.assert_allclose(arc.end, [0.2 * 25.4 + 1, 5, 2])
+    np.testing.assert_allclose(arc.center, [1 + 0.1 * 25.4, 5, 2])
+
+
+def test_tool_and_spindle_state_travels_with_moves():
+    moves = one("T1 M6\nM3 S1000\nG1 X1 F10\nT2\nG1 X2\nM6\nM5\nG1 X3\n")
+    assert [(m.tool, m.spindle_on) for m in moves] == [(1, True), (1, True), (2, False)]
+
+
+@pytest.mark.parametrize("text, line, word", [
+    ("G0 X1\nG28 X0\n", 2, "G28"),
+    ("G0 X1\nG0 A10\n", 2, "A10"),
+    ("G17\n\nG90.1\n", 3, "G90.1"),
+    ("M0\n", 1, "M0"),
+    ("G0 X0\n/G0 X5\n", 2, "/"),
+    ("G55 G0 X1\n", 1, "G55"),
+])
+def test_unsupported_words_are_errors_naming_line_and_word(text, line, word):
+    with pytest.raises(GCodeError) as exc:
+        parse(text)
+    assert exc.value.line == line and exc.value.word == word
+    assert str(exc.value).startswith(f"line {line}: unsupported word {word}")
+    assert "on_unsupported='warn'" in str(exc.value)
+
+
+def test_unsupported_words_can_be_skipped_with_a_warning():
+    with pytest.warns(UserWarning, match="line 2: unsupported word G28"):
+        p = parse("G0 X1\nG28 X0\nG0 Y1\n", on_unsupported="warn")
+    # The line's other words still count: the X0 moves with the modal G0.
+    assert [m.end.tolist() for m in p] == [[1, 0, 0], [0, 0, 0], [0, 1, 0]]
+    assert p.warnings == ["line 2: unsupported word G28 (not in G0-G3, G17-G19, G20/G21, G90/G91, G40, G49, G54, "
+                          "G80, G94): skipped"]
+    with pytest.raises(ValueError, match="on_unsupported"):
+        parse("G0 X1", on_unsupported="ignore")
+
+
+@pytest.mark.parametrize("text, line, match", [
+    ("G0 X1\nG1 X2\n", 2, "feed rate"),
+    ("G1 X2 F0\n", 1, "feed rate"),
+    ("F100\nX5\n", 2, "without a motion mode"),
+    ("G0 X1 X2\n", 1, "appears twice"),
+    ("G0 G1 X1 F10\n", 1, "two motion codes"),
+    ("G1 X1.2.3 F10\n", 1, "cannot read"),
+    ("G1 X F10\n", 1, "cannot read"),
+    ("G1 X1 F10 #1\n", 1, "cannot read"),
+    ("F10\nG2 X1 Y1\n", 2, "needs a centre"),
+    ("F10\nG2 X1 Y0 I0.5 R0.5\n", 2, "either I J K offsets or R"),
+    ("F10\nG2 X10 Y1 I5 J0\n", 2, "off the arc's circle"),
+    ("F10\nG17 G2 X1 Y0 K1\n", 2, "not an offset of the XY plane"),
+    ("F10\nG2 X0 Y0 R5\n", 2, "cannot be a full circle"),
+    ("F10\nG2 X10 Y0 R2\n", 2, "less than half the chord"),
+    ("F10\nG2 X1 Y0 I0 J0\n", 2, "zero radius"),
+    ("G0 X1 I5\n", 1, "no G2/G3 arc"),
+    ("G1 X1 F-5\n", 1, "must not be negative"),
+    ("S-1\n", 1, "must not be negative"),
+    ("T1.5\n", 1, "non-negative integer"),
+    ("M6\n", 1, "no T word"),
+    ("N1.5 G0 X1\n", 1, "line number"),
+    ("G0 X1 (open comment\n", 1, "not closed"),
+    ("G0 X1 (a (nested) one)\n", 1, "nested"),
+    ("G0 X1 )\n", 1, "closes no comment"),
+    ("M3 M5\n", 1, "two spindle codes"),
+])
+def test_malformed_lines_are_errors_with_their_line(text, line, match):
+    with pytest.raises(GCodeError, match=match) as exc:
+        parse(text, on_unsupported="warn")
+    assert exc.value.line == line
+    assert str(exc.value).startswith(f"line {line}: ")
+
+
+def test_parse_file_and_program_helpers(tmp_path):
+    f = tmp_path / "p.nc"
+    f.write_text("G0 X1 Y1 Z1\nG1 X3 F100\n")
+    p = parse_file(f)
+    assert len(p) == 2 and isinstance(p[0], Rapid)
+    lo, hi = p.bounds()
+    assert lo.tolist() == [0, 0, 0] and hi.tolist() == [3, 1, 1]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        parse("G0 X0 ; fine\n(only a comment)\n\n%\n")

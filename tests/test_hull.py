@@ -1,0 +1,292 @@
+"""Exact convex hulls (csgnb.mesh.hull) against brute-force facet enumeration with Python ints.
+
+The reference enumerates every plane through three points with Python ints, keeps those
+with all points on one side, and reduces them: the facet planes of the hull, by
+definition. Volumes are checked against the exact BSP boundary of the hull's linear BSP
+(an independent code path: mesh cutting) and against qhull's float volume.
+"""
+
+from __future__ import annotations
+
+import itertools
+from fractions import Fraction
+from math import gcd
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from csgnb import GeometryError, PrecisionError
+from csgnb.exact import budget, from_wide
+from csgnb.mesh.hull import BRUTE_FORCE_POINTS, _gift_wrap, _qhull_facets, convex_hull, small_hulls
+
+
+def reference_planes(points) -> set[tuple[int, int, int, int]]:
+    """Facet planes of conv(points): all supporting planes through 3 points, reduced, outward (Python ints)."""
+    P = sorted({tuple(int(x) for x in p) for p in points})
+    out = set()
+    for a, b, c in itertools.combinations(P, 3):
+        u = [b[i] - a[i] for i in range(3)]
+        v = [c[i] - a[i] for i in range(3)]
+        n = [u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]]
+        if not any(n):
+            continue
+        d = -sum(n[i] * a[i] for i in range(3))
+        s = [sum(n[i] * p[i] for i in range(3)) + d for p in P]
+        if all(x <= 0 for x in s):
+            sign = 1
+        elif all(x >= 0 for x in s):
+            sign = -1
+        else:
+            continue
+        g = gcd(*n)
+        out.add((sign * n[0] // g, sign * n[1] // g, sign * n[2] // g, sign * d // g))
+    return out
+
+
+def hull_planes(h) -> set[tuple[int, ...]]:
+    return {tuple(int(x) for x in row) for row in h.planes}
+
+
+coords = st.integers(-12, 12)
+point = st.tuples(coords, coords, coords)
+
+
+@st.composite
+def point_sets(draw):
+    """Random points, often with many on a few planes or lines (coplanar facets, collinear edge points)."""
+    pts = draw(st.lists(point, min_size=4, max_size=24))
+    if draw(st.booleans()):  # a grid of coplanar points on an axis plane and a diagonal plane
+        z = draw(coords)
+        pts += [(x, y, z) for x in (-4, 0, 4) for y in (-4, 0, 4)]
+        pts += [(t, t, draw(coords)) for t in (-6, -3, 0, 3, 6)]
+    return np.array(pts, np.int64)
+
+
+def full_dimensional(P) -> bool:
+    Q = np.unique(P, axis=0)
+    return np.linalg.matrix_rank((Q - Q[0]).astype(float)) == 3 if len(Q) >= 4 else False
+
+
+@given(point_sets())
+def test_facets_equal_brute_force_enumeration(P):
+    if not full_dimensional(P):
+        with pytest.raises(GeometryError, match="degenerate"):
+            convex_hull(P)
+        return
+    h = convex_hull(P)
+    ref = reference_planes(P)
+    assert hull_planes(h) == ref
+    # Vertices: exactly the points that are on three facets with independent normals.
+    vertices = set()
+    for p in {tuple(x) for x in P.tolist()}:
+        normals = [n[:3] for n in ref if sum(n[i] * p[i] for i in range(3)) + n[3] == 0]
+        if len(normals) >= 3 and np.linalg.matrix_rank(np.array(normals, float)) == 3:
+            vertices.add(p)
+    assert {tuple(x) for x in h.points.tolist()} == vertices
+    # Faces: one per plane, each vertex on its plane, counter-clockwise seen from outside.
+    for f, plane in zip(h.faces, h.planes, strict=True):
+        pts = [[int(x) for x in h.points[i]] for i in f]
+        n = [int(x) for x in plane[:3]]
+        assert all(sum(n[i] * p[i] for i in range(3)) + int(plane[3]) == 0 for p in pts)
+        area = [0, 0, 0]
+        for a, b in zip(pts, pts[1:] + pts[:1], strict=True):
+            area = [area[0] + a[1] * b[2] - a[2] * b[1], area[1] + a[2] * b[0] - a[0] * b[2],
+                    area[2] + a[0] * b[1] - a[1] * b[0]]
+        assert sum(n[i] * area[i] for i in range(3)) > 0
+
+
+@given(point_sets())
+@settings(max_examples=25)
+def test_volume_matches_bsp_boundary_and_qhull(P):
+    if not full_dimensional(P):
+        return
+    from scipy.spatial import ConvexHull as Qhull
+
+    h = convex_hull(P)
+    v = h.volume()
+    assert isinstance(v, Fraction)
+    assert v == h.to_bsp().volume()
+    assert float(v) == pytest.approx(Qhull(P.astype(float)).volume, rel=1e-9)
+
+
+@given(point_sets(), st.lists(point, min_size=1, max_size=30))
+def test_contains_is_exact(P, queries):
+    if not full_dimensional(P):
+        return
+    h = convex_hull(P)
+    ref = reference_planes(P)
+    Q = np.array(queries, np.int64)
+    expect = [all(sum(n[i] * q[i] for i in range(3)) + n[3] <= 0 for n in ref) for q in queries]
+    strict = [all(sum(n[i] * q[i] for i in range(3)) + n[3] < 0 for n in ref) for q in queries]
+    assert h.contains(Q).tolist() == expect
+    assert h.contains(Q, strict=True).tolist() == strict
+    assert h.contains(P).all()
+    # The linear BSP agrees with contains() away from the boundary.
+    labels = h.to_bsp().classify(Q)
+    for lab, inside, strictly in zip(labels, expect, strict, strict=True):
+        if strictly:
+            assert lab == 1
+        elif not inside:
+            assert lab == 0
+
+
+def test_qhull_path_and_gift_wrapping_agree_on_larger_sets():
+    rng = np.random.default_rng(7)
+    for n in (40, 120, 400):
+        v = rng.normal(size=(n, 3))
+        P = np.rint(v / np.linalg.norm(v, axis=1)[:, None] * 300).astype(np.int64)
+        P = np.unique(P, axis=0)
+        L = P - P[0]
+        from csgnb.mesh.hull import _independent
+
+        q = _qhull_facets(L, _independent(L))
+        assert q is not None
+        g = _gift_wrap(L)
+        assert np.array_equal(q[0], g[0]) and np.array_equal(q[1], g[1])
+        assert hull_planes(convex_hull(P)) == {tuple(int(x) for x in r) + (int(e),)
+                                                for r, e in zip(g[0], g[1] - g[0] @ P[0], strict=True)}
+
+
+def test_nearly_flat_sets_are_exact():
+    """A dense flat grid with one point a unit off the plane: qhull's float facets are checked or replaced."""
+    xs = np.arange(-300, 301, 20)
+    flat = np.array([(x, y, (x + 2 * y) // 7 * 0 + 0) for x in xs for y in xs], np.int64)
+    for apex in ([1, 2, 1], [299, -299, -1], [0, 0, 1]):
+        P = np.vstack([flat, [apex]])
+        h = convex_hull(P)
+        assert h.n_planes == 5  # the square base and four triangles to the apex
+        assert h.volume() == Fraction(600 * 600 * 1, 3)
+        L = np.unique(P, axis=0)
+        L = L - L[0]
+        N, d = _gift_wrap(L)
+        assert N.shape[0] == 5
+    # Points a unit off a tilted plane, many coplanar ones: brute-force reference on a subset size.
+    rng = np.random.default_rng(3)
+    base = rng.integers(-50, 51, (BRUTE_FORCE_POINTS + 20, 2))
+    P = np.column_stack([base, base[:, 0] * 3 + base[:, 1] * 5])
+    P = np.vstack([P, [[0, 0, 1]]])
+    assert hull_planes(convex_hull(P)) == reference_planes(P)
+
+
+@pytest.mark.parametrize("points, what", [
+    ([[1, 2, 3]] * 5, "same point"),
+    ([[0, 0, 0], [1, 1, 1], [2, 2, 2], [5, 5, 5]], "collinear"),
+    ([[0, 0, 0], [1, 0, 0], [0, 1, 0], [3, 4, 0], [7, 1, 0]], "coplanar"),
+    ([[x, y, x + y] for x in range(4) for y in range(4)], "coplanar"),
+])
+def test_degenerate_sets_raise_a_clear_error(points, what):
+    with pytest.raises(GeometryError, match=what):
+        convex_hull(np.array(points, np.int64))
+
+
+def test_budget_is_enforced_with_the_bound_named():
+    V = budget(128).max_mesh_coordinate
+    ok = np.array([[0, 0, 0], [V, 0, 0], [0, V, 0], [0, 0, -V]], np.int64)
+    convex_hull(ok, width=128)
+    with pytest.raises(PrecisionError, match="eq. 8"):
+        convex_hull(ok + [1, 0, 0], width=128)
+    h = convex_hull(ok + [1, 0, 0], width=256)
+    with pytest.raises(PrecisionError, match="eq. 8"):
+        h.planes_wide(128)
+    with pytest.raises(TypeError, match="integer"):
+        convex_hull(ok.astype(float))
+
+
+def test_wide_coordinates_use_python_ints_exactly():
+    """At the 256-bit budget, normals and offsets exceed int64: planes are Python ints, still exact."""
+    V = budget(256).max_mesh_coordinate
+    P = np.array([[-V, -V, -V], [V, -V, -V], [-V, V, -V], [-V, -V, V], [V, V, V], [3, -V, 7], [V, 5, -V + 1]],
+                 np.int64)
+    h = convex_hull(P, width=256)
+    assert hull_planes(h) == reference_planes(P)
+    assert h.planes.dtype == object or np.abs(h.planes).max() < 2**63
+    wide = from_wide(h.planes_wide())
+    assert [[int(x) for x in r] for r in wide] == [[int(x) for x in r] for r in h.planes]
+    big = np.unique(np.vstack([P, np.rint(np.random.default_rng(0).uniform(-V, V, (40, 3)))]).astype(np.int64),
+                    axis=0)
+    assert hull_planes(convex_hull(big, width=256)) == hull_planes(convex_hull(big, width=256))
+    Lb = big - big[0]
+    g = _gift_wrap(Lb)
+    assert {tuple(int(x) for x in r) for r in g[0]} == {tuple(int(x) for x in r[:3])
+                                                        for r in convex_hull(big, width=256).planes}
+
+
+@given(st.lists(st.tuples(point, point, point), min_size=1, max_size=6), point)
+def test_small_hulls_equal_convex_hull(tris, move):
+    """Prisms (a triangle at two poses): batch enumeration equals the single hull, flat ones are None."""
+    A = np.array(tris, np.int64)  # (m, 3, 3)
+    B = A + np.array(move)
+    batch = small_hulls(np.concatenate([A, B], axis=1))
+    for h, a, b in zip(batch, A, B, strict=True):
+        P = np.vstack([a, b])
+        if not full_dimensional(P):
+            assert h is None
+            continue
+        assert hull_planes(h) == reference_planes(P)
+        assert h.volume() == convex_hull(P).volume()
+
+
+def test_translation_is_exact():
+    rng = np.random.default_rng(5)
+    P = rng.integers(-30, 31, (25, 3))
+    h = convex_hull(P)
+    t = np.array([7, -3, 11])
+    moved = h.translated(t)
+    assert hull_planes(moved) == hull_planes(convex_hull(P + t))
+    assert moved.volume() == h.volume()
+    assert np.array_equal(moved.points, h.points + t)
+    with pytest.raises(TypeError):
+        h.translated(np.array([0.5, 0, 0]))
+
+
+def test_mesh_output_is_a_valid_closed_mesh():
+    from csgnb.bsp.build import validate_mesh
+
+    rng = np.random.default_rng(11)
+    h = convex_hull(rng.integers(-40, 41, (60, 3)))
+    V, T = h.to_mesh()
+    W, _ = validate_mesh(V, T)
+    assert len(W) == len(V)
+    assert len(T) == sum(len(f) - 2 for f in h.faces)
+
+
+class _BadQhull:
+    """Stands in for scipy's ConvexHull with wrong combinatorics, to prove the exact checks catch it."""
+
+    mode = "drop"
+
+    def __init__(self, points):
+        import scipy.spatial
+
+        if self.mode == "raise":
+            raise scipy.spatial.QhullError("simulated qhull failure")
+        s = _REAL_QHULL(points).simplices.copy()
+        if self.mode == "drop":
+            s = s[1:]
+        elif self.mode == "inner":
+            s[0] = [0, 1, 2] if not np.array_equal(s[0], [0, 1, 2]) else [0, 1, 3]
+        elif self.mode == "duplicate":
+            s = np.vstack([s, s[:1]])
+        self.simplices = s
+
+
+from scipy.spatial import ConvexHull as _REAL_QHULL  # noqa: E402
+
+
+@pytest.mark.parametrize("mode", ["drop", "inner", "duplicate", "raise"])
+def test_wrong_qhull_output_is_detected_and_replaced(monkeypatch, mode):
+    import scipy.spatial
+
+    rng = np.random.default_rng(13)
+    P = np.unique(rng.integers(-20, 21, (40, 3)), axis=0)
+    expect = reference_planes(P)
+    monkeypatch.setattr(_BadQhull, "mode", mode)
+    monkeypatch.setattr(scipy.spatial, "ConvexHull", _BadQhull)
+    L = P - P[0]
+    from csgnb.mesh.hull import _independent
+
+    if mode != "duplicate":  # a repeated triangle is the same plane: harmless, and accepted
+        assert _qhull_facets(L, _independent(L)) is None
+    assert hull_planes(convex_hull(P)) == expect

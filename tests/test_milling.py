@@ -1,0 +1,252 @@
+"""Milling simulation on the single-BSP stand-in workpiece: exact removed volumes, collisions, checkpoints, STL.
+
+The reference for straight cuts of a flat end mill is independent of the hull and BSP code:
+a plunge removes area(P) x depth, a horizontal move then removes width(P across the move) x
+depth more, where P is the tool's grid polygon (shoelace area and projections with Python
+ints). Volumes are in mm³ as exact Fractions (the grid scale is a power of two).
+"""
+
+from __future__ import annotations
+
+from collections import Counter
+from fractions import Fraction
+
+import numpy as np
+import pytest
+
+from csgnb import GeometryError
+from csgnb.apps import gcode, milling, sweep, tools
+from csgnb.apps._bsp_workpiece import BSPWorkpiece
+from csgnb.exact import Grid
+from csgnb.mesh.hull import convex_hull
+from tests.test_apps_sweep import polygon_area2
+
+SCALE = 32
+GRID = Grid.from_resolution(1 / SCALE)
+STOCK = ((0, 0, -10), (40, 30, 0))
+
+SLOTS = """G21 G90 G17
+G0 Z5
+G0 X8 Y8
+M3 S10000
+G1 Z-2 F100
+G1 X30 F300
+G0 Z5
+G0 X10 Y22
+G1 Z-3 F100
+G1 X25 Y18 F300
+G0 Z5
+M5
+M30
+"""
+
+
+@pytest.fixture(scope="module")
+def flat():
+    return tools.flat_end_mill(4, 8, segments=10).on(GRID)
+
+
+def width_across(tool, v) -> int:
+    proj = [int(x) for x in tool.offsets[:, :2] @ np.array([-v[1], v[0]])]
+    return max(proj) - min(proj)
+
+
+def test_flat_end_mill_slots_remove_the_exact_prism_volumes(flat, tmp_path):
+    w = BSPWorkpiece.box(*STOCK, grid=GRID)
+    stock = w.model_volume()
+    assert stock == 40 * 30 * 10
+    result = milling.simulate(w, gcode.parse(SLOTS), flat, progress=False)
+    area = Fraction(polygon_area2(flat.offsets[:, :2]), 2)  # grid units²
+    g3 = Fraction(SCALE) ** 3
+
+    def cut(x0, y0, x1, y1, depth):
+        v = (np.array([x1, y1]) - [x0, y0]) * SCALE
+        return area * depth * SCALE / g3, width_across(flat, v.astype(np.int64)) * depth * SCALE / g3
+
+    p1, s1 = cut(8, 8, 30, 8, 2)
+    p2, s2 = cut(10, 22, 25, 18, 3)
+    removed = [r.removed for r in result.records]
+    kinds = [r.kind for r in result.records]
+    assert kinds == ["rapid", "rapid", "linear", "linear", "rapid", "rapid", "linear", "linear", "rapid"]
+    assert removed == [0, 0, p1, s1, 0, 0, p2, s2, 0]
+    assert result.removed == p1 + s1 + p2 + s2
+    assert stock - result.removed == w.model_volume()  # the exact identity
+    assert not result.collisions
+    # Cut time from the feed: the plunge is 7 mm at 100 mm/min.
+    assert result.records[2].time_s == pytest.approx(60 * 7 / 100)
+    assert result.records[3].time_s == pytest.approx(60 * 22 / 300)
+    assert "stock - removed == part: True" in result.table()
+    # STL through meshio: a closed triangle mesh whose float volume is the exact one, rounded.
+    import meshio
+
+    path = milling.export_stl(w, tmp_path / "part.stl")
+    m = meshio.read(path)
+    V, T = m.points.astype(float), m.cells_dict["triangle"]
+    V, inv = np.unique(V, axis=0, return_inverse=True)
+    T = inv.reshape(-1)[T]
+    use = Counter((int(a), int(b)) for t in T for a, b in ((t[0], t[1]), (t[1], t[2]), (t[2], t[0])))
+    assert all(use[(b, a)] == n for (a, b), n in use.items())
+    vol = np.sum(np.einsum("ij,ij->i", V[T[:, 0]], np.cross(V[T[:, 1]], V[T[:, 2]]))) / 6
+    assert vol == pytest.approx(float(w.model_volume()), rel=1e-6)
+
+
+def test_rapid_through_the_stock_is_a_collision_and_above_it_is_not(flat):
+    program = gcode.parse("""G0 Z5
+G0 X10 Y10
+G0 Z-2
+G0 Z5
+G0 X30 Y20
+G0 X35 Y25 Z0.5
+M5
+G1 X35 Y5 Z-1 F200
+""")
+    w = BSPWorkpiece.box(*STOCK, grid=GRID)
+    result = milling.simulate(w, program, flat, progress=False)
+    hits = {r.line: r.collision for r in result.collisions}
+    assert hits == {3: "rapid move (G0) cuts material", 8: "cut with the spindle stopped"}
+    assert [r.removed > 0 for r in result.records] == [False, False, True, False, False, False, True]
+    assert "line 3: rapid move (G0) cuts material" in result.table()
+
+
+def test_ball_end_mill_arcs_keep_the_volume_identity():
+    ball = tools.ball_end_mill(3, 6, segments=8, rings=2).on(GRID)
+    program = gcode.parse("""G0 X20 Y15 Z2
+M3
+G1 Z-1 F100
+G2 X20 Y15 I-5 J0 F400
+G18 G3 X10 Z-1 R5
+""", start=(20, 15, 5))
+    w = BSPWorkpiece.box(*STOCK, grid=GRID)
+    result = milling.simulate(w, program, ball, progress=False, chord_tolerance=0.5)
+    full_circle, zx_arc = result.records[2], result.records[3]
+    assert full_circle.pieces == gcode.Arc.points(program[2], 0.5).shape[0] - 1
+    assert full_circle.removed > 0 and zx_arc.removed > 0
+    assert result.stock_volume - result.removed == w.model_volume()
+
+
+def test_non_convex_tool_moves_subtract_prisms_and_the_end_pose():
+    gear = tools.spur_gear(teeth=5, module=1, thickness=1, flank_points=2).on(GRID)
+    assert not gear.convex
+    w = BSPWorkpiece.box((0, 0, -3), (8, 8, 0), grid=GRID)
+    program = gcode.parse("M3\nG1 X4 Y4 Z-1 F100\nG1 X5 F100\n", start=(4, 4, -1))
+    result = milling.simulate(w, program, gear, progress=False)
+    r = result.records[-1]
+    assert r.pieces > 1 and r.removed > 0
+    assert result.stock_volume - result.removed == w.model_volume()
+
+
+def test_checkpoints_resume_after_a_crash_with_an_identical_result(flat, tmp_path):
+    program = gcode.parse(SLOTS)
+    ref = milling.simulate(BSPWorkpiece.box(*STOCK, grid=GRID), program, flat, progress=False)
+
+    class Crash(Exception):
+        pass
+
+    def crash_at_7(rec, wp):
+        if rec.index == 6:
+            raise Crash
+
+    ckpt = tmp_path / "run.ckpt"
+    with pytest.raises(Crash):
+        milling.simulate(BSPWorkpiece.box(*STOCK, grid=GRID), program, flat, progress=False, checkpoint=ckpt,
+                         checkpoint_every=3, on_move=crash_at_7)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["run.ckpt", "run.ckpt.6.wp"]
+    seen = []
+    resumed = milling.simulate(BSPWorkpiece.box(*STOCK, grid=GRID), program, flat, progress=False,
+                               checkpoint=ckpt, checkpoint_every=3, on_move=lambda r, w: seen.append(r.index))
+    assert seen == [6, 7, 8]
+    assert [(r.line, r.removed, r.collision) for r in resumed.records] == \
+        [(r.line, r.removed, r.collision) for r in ref.records]
+    assert resumed.workpiece.volume() == ref.workpiece.volume()
+    other = gcode.parse(SLOTS.replace("X30", "X31"))
+    with pytest.raises(ValueError, match="another program"):
+        milling.simulate(BSPWorkpiece.box(*STOCK, grid=GRID), other, flat, progress=False, checkpoint=ckpt)
+
+
+def test_tools_on_another_grid_and_bad_tools_are_refused(flat):
+    w = BSPWorkpiece.box(*STOCK, grid=GRID)
+    other = tools.flat_end_mill(4, 8, segments=10).on(Grid.from_resolution(1 / 16))
+    with pytest.raises(GeometryError, match="one grid|workpiece.grid"):
+        milling.simulate(w, gcode.parse("G0 X1"), other, progress=False)
+    with pytest.raises(GeometryError, match="one grid"):
+        w.difference(other.hull_at((0, 0, 0)))
+    with pytest.raises(TypeError):
+        w.difference(np.zeros((3, 3)))
+    with pytest.raises(GeometryError, match="no tool 2"):
+        milling.simulate(w, gcode.parse("T2 M6\nG0 X1"), {1: flat}, progress=False)
+    assert w.model_volume() == 40 * 30 * 10
+
+
+def test_workpiece_booleans_return_exact_volume_changes():
+    g = Grid.from_resolution(1.0)
+    w = BSPWorkpiece.empty(g)
+    assert w.volume() == 0
+    a = convex_hull(np.array([[0, 0, 0], [4, 0, 0], [0, 4, 0], [0, 0, 4]]), grid=g)
+    b = convex_hull(np.array([[10, 0, 0], [12, 0, 0], [10, 3, 0], [10, 0, 6], [12, 3, 6]]), grid=g)
+    assert w.union(a) == a.volume() == Fraction(64, 6)
+    assert w.union(b) == b.volume()
+    assert w.union(a) == 0
+    box = convex_hull(np.array([[x, y, z] for x in (-1, 5) for y in (-1, 5) for z in (-1, 5)]), grid=g)
+    assert w.intersection(box) == b.volume()
+    assert w.volume() == a.volume()
+    assert w.difference(a) == a.volume() and w.volume() == 0
+    V, T = w.to_mesh()
+    assert V.shape == (0, 3)
+
+
+def test_save_and_load_are_bit_exact_and_refuse_damaged_files(flat, tmp_path, monkeypatch):
+    w = BSPWorkpiece.box(*STOCK, grid=GRID)
+    w.difference(sweep.straight_sweep(flat, (5, 5, -1), (20, 12, -1)).hulls[0])
+    path = tmp_path / "w.npz"
+    w.save(path)
+    back = BSPWorkpiece.load(path)
+    assert back.grid == w.grid and back.volume() == w.volume()
+    for name in ("plane", "neg", "pos", "label"):
+        assert np.array_equal(getattr(back.bsp.tree, name), getattr(w.bsp.tree, name))
+    assert back.bsp.tree.palette.tobytes() == w.bsp.tree.palette.tobytes()
+    data = path.read_bytes()
+    (tmp_path / "short.npz").write_bytes(data[: len(data) // 2])
+    with pytest.raises(ValueError, match="truncated or corrupted"):
+        BSPWorkpiece.load(tmp_path / "short.npz")
+    # Damage the palette's bytes: the zip's own CRC or our checksum catches it.
+    raw = bytearray(data)
+    k = raw.find(b"limbs.npy")
+    raw[k + 200] ^= 0xFF
+    (tmp_path / "bad.npz").write_bytes(bytes(raw))
+    with pytest.raises(ValueError):
+        BSPWorkpiece.load(tmp_path / "bad.npz")
+
+    # A save interrupted half-way leaves the previous file intact and no temporary behind.
+    def boom(*a, **k):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(np, "savez", boom)
+    w.difference(sweep.straight_sweep(flat, (30, 20, -1), (35, 20, -1)).hulls[0])
+    with pytest.raises(KeyboardInterrupt):
+        w.save(path)
+    assert path.read_bytes() == data
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["bad.npz", "short.npz", "w.npz"]
+
+
+def test_a_ball_mill_cut_matches_an_independent_halfspace_intersection():
+    """The first cut of a tilted ball-mill move is vol(hull ∩ stock), a convex polytope: scipy's float64
+    halfspace intersection (qhull, independent of csgnb) agrees with the exact volume to float rounding."""
+    from scipy.spatial import ConvexHull as Qhull
+    from scipy.spatial import HalfspaceIntersection
+
+    ball = tools.ball_end_mill(4, 10, segments=16, rings=4).on(GRID)
+    rng = np.random.default_rng(4)
+    for _ in range(4):
+        a = np.r_[rng.uniform(5, 35), rng.uniform(5, 25), 3.0]
+        b = np.r_[rng.uniform(5, 35), rng.uniform(5, 25), rng.uniform(-4, -1)]
+        w = BSPWorkpiece.box(*STOCK, grid=GRID)
+        (hull,) = sweep.straight_sweep(ball, a, b).hulls
+        removed = w.difference(hull)
+        g = GRID.to_grid(np.array(STOCK, float)).astype(float)
+        box = np.array([[-1, 0, 0, g[0, 0]], [1, 0, 0, -g[1, 0]], [0, -1, 0, g[0, 1]], [0, 1, 0, -g[1, 1]],
+                        [0, 0, -1, g[0, 2]], [0, 0, 1, -g[1, 2]]])
+        H = np.vstack([hull.planes.astype(float), box])
+        tip = GRID.to_grid([b])[0].astype(float) + [0, 0, 0.5 * SCALE]  # inside the ball at the end, below the top
+        assert np.all(H[:, :3] @ tip + H[:, 3] < 0)
+        reference = Qhull(HalfspaceIntersection(H, tip).intersections).volume
+        assert float(removed) == pytest.approx(reference, rel=1e-9)
