@@ -321,19 +321,17 @@ def clip_cell(m, h, lab, tree, sc, out, walls):
 # extraction: cells by cutting, pieces at the leaves, cells released (one kernel call)
 
 
-@jit
-def _extract_kernel(m, tree, stack, state, cells, sc, out, mode, no_path):
+@jit(inline="always")
+def extract_into(m, tree, stack, state, cells, sc, out, mode, no_path):
     """Cut the box cell down the tree; at each leaf clip, record or release the cell.
 
     ``stack`` rows are (node, cell handle, bound on the cell's face count); ``state`` is
-    (stack size, cells recorded). At an **in** leaf: with ``PIECES`` its faces are clipped
+    (stack size, cells recorded, in leaves reached, label of the last one). At an **in** leaf: with ``PIECES`` its faces are clipped
     into ``out`` (``WALLS``: box faces too); with ``KEEP_CELLS`` (leaf, handle) is recorded
     in ``cells``, otherwise the cell is released for reuse. Out cells are released unless
     kept. ``NAIVE`` cuts with the classify-every-vertex baseline. Returns DONE, NEED_ROOM
     (nothing of the pending step done: grow and call again) or FAILED.
     """
-    m, tree, sc, out = unmanaged_tuple(m), unmanaged_tuple(tree), unmanaged_tuple(sc), unmanaged_tuple(out)
-    stack, state, cells, no_path = unmanaged(stack), unmanaged(state), unmanaged(cells), unmanaged(no_path)
     keep = (mode & KEEP_CELLS) != 0
     naive = (mode & NAIVE) != 0
     walls = (mode & WALLS) != 0
@@ -354,6 +352,8 @@ def _extract_kernel(m, tree, stack, state, cells, sc, out, mode, no_path):
                         out.counts[0] = mark_v
                         out.counts[1] = mark_p
                         return NEED_ROOM
+                state[2] += 1
+                state[3] = lab
                 if keep:
                     cells[state[1], 0] = node
                     cells[state[1], 1] = h
@@ -392,6 +392,12 @@ def _extract_kernel(m, tree, stack, state, cells, sc, out, mode, no_path):
     return DONE
 
 
+@jit
+def _extract_kernel(m, tree, stack, state, cells, sc, out, mode, no_path):
+    m, tree, sc, out = unmanaged_tuple(m), unmanaged_tuple(tree), unmanaged_tuple(sc), unmanaged_tuple(out)
+    return extract_into(m, tree, unmanaged(stack), unmanaged(state), unmanaged(cells), sc, out, mode, unmanaged(no_path))
+
+
 class _Extractor:
     """Drives :func:`_extract_kernel` over a fresh store (the growth between resumptions)."""
 
@@ -406,7 +412,7 @@ class _Extractor:
         box = self.store.add_box(lo, hi)
         self.stack = np.zeros((max(64, 2 * depth + 8), 3), np.int64)
         self.stack[0] = (0, box, 6)
-        self.state = np.array([1, 0], np.int64)
+        self.state = np.array([1, 0, 0, 0], np.int64)
         self.cells = np.zeros((16, 2), np.int64)
         self.sc = new_clip_scratch(tree.palette.dtype)
         n = tree.n_nodes

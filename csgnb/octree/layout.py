@@ -41,12 +41,12 @@ N_COUNTS = 32
 
 # resources a kernel can run short of (need[0] after NEED_ROOM)
 (R_MESH, R_CLIP, R_PIECES, R_MERGE, R_TREE_A, R_TREE_B, R_TREE_O, R_TREE_R, R_BUILD_IN, R_BUILD,
- R_POOL, R_NODES, R_PALETTE, R_AXIS, R_TOOL_ARENA, R_SPLIT_STACK) = range(1, 17)
+ R_POOL, R_NODES, R_PALETTE, R_AXIS, R_TOOL_ARENA, R_SPLIT_STACK, R_EXTRACT) = range(1, 18)
 RESOURCE_NAMES = {R_MESH: "mesh store", R_CLIP: "clip scratch", R_PIECES: "boundary pieces", R_MERGE: "merge scratch",
                   R_TREE_A: "cell tree", R_TREE_B: "tool tree", R_TREE_O: "merged tree", R_TREE_R: "rebuilt tree",
                   R_BUILD_IN: "import polygons", R_BUILD: "import scratch", R_POOL: "BSP pool",
                   R_NODES: "octree nodes", R_PALETTE: "plane palette", R_AXIS: "wall-plane map",
-                  R_TOOL_ARENA: "tool clipping", R_SPLIT_STACK: "split stack"}
+                  R_TOOL_ARENA: "tool clipping", R_SPLIT_STACK: "split stack", R_EXTRACT: "extraction scratch"}
 
 
 class OctArrays(NamedTuple):

@@ -1,0 +1,983 @@
+"""numba kernels of the octree workpiece: Booleans with a tool, split and combine (paper §3.8, Figure 8).
+
+One kernel call runs one Boolean over every touched cell (:func:`_boolean_kernel`): no
+Python per cell. Per cell, with the mesh store reset:
+
+1. the cell's BSP (or its uniform label) is copied into scratch (``ta``);
+2. the tool is localised to the cell box: a convex tool keeps the planes that cross the box
+   (a linear BSP); a mesh tool's plane-based polygons are clipped to the box exactly and a
+   small BSP is built from the pieces (§3.9: never re-triangulated, no new planes). A cell
+   the tool's surface does not cross is relabelled without a merge: inside or outside the
+   tool is decided by an exact point classification;
+3. merge by cutting (:func:`csgnb.bsp.merging.merge_cells`) in the cell box;
+4. redundancy removal (§3.7): the merged in-cells' faces are clipped against their
+   opposite subtrees -- faces on the cell walls are skipped, the cell box bounds the BSP --
+   and the pieces are imported again; the smaller tree is kept. No boundary inside the box
+   means the cell is uniform;
+5. a BSP above the threshold is split into the eight children (BSP ∩ child box, then
+   redundancy removal), recursively, down to unit cells (beyond that a cell is counted
+   as pathological and kept).
+
+:func:`_combine_kernel` merges eight leaf children back into their parent when their BSPs
+fit: an axis-BSP over the children's BSPs, then redundancy removal in the parent box.
+
+Kernels are resumable (:mod:`csgnb._resumable`): before a step that could overflow they
+check room, and on a shortage return ``NEED_ROOM`` with ``need[0]`` naming the resource
+(:data:`csgnb.octree.layout.RESOURCE_NAMES`); the cell in progress is redone from scratch,
+since a cell's result is written only once it is complete.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from csgnb._jit import jit
+from csgnb._resumable import DONE, FAILED, NEED_ROOM
+from csgnb._views import unmanaged, unmanaged_tuple
+from csgnb.bsp.build import _build_kernel
+from csgnb.bsp.extract import PIECES, TreeArrays, clip_cell, extract_into
+from csgnb.bsp.merging import merge_cells
+from csgnb.bsp.polygon import copy_point, split_polygon
+from csgnb.exact.intrinsics import classify_at, signed_distance_into, wide_sign_at
+from csgnb.exact.wide_store import store_int64_at
+from csgnb.mesh.halfedge import FREE_F, FREE_H, FREE_V, NF, NH, NV, add_box_cell
+from csgnb.octree.layout import (
+    BSP,
+    N_AXIS,
+    N_FREE_BLOCKS,
+    N_NODES,
+    N_PAL,
+    N_POOL,
+    POOL_LIVE,
+    R_AXIS,
+    R_BUILD,
+    R_BUILD_IN,
+    R_EXTRACT,
+    R_MERGE,
+    R_MESH,
+    R_NODES,
+    R_PALETTE,
+    R_PIECES,
+    R_POOL,
+    R_SPLIT_STACK,
+    R_TOOL_ARENA,
+    R_TREE_A,
+    R_TREE_B,
+    R_TREE_R,
+    S_CELL_OPS,
+    S_COMBINES,
+    S_MERGES,
+    S_PATHOLOGICAL,
+    S_RELABELS,
+    S_SIMPLIFIED,
+    S_SPLITS,
+    S_UNCHANGED,
+    UNIFORM,
+)
+from csgnb.octree.workspace import unmanaged_workspace
+
+__all__ = []
+
+_EMPTY_KEY = -1
+# tool kinds
+CONVEX_TOOL, MESH_TOOL = 0, 1
+# state columns of the Boolean kernel
+ST_LEAF, ST_PHASE, ST_SPLIT_TOP, ST_SPLIT_CHILD = 0, 1, 2, 3
+
+
+# ---------------------------------------------------------------------------
+# wall planes
+
+
+@jit(inline="always")
+def _axis_key(axis, side, c):
+    return ((axis * 2 + side) << 58) ^ (c + (1 << 56))
+
+
+@jit(inline="always")
+def axis_plane(amap, pal, oc, axis, side, c, need):
+    """Palette row of the outward wall ``x_axis >= c`` (``side`` 0) or ``x_axis <= c`` (1); -1 when short of room."""
+    keys = amap.keys
+    mask = keys.shape[0] - 1
+    key = _axis_key(axis, side, c)
+    h = (key * np.int64(-7046029254386353131)) >> 20
+    i = h & mask
+    while keys[i] != _EMPTY_KEY:
+        if keys[i] == key:
+            return np.int64(amap.rows[i])
+        i = (i + 1) & mask
+    if 2 * (oc.counts[N_AXIS] + 1) > keys.shape[0]:
+        need[0] = R_AXIS
+        return -1
+    row = oc.counts[N_PAL]
+    if row >= pal.shape[0]:
+        need[0] = R_PALETTE
+        return -1
+    for col in range(3):
+        store_int64_at(pal, row, col, 0)
+    if side == 0:
+        store_int64_at(pal, row, axis, -1)
+        store_int64_at(pal, row, 3, c)
+    else:
+        store_int64_at(pal, row, axis, 1)
+        store_int64_at(pal, row, 3, -c)
+    oc.counts[N_PAL] = row + 1
+    keys[i] = key
+    amap.rows[i] = row
+    oc.counts[N_AXIS] += 1
+    return row
+
+
+@jit(inline="always")
+def box_rows(amap, pal, oc, lo0, lo1, lo2, size, rows, need):
+    """Fill ``rows`` (6,) with the outward walls of the box ``lo + [0, size]^3``; False when short of room."""
+    los = (lo0, lo1, lo2)
+    for axis in range(3):
+        r = axis_plane(amap, pal, oc, axis, 0, los[axis], need)
+        if r < 0:
+            return False
+        rows[2 * axis] = r
+        r = axis_plane(amap, pal, oc, axis, 1, los[axis] + size, need)
+        if r < 0:
+            return False
+        rows[2 * axis + 1] = r
+    return True
+
+
+# ---------------------------------------------------------------------------
+# small tree utilities
+
+
+@jit(inline="always")
+def set_leaf(t, label):
+    """Make ``t`` the one-leaf tree ``label``; return its node count (1)."""
+    t.plane[0] = -1
+    t.neg[0] = -1
+    t.pos[0] = -1
+    t.label[0] = label
+    return 1
+
+
+@jit(inline="always")
+def copy_from_pool(pool, start, n, t, base):
+    """Copy the pool BSP ``start .. start + n`` into ``t`` at node ``base`` (children relocated)."""
+    for i in range(n):
+        p = pool.plane[start + i]
+        t.plane[base + i] = p
+        t.label[base + i] = pool.label[start + i]
+        if p >= 0:
+            t.neg[base + i] = pool.neg[start + i] + base
+            t.pos[base + i] = pool.pos[start + i] + base
+        else:
+            t.neg[base + i] = -1
+            t.pos[base + i] = -1
+
+
+@jit(inline="always")
+def uniform_label(t, n):
+    """The label of every leaf of ``t[:n]`` if they all agree, else -1."""
+    lab = -1
+    for i in range(n):
+        if t.plane[i] < 0:
+            if lab < 0:
+                lab = t.label[i]
+            elif t.label[i] != lab:
+                return -1
+    return lab
+
+
+@jit(inline="always")
+def only_in_out(t, n):
+    """Whether every leaf label of ``t[:n]`` is 0 or 1 (redundancy removal by re-import keeps one material)."""
+    for i in range(n):
+        if t.plane[i] < 0 and t.label[i] > 1:
+            return False
+    return True
+
+
+@jit(inline="always")
+def mesh_reset(m):
+    """Empty the mesh store (every row free again; the arrays are kept)."""
+    c = m.counts
+    c[NV] = 0
+    c[NH] = 0
+    c[NF] = 0
+    c[FREE_V] = 0
+    c[FREE_H] = 0
+    c[FREE_F] = 0
+
+
+@jit(inline="always")
+def mesh_room(m, faces):
+    """Room for a fresh box and enough cuts of cells with up to ``faces`` faces."""
+    return m.vx.shape[0] >= 8 * faces + 64 and m.he.shape[0] >= 32 * faces + 256 and m.fc.shape[0] >= 8 * faces + 64 \
+        and m.loop.shape[0] >= faces + 8
+
+
+# ---------------------------------------------------------------------------
+# point classification with a symbolic perturbation
+
+
+@jit(inline="always")
+def classify_perturbed(pal, t, pt):
+    """Label of the homogeneous point ``pt[0]`` in tree ``t``, moved by (ε, ε², ε³) off any plane it lies on.
+
+    Exact and never ambiguous: on a node's plane the side is the sign of the plane's
+    first non-zero normal coefficient (the direction of the perturbation).
+    """
+    node = 0
+    while t.plane[node] >= 0:
+        row = t.plane[node]
+        side = classify_at(pt, 0, pal, row)
+        if side == 0:
+            side = wide_sign_at(pal, row, 0)
+            if side == 0:
+                side = wide_sign_at(pal, row, 1)
+            if side == 0:
+                side = wide_sign_at(pal, row, 2)
+        node = t.neg[node] if side < 0 else t.pos[node]
+    return t.label[node]
+
+
+# ---------------------------------------------------------------------------
+# the tool, localised to a cell
+
+
+@jit(inline="always")
+def _corner_signs(pal, row, corners, dist):
+    """(any corner strictly negative, any strictly positive) of the 8 box corners against palette ``row``."""
+    neg = False
+    pos = False
+    for k in range(8):
+        signed_distance_into(corners, k, pal, row, dist, 0)
+        s = wide_sign_at(dist, 0, 0)
+        neg = neg or s < 0
+        pos = pos or s > 0
+    return neg, pos
+
+
+@jit(inline="always")
+def convex_tool_in_box(pal, rows, corners, dist, tb):
+    """Localise a convex tool (outward palette ``rows``) to the box with ``corners``.
+
+    Returns (relation, nodes): relation 0 = the box interior is outside the tool, 1 = inside,
+    2 = crossed (``tb`` is then the linear BSP of the crossing planes, ``nodes`` its size;
+    -1 nodes when ``tb`` is too small).
+    """
+    k = 0
+    for i in range(rows.shape[0]):
+        neg, pos = _corner_signs(pal, rows[i], corners, dist)
+        if not neg:
+            return 0, 0  # the whole box is on the outer side of a face plane
+        if pos:
+            k += 1
+    if k == 0:
+        return 1, 0
+    n = 2 * k + 1
+    if n > tb.plane.shape[0]:
+        return 2, -1
+    j = 0
+    for i in range(rows.shape[0]):
+        neg, pos = _corner_signs(pal, rows[i], corners, dist)
+        if neg and pos:
+            node = 2 * j
+            tb.plane[node] = rows[i]
+            tb.neg[node] = node + 2
+            tb.pos[node] = node + 1
+            tb.label[node] = -1
+            tb.plane[node + 1] = -1
+            tb.neg[node + 1] = -1
+            tb.pos[node + 1] = -1
+            tb.label[node + 1] = 0
+            j += 1
+    tb.plane[n - 1] = -1
+    tb.neg[n - 1] = -1
+    tb.pos[n - 1] = -1
+    tb.label[n - 1] = 1
+    return 2, n
+
+
+@jit(inline="always")
+def clip_tool_polygons(pal, tool, lo, size, brows, arena, bi, need):
+    """Clip the tool's polygons whose boxes meet the cell box to it; write the pieces into ``bi``.
+
+    ``bi`` is the import input (support, offsets, edges, verts: vertex j = support ∩ e_j ∩
+    e_j+1). Pieces coplanar with a wall are dropped (the box bounds the cell BSP). Returns
+    the number of pieces, or -1 when short of room (``need[0]`` says what).
+    """
+    n_out = 0
+    e_out = 0
+    cap = arena.edges.shape[0] // 3
+    hi0 = lo[0] + size
+    hi1 = lo[1] + size
+    hi2 = lo[2] + size
+    for i in range(tool.support.shape[0]):
+        if (tool.plo[i, 0] > hi0 or tool.phi[i, 0] < lo[0] or tool.plo[i, 1] > hi1 or tool.phi[i, 1] < lo[1]
+                or tool.plo[i, 2] > hi2 or tool.phi[i, 2] < lo[2]):
+            continue
+        s = tool.support[i]
+        srow = s if s >= 0 else -s - 1
+        e0 = tool.offsets[i]
+        k = tool.offsets[i + 1] - e0
+        if k + 7 > cap:
+            need[0] = R_TOOL_ARENA
+            return -1
+        start = 0
+        for j in range(k):
+            arena.edges[j] = tool.edges[e0 + j]
+            copy_point(tool.verts, e0 + j, arena.verts, j)
+        keep = True
+        for w in range(6):
+            o_neg = cap if start == 0 else 0
+            side, k_neg, k_pos = split_polygon(pal, srow, brows[w], arena.edges, arena.verts, start, k, arena.sides,
+                                               o_neg, 2 * cap)
+            if side == -1:
+                continue
+            if side == 2:
+                start = o_neg
+                k = k_neg
+                continue
+            keep = False  # outside, or on the wall
+            break
+        if not keep:
+            continue
+        if n_out + 1 >= bi.support.shape[0] or e_out + k > bi.edges.shape[0]:
+            need[0] = R_BUILD_IN
+            return -1
+        bi.support[n_out] = s
+        bi.offsets[n_out] = e_out
+        for j in range(k):
+            bi.edges[e_out + j] = arena.edges[start + j]
+            copy_point(arena.verts, start + j, bi.verts, e_out + j)
+        e_out += k
+        n_out += 1
+        bi.offsets[n_out] = e_out
+    return n_out
+
+
+# ---------------------------------------------------------------------------
+# import (§3.6) of a cell's boundary pieces
+
+
+@jit(inline="always")
+def _shuffle(order, n, seed):
+    """Fisher-Yates with a 64-bit LCG: a reproducible random insertion order without numpy's generator."""
+    x = np.uint64(seed) * np.uint64(6364136223846793005) + np.uint64(1442695040888963407)
+    for i in range(n):
+        order[i] = i
+    for i in range(n - 1, 0, -1):
+        x = x * np.uint64(6364136223846793005) + np.uint64(1442695040888963407)
+        j = np.int64((x >> np.uint64(33)) % np.uint64(i + 1))
+        t = order[i]
+        order[i] = order[j]
+        order[j] = t
+
+
+@jit(inline="always")
+def pieces_to_import(out, bi, need):
+    """Convert boundary pieces (edge i runs from vertex i to i + 1) into import polygons; count or -1."""
+    n = out.counts[1]
+    if n + 1 > bi.support.shape[0] or out.counts[0] > bi.edges.shape[0]:
+        need[0] = R_BUILD_IN
+        return -1
+    e = 0
+    for i in range(n):
+        start = out.poly[i, 0]
+        k = out.poly[i, 1]
+        bi.support[i] = out.poly[i, 2]
+        bi.offsets[i] = e
+        for j in range(k):
+            # import convention: edge j runs from vertex j - 1 to vertex j
+            bi.edges[e + j] = out.edge[start + (j - 1 if j > 0 else k - 1)]
+            copy_point(out.vx, start + j, bi.verts, e + j)
+        e += k
+    bi.offsets[n] = e
+    return n
+
+
+@jit(inline="always")
+def import_polygons(pal, bi, n, bs, seed, t, need):
+    """Build the BSP of ``n`` import polygons into ``t`` (label 1 inside); its node count or -1."""
+    _shuffle(bs.order, n, seed)
+    count = _build_kernel(pal, bi.support[:n], bi.offsets[: n + 1], bi.edges, bi.verts, bs.order[:n], 1,
+                          t.plane, t.neg, t.pos, t.label, bs.a_edges, bs.a_verts, bs.sides,
+                          bs.st_node, bs.st_start, bs.st_k)
+    if count == -1:
+        need[0] = R_TREE_R
+        return -1
+    if count < 0:
+        need[0] = R_BUILD
+        return -1
+    return count
+
+
+# ---------------------------------------------------------------------------
+# a cell's solid inside a box: extraction + redundancy removal
+
+
+@jit(inline="always")
+def simplify_in_box(pal, m, src, box, ws, seed, need):
+    """The solid of tree ``src`` inside the box whose walls are ``box`` (6 rows), rebuilt from its boundary.
+
+    Returns (kind, value): (UNIFORM, label) when no boundary crosses the box interior,
+    (BSP, nodes) with the rebuilt tree in ``ws.tr``; (-1, 0) when short of room.
+    """
+    if not mesh_room(m, 8):
+        need[0] = R_MESH
+        return -1, 0
+    mesh_reset(m)
+    h = add_box_cell(m, box, -1)
+    st = ws.ext_state
+    st[0] = 1
+    st[1] = 0
+    st[2] = 0
+    st[3] = 0
+    ws.ext_stack[0, 0] = 0
+    ws.ext_stack[0, 1] = h
+    ws.ext_stack[0, 2] = 6
+    ws.out.counts[0] = 0
+    ws.out.counts[1] = 0
+    status = extract_into(m, src, ws.ext_stack, st, ws.cells, ws.sc, ws.out, PIECES, ws.path)
+    if status != DONE:
+        need[0] = R_EXTRACT if status == NEED_ROOM else 0
+        return -1, 0
+    if ws.out.counts[1] == 0:
+        return UNIFORM, (st[3] if st[2] > 0 else 0)
+    n = pieces_to_import(ws.out, ws.bi, need)
+    if n < 0:
+        return -1, 0
+    count = import_polygons(pal, ws.bi, n, ws.bs, seed, ws.tr, need)
+    if count < 0:
+        return -1, 0
+    return BSP, count
+
+
+@jit(inline="always")
+def merge_and_simplify(pal, m, ta, tb, table, constant, box, ws, seed, need):
+    """A ∘ B inside the box (``table`` is the label function): merge by cutting, then redundancy removal.
+
+    Returns (kind, value, where): UNIFORM with its label, or BSP with the node count and
+    ``where`` 0 = ``ws.to`` (the merged tree was smaller or had several materials) /
+    1 = ``ws.tr`` (rebuilt). (-1, 0, 0) when short of room.
+    """
+    if not mesh_room(m, 8):
+        need[0] = R_MESH
+        return -1, 0, 0
+    mesh_reset(m)
+    h = add_box_cell(m, box, -1)
+    ms = ws.merge_stack
+    ms[0, 0] = 0
+    ms[0, 1] = 0
+    ms[0, 2] = 0
+    ms[0, 3] = h
+    ms[0, 4] = 6
+    ms[0, 5] = 0
+    st = ws.merge_state
+    st[0] = 1
+    st[1] = 1
+    st[2] = 0
+    status = merge_cells(m, ta, tb, 0, table, constant, ms, st, ws.to, ws.cells, ws.path)
+    if status == NEED_ROOM:
+        need[0] = R_MERGE
+        return -1, 0, 0
+    if status != DONE:
+        need[0] = 0
+        return -1, 0, 0
+    n_o = st[1]
+    lab = uniform_label(ws.to, n_o)
+    if lab >= 0:
+        return UNIFORM, lab, 0
+    if not only_in_out(ws.to, n_o):
+        return BSP, n_o, 0
+    # Redundancy removal: the interior faces of the merged in-cells, clipped against their
+    # opposite subtrees (no new cutting: the merge left every output leaf's cell).
+    ws.out.counts[0] = 0
+    ws.out.counts[1] = 0
+    for i in range(st[2]):
+        leaf = ws.cells[i, 0]
+        la = ws.to.label[leaf]
+        if la == 0:
+            continue
+        if not clip_cell(m, ws.cells[i, 1], la, ws.to, ws.sc, ws.out, False):
+            need[0] = R_PIECES
+            return -1, 0, 0
+    if ws.out.counts[1] == 0:
+        # No boundary inside the box: every cell has the same label.
+        return UNIFORM, ws.to.label[ws.cells[0, 0]], 0
+    n = pieces_to_import(ws.out, ws.bi, need)
+    if n < 0:
+        return -1, 0, 0
+    count = import_polygons(pal, ws.bi, n, ws.bs, seed, ws.tr, need)
+    if count < 0:
+        return -1, 0, 0
+    if count < n_o:
+        return BSP, count, 1
+    return BSP, n_o, 0
+
+
+# ---------------------------------------------------------------------------
+# writing a cell
+
+
+@jit(inline="always")
+def write_cell(oc, pool, node, kind, value, t):
+    """Store a cell result: UNIFORM ``value`` = label, or BSP ``value`` nodes of ``t``; False if the pool is full."""
+    if oc.kind[node] == BSP:
+        oc.counts[POOL_LIVE] -= oc.length[node]
+    if kind == UNIFORM:
+        oc.kind[node] = UNIFORM
+        oc.label[node] = value
+        oc.length[node] = 0
+        return True
+    start = oc.counts[N_POOL]
+    if start + value > pool.plane.shape[0]:
+        if oc.kind[node] == BSP:
+            oc.counts[POOL_LIVE] += oc.length[node]
+        return False
+    for i in range(value):
+        pool.plane[start + i] = t.plane[i]
+        pool.neg[start + i] = t.neg[i]
+        pool.pos[start + i] = t.pos[i]
+        pool.label[start + i] = t.label[i]
+    oc.counts[N_POOL] = start + value
+    oc.counts[POOL_LIVE] += value
+    oc.kind[node] = BSP
+    oc.start[node] = start
+    oc.length[node] = value
+    return True
+
+
+@jit(inline="always")
+def cell_tree(oc, pool, node, t, need):
+    """Copy cell ``node``'s solid into ``t``; its node count, or -1 when ``t`` is too small."""
+    if oc.kind[node] == BSP:
+        n = oc.length[node]
+        if n > t.plane.shape[0]:
+            need[0] = R_TREE_A
+            return -1
+        copy_from_pool(pool, oc.start[node], n, t, 0)
+        return n
+    return set_leaf(t, oc.label[node])
+
+
+@jit(inline="always")
+def relabel_cell(oc, pool, node, column, table, ta, need):
+    """Apply ``table[., column]`` to the labels of cell ``node`` (the tool is uniform over it).
+
+    Returns (changed, kind, value) where (kind, value) is as :func:`write_cell` takes with
+    the tree in ``ta``; -1 kind when short of room.
+    """
+    if oc.kind[node] == UNIFORM:
+        la = oc.label[node]
+        lb = table[la, column]
+        return lb != la, UNIFORM, lb
+    n = cell_tree(oc, pool, node, ta, need)
+    if n < 0:
+        return False, -1, 0
+    changed = False
+    for i in range(n):
+        if ta.plane[i] < 0:
+            lb = table[ta.label[i], column]
+            changed = changed or lb != ta.label[i]
+            ta.label[i] = lb
+    if not changed:
+        return False, BSP, n
+    lab = uniform_label(ta, n)
+    if lab >= 0:
+        return True, UNIFORM, lab
+    return True, BSP, n
+
+
+# ---------------------------------------------------------------------------
+# one cell of a Boolean
+
+
+@jit(inline="always")
+def _box_corners(lo, size, corners):
+    for k in range(8):
+        corners[k, 0] = lo[0] + (size if k & 1 else 0)
+        corners[k, 1] = lo[1] + (size if k & 2 else 0)
+        corners[k, 2] = lo[2] + (size if k & 4 else 0)
+
+
+@jit(inline="always")
+def _centre_point(lo, size, pt):
+    # (2 lo + size) / 2, homogeneous.
+    for c in range(3):
+        store_int64_at(pt, 0, c, 2 * lo[c] + size)
+    store_int64_at(pt, 0, 3, 2)
+
+
+@jit(inline="always")
+def boolean_cell(pal, oc, pool, amap, node, tool_kind, tool, table, constant, ws, seed, need):
+    """Apply the Boolean to one leaf cell and write its result. Returns 1 done, 0 short of room."""
+    lo = oc.lo[node]
+    size = oc.size[node]
+    if not box_rows(amap, pal, oc, lo[0], lo[1], lo[2], size, ws.box, need):
+        return 0
+    _box_corners(lo, size, ws.corners)
+    relation = 2
+    nb = 0
+    if tool_kind == CONVEX_TOOL:
+        relation, nb = convex_tool_in_box(pal, tool.rows, ws.corners, ws.dist, ws.tb)
+        if nb < 0:
+            need[0] = R_TREE_B
+            return 0
+    else:
+        n_poly = clip_tool_polygons(pal, tool, lo, size, ws.box, ws.arena, ws.bi, need)
+        if n_poly < 0:
+            return 0
+        if n_poly == 0:
+            _centre_point(lo, size, ws.point)
+            tool_tree = TreeArrays(tool.t_plane, tool.t_neg, tool.t_pos, tool.t_label)
+            relation = 1 if classify_perturbed(pal, tool_tree, ws.point) != 0 else 0
+        else:
+            nb = import_polygons(pal, ws.bi, n_poly, ws.bs, seed + 7 * node, ws.tb, need)
+            if nb < 0:
+                if need[0] == R_TREE_R:
+                    need[0] = R_TREE_B
+                return 0
+    if relation != 2:
+        changed, kind, value = relabel_cell(oc, pool, node, relation, table, ws.ta, need)
+        if kind < 0:
+            return 0
+        if not changed:
+            oc.counts[S_UNCHANGED] += 1
+            return 1
+        if not write_cell(oc, pool, node, kind, value, ws.ta):
+            need[0] = R_POOL
+            return 0
+        oc.counts[S_RELABELS] += 1
+        return 1
+    na = cell_tree(oc, pool, node, ws.ta, need)
+    if na < 0:
+        return 0
+    kind, value, where = merge_and_simplify(pal, ws.m, ws.ta, ws.tb, table, constant, ws.box, ws, seed + node, need)
+    if kind < 0:
+        return 0
+    if not write_cell(oc, pool, node, kind, value, ws.tr if where == 1 else ws.to):
+        need[0] = R_POOL
+        return 0
+    oc.counts[S_MERGES] += 1
+    if where == 1:
+        oc.counts[S_SIMPLIFIED] += 1
+    return 1
+
+
+# ---------------------------------------------------------------------------
+# split (Figure 8): BSP ∩ child boxes
+
+
+@jit(inline="always")
+def _alloc_children(oc, node):
+    """Index of a free block of 8 nodes for the children of ``node`` (room checked by the caller)."""
+    c = oc.counts
+    if c[N_FREE_BLOCKS] > 0:
+        c[N_FREE_BLOCKS] -= 1
+        first = np.int64(oc.free_blocks[c[N_FREE_BLOCKS]]) * 8 + 1
+    else:
+        first = c[N_NODES]
+        c[N_NODES] += 8
+    half = oc.size[node] // 2
+    for k in range(8):
+        ch = first + k
+        oc.child[ch] = -1
+        oc.parent[ch] = node
+        oc.kind[ch] = UNIFORM
+        oc.label[ch] = 0
+        oc.length[ch] = 0
+        oc.start[ch] = 0
+        oc.size[ch] = half
+        oc.lo[ch, 0] = oc.lo[node, 0] + (half if k & 1 else 0)
+        oc.lo[ch, 1] = oc.lo[node, 1] + (half if k & 2 else 0)
+        oc.lo[ch, 2] = oc.lo[node, 2] + (half if k & 4 else 0)
+    oc.child[node] = first
+    return first
+
+
+@jit(inline="always")
+def split_step(pal, oc, pool, amap, node, st, ws, threshold, min_size, seed, need):
+    """Split cell ``node`` into its 8 children (resumable per child). Returns 1 done, 0 short of room."""
+    if oc.child[node] < 0:
+        if oc.counts[N_NODES] + 8 > oc.child.shape[0]:
+            need[0] = R_NODES
+            return 0
+        _alloc_children(oc, node)
+        st[ST_SPLIT_CHILD] = 0
+    first = oc.child[node]
+    n_src = oc.length[node]
+    if n_src > ws.ta.plane.shape[0]:
+        need[0] = R_TREE_A
+        return 0
+    copy_from_pool(pool, oc.start[node], n_src, ws.ta, 0)
+    for k in range(st[ST_SPLIT_CHILD], 8):
+        ch = first + k
+        if not box_rows(amap, pal, oc, oc.lo[ch, 0], oc.lo[ch, 1], oc.lo[ch, 2], oc.size[ch], ws.box, need):
+            return 0
+        kind, value = simplify_in_box(pal, ws.m, ws.ta, ws.box, ws, seed + 8 * ch, need)
+        if kind < 0:
+            return 0
+        if kind == BSP and value >= n_src:
+            # The re-import did not shrink it: keep the parent's tree, restricted by the box.
+            kind = BSP
+            value = n_src
+            for i in range(n_src):
+                ws.tr.plane[i] = ws.ta.plane[i]
+                ws.tr.neg[i] = ws.ta.neg[i]
+                ws.tr.pos[i] = ws.ta.pos[i]
+                ws.tr.label[i] = ws.ta.label[i]
+        if not write_cell(oc, pool, ch, kind, value, ws.tr):
+            need[0] = R_POOL
+            return 0
+        st[ST_SPLIT_CHILD] = k + 1
+    oc.counts[POOL_LIVE] -= oc.length[node]
+    oc.kind[node] = UNIFORM
+    oc.length[node] = 0
+    oc.counts[S_SPLITS] += 1
+    st[ST_SPLIT_CHILD] = 0
+    return 1
+
+
+@jit(inline="always")
+def _needs_split(oc, node, threshold, min_size):
+    return oc.kind[node] == BSP and oc.length[node] > threshold and oc.size[node] > min_size
+
+
+# ---------------------------------------------------------------------------
+# the Boolean kernel
+
+
+@jit
+def _boolean_kernel(pal, oc, pool, amap, leaves, tool_kind, tool, table, constant, ws, st, split_stack,
+                    threshold, min_size, seed, need):
+    """Apply one Boolean to every leaf in ``leaves`` (resumable: ``st`` holds the progress).
+
+    Cells whose BSP grows beyond ``threshold`` nodes are split until under it or down to
+    ``min_size`` (then counted as pathological).
+    """
+    oc = unmanaged_tuple(oc)
+    pool = unmanaged_tuple(pool)
+    amap = unmanaged_tuple(amap)
+    tool = unmanaged_tuple(tool)
+    pal = unmanaged(pal)
+    leaves = unmanaged(leaves)
+    table = unmanaged(table)
+    constant = unmanaged(constant)
+    st = unmanaged(st)
+    split_stack = unmanaged(split_stack)
+    need = unmanaged(need)
+    ws = unmanaged_workspace(ws)
+    need[0] = 0
+    while st[ST_LEAF] < leaves.shape[0]:
+        node = leaves[st[ST_LEAF]]
+        if st[ST_PHASE] == 0:
+            if boolean_cell(pal, oc, pool, amap, node, tool_kind, tool, table, constant, ws, seed, need) == 0:
+                return FAILED if need[0] == 0 else NEED_ROOM
+            oc.counts[S_CELL_OPS] += 1
+            st[ST_PHASE] = 1
+            st[ST_SPLIT_TOP] = 0
+            if _needs_split(oc, node, threshold, min_size):
+                split_stack[0] = node
+                st[ST_SPLIT_TOP] = 1
+        while st[ST_SPLIT_TOP] > 0:
+            top = st[ST_SPLIT_TOP] - 1
+            if top + 8 > split_stack.shape[0]:
+                need[0] = R_SPLIT_STACK
+                return NEED_ROOM
+            x = split_stack[top]
+            if split_step(pal, oc, pool, amap, x, st, ws, threshold, min_size, seed, need) == 0:
+                return FAILED if need[0] == 0 else NEED_ROOM
+            st[ST_SPLIT_TOP] = top
+            first = oc.child[x]
+            for k in range(8):
+                ch = first + k
+                if _needs_split(oc, ch, threshold, min_size):
+                    split_stack[st[ST_SPLIT_TOP]] = ch
+                    st[ST_SPLIT_TOP] += 1
+                elif oc.kind[ch] == BSP and oc.length[ch] > threshold:
+                    oc.counts[S_PATHOLOGICAL] += 1
+        st[ST_PHASE] = 0
+        st[ST_LEAF] += 1
+    return DONE
+
+
+# ---------------------------------------------------------------------------
+# combine (Figure 8)
+
+
+@jit(inline="always")
+def combine_parent(pal, oc, pool, amap, node, ws, threshold, seed, need):
+    """Replace the 8 leaf children of ``node`` by one cell if their solid fits ``threshold`` nodes.
+
+    Returns 1 combined, 2 left as it is, 0 short of room.
+    """
+    first = oc.child[node]
+    if oc.counts[N_FREE_BLOCKS] >= oc.free_blocks.shape[0]:
+        need[0] = R_NODES
+        return 0
+    total = 0
+    lab = -2
+    for k in range(8):
+        ch = first + k
+        if oc.child[ch] >= 0:
+            return 2
+        if oc.kind[ch] == BSP:
+            total += oc.length[ch]
+            lab = -1
+        elif lab == -2:
+            lab = oc.label[ch]
+        elif lab != oc.label[ch]:
+            lab = -1
+    if lab >= 0:
+        kind = UNIFORM
+        value = lab
+    else:
+        if total + 15 > threshold:
+            return 2
+        # The axis-BSP (COMBINE A): x, then y, then z mid planes; the children's trees below.
+        half = oc.size[node] // 2
+        mid = (oc.lo[node, 0] + half, oc.lo[node, 1] + half, oc.lo[node, 2] + half)
+        rows = ws.axis3
+        for axis in range(3):
+            r = axis_plane(amap, pal, oc, axis, 1, mid[axis], need)
+            if r < 0:
+                return 0
+            rows[axis] = r
+        if total + 15 > ws.ta.plane.shape[0]:
+            need[0] = R_TREE_A
+            return 0
+        t = ws.ta
+        # nodes 0 (x), 1-2 (y), 3-6 (z); octant c = bx + 2 by + 4 bz
+        t.plane[0] = rows[0]
+        t.neg[0] = 1
+        t.pos[0] = 2
+        for bx in range(2):
+            t.plane[1 + bx] = rows[1]
+            t.neg[1 + bx] = 3 + 2 * bx
+            t.pos[1 + bx] = 4 + 2 * bx
+        for i in range(7):
+            t.label[i] = -1
+        base = 7
+        for bx in range(2):
+            for by in range(2):
+                zn = 3 + 2 * bx + by
+                t.plane[zn] = rows[2]
+                for bz in range(2):
+                    ch = first + bx + 2 * by + 4 * bz
+                    root = base
+                    if oc.kind[ch] == BSP:
+                        copy_from_pool(pool, oc.start[ch], oc.length[ch], t, base)
+                        base += oc.length[ch]
+                    else:
+                        t.plane[base] = -1
+                        t.neg[base] = -1
+                        t.pos[base] = -1
+                        t.label[base] = oc.label[ch]
+                        base += 1
+                    if bz == 0:
+                        t.neg[zn] = root
+                    else:
+                        t.pos[zn] = root
+        if not box_rows(amap, pal, oc, oc.lo[node, 0], oc.lo[node, 1], oc.lo[node, 2], oc.size[node], ws.box, need):
+            return 0
+        kind, value = simplify_in_box(pal, ws.m, t, ws.box, ws, seed + node, need)
+        if kind < 0:
+            return 0
+        if kind == BSP and value > threshold:
+            return 2
+    if kind == BSP and oc.counts[N_POOL] + value > pool.plane.shape[0]:
+        need[0] = R_POOL
+        return 0
+    # free the children
+    for k in range(8):
+        ch = first + k
+        if oc.kind[ch] == BSP:
+            oc.counts[POOL_LIVE] -= oc.length[ch]
+        oc.kind[ch] = UNIFORM
+        oc.length[ch] = 0
+        oc.parent[ch] = -1
+    oc.free_blocks[oc.counts[N_FREE_BLOCKS]] = (first - 1) // 8
+    oc.counts[N_FREE_BLOCKS] += 1
+    oc.child[node] = -1
+    oc.kind[node] = UNIFORM
+    oc.length[node] = 0
+    write_cell(oc, pool, node, kind, value, ws.tr)
+    oc.counts[S_COMBINES] += 1
+    return 1
+
+
+@jit
+def _combine_kernel(pal, oc, pool, amap, parents, ws, st, threshold, seed, need):
+    """Try to combine each of ``parents`` (resumable via ``st[0]``); combined parents are tried upwards."""
+    oc = unmanaged_tuple(oc)
+    pool = unmanaged_tuple(pool)
+    amap = unmanaged_tuple(amap)
+    pal = unmanaged(pal)
+    parents = unmanaged(parents)
+    st = unmanaged(st)
+    need = unmanaged(need)
+    ws = unmanaged_workspace(ws)
+    need[0] = 0
+    while st[0] < parents.shape[0]:
+        node = parents[st[0]]
+        while node >= 0 and oc.child[node] >= 0:
+            r = combine_parent(pal, oc, pool, amap, node, ws, threshold, seed, need)
+            if r == 0:
+                return FAILED if need[0] == 0 else NEED_ROOM
+            if r == 2:
+                break
+            node = oc.parent[node]
+        st[0] += 1
+    return DONE
+
+
+# ---------------------------------------------------------------------------
+# queries
+
+
+@jit
+def _leaves_meeting_box(oc, lo, hi, out):
+    """Leaves whose open box meets the open box ``(lo, hi)``; return how many were written (or -needed)."""
+    stack = np.empty(64 * 8, np.int64)
+    top = 1
+    stack[0] = 0
+    n = 0
+    while top > 0:
+        top -= 1
+        node = stack[top]
+        s = oc.size[node]
+        if (oc.lo[node, 0] >= hi[0] or oc.lo[node, 0] + s <= lo[0] or oc.lo[node, 1] >= hi[1]
+                or oc.lo[node, 1] + s <= lo[1] or oc.lo[node, 2] >= hi[2] or oc.lo[node, 2] + s <= lo[2]):
+            continue
+        if oc.child[node] < 0:
+            if n < out.shape[0]:
+                out[n] = node
+            n += 1
+            continue
+        first = oc.child[node]
+        for k in range(8):
+            stack[top] = first + k
+            top += 1
+    return n
+
+
+@jit
+def _leaf_list(oc, out):
+    """Every leaf (depth first); return how many (``out`` must hold the node count)."""
+    stack = np.empty(64 * 8, np.int64)
+    top = 1
+    stack[0] = 0
+    n = 0
+    while top > 0:
+        top -= 1
+        node = stack[top]
+        if oc.child[node] < 0:
+            out[n] = node
+            n += 1
+            continue
+        first = oc.child[node]
+        for k in range(8):
+            stack[top] = first + k
+            top += 1
+    return n
+

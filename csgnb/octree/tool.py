@@ -1,0 +1,146 @@
+"""Tools for the octree workpiece: convex hulls, closed meshes and BSPs, placed by exact integer translations.
+
+A :class:`Tool` keeps its geometry in its own plane space (Python-int planes, plane-based
+polygons over them, a BSP of the whole tool) so that it is prepared once and reused at any
+integer offset: translating by ``t`` changes each plane's offset exactly, ``d' = d - n·t``,
+and nothing else (the paper reuses its precomputed drill sweeps this way).
+
+* **convex** (a :class:`~csgnb.mesh.hull.ConvexHull`): its outward facet planes; per cell the
+  kernels keep the planes that cross the cell box (a linear BSP);
+* **mesh** (a closed integer triangle mesh, validated like :meth:`csgnb.bsp.BSP.from_mesh`,
+  or the exact boundary of a :class:`csgnb.bsp.BSP`): plane-based polygons; per cell the
+  kernels clip the polygons to the box and build a small BSP from the pieces (§3.9).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from csgnb.bsp.build import bsp_from_polygons, validate_mesh
+from csgnb.bsp.polygon import PolygonSet, polygons_from_triangles
+from csgnb.errors import GeometryError
+from csgnb.exact.wide import from_wide, is_wide, to_wide, width_of
+
+__all__ = ["Tool"]
+
+
+def _object_planes(planes) -> np.ndarray:
+    """(k, 4) object array of Python ints from int64 / object / wide planes."""
+    if is_wide(planes):
+        return from_wide(planes).astype(object).reshape(-1, 4)
+    p = np.asarray(planes)
+    if p.dtype == object:
+        return np.array([[int(x) for x in row] for row in p], dtype=object).reshape(-1, 4)
+    if p.dtype.kind not in "iu":
+        raise TypeError(f"planes must be integers, got dtype {p.dtype}")
+    return p.astype(object).reshape(-1, 4)
+
+
+class Tool:
+    """A solid to combine with a workpiece, in grid coordinates (see the module docstring).
+
+    Build one with :meth:`from_hull`, :meth:`from_mesh` or :meth:`from_bsp`; workpiece
+    Booleans also accept those objects directly. ``lo``/``hi`` bound the tool's points.
+    """
+
+    def __init__(self, kind: str, planes: np.ndarray, lo, hi, *, polygons: PolygonSet | None = None,
+                 tree=None, grid=None) -> None:
+        self.kind = kind
+        self.planes = planes  # (k, 4) object: exact Python ints
+        self.lo = np.asarray(lo, np.int64).reshape(3)
+        self.hi = np.asarray(hi, np.int64).reshape(3)
+        self.polygons = polygons
+        self.tree = tree  # (plane, neg, pos, label) over this tool's plane rows, or None (convex)
+        self.grid = grid
+        self.offset = np.zeros(3, np.int64)
+        self._wide: dict[int, np.ndarray] = {}
+
+    # -- construction -----------------------------------------------------------
+
+    @classmethod
+    def from_hull(cls, hull) -> Tool:
+        """A convex tool from a :class:`~csgnb.mesh.hull.ConvexHull` (its exact facet planes)."""
+        return cls("convex", _object_planes(hull.planes), hull.lo, hull.hi, grid=getattr(hull, "grid", None))
+
+    @classmethod
+    def from_mesh(cls, vertices, faces, *, width: int, grid=None, seed: int = 0) -> Tool:
+        """A tool bounded by a closed, outward, non-self-intersecting integer triangle mesh (grid coordinates)."""
+        W, T = validate_mesh(vertices, faces, width)
+        palette, polygons = polygons_from_triangles(W, T, width)
+        tree = bsp_from_polygons(palette, polygons, seed=seed)
+        # bsp_from_polygons keeps the palette rows it uses, in first-use order: map them back.
+        rows = _rows_of(tree.palette, palette)
+        plane = np.where(tree.plane >= 0, rows[np.maximum(tree.plane, 0)], -1).astype(np.int32)
+        return cls("mesh", _object_planes(palette), W.min(axis=0), W.max(axis=0), polygons=polygons,
+                   tree=(plane, tree.neg, tree.pos, tree.label), grid=grid)
+
+    @classmethod
+    def from_bsp(cls, bsp, *, grid=None, seed: int = 0) -> Tool:
+        """A tool from a :class:`csgnb.bsp.BSP`: its exact boundary (plane-based pieces) and its tree."""
+        from csgnb.bsp.extract import PIECES, WALLS, _Extractor, _pieces_tuple
+
+        ex = _Extractor(bsp.tree, bsp.lo, bsp.hi, PIECES | WALLS, 1024).run()
+        palette, vx, edge, poly = _pieces_tuple(ex.store.planes.copy(), ex.out)
+        sizes = poly[:, 1]
+        offsets = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int32)
+        # import convention: edge j runs from vertex j - 1 to vertex j
+        edges = np.concatenate([np.roll(edge[s:s + k], 1) for s, k in zip(poly[:, 0], sizes, strict=True)]) \
+            if len(sizes) else np.zeros(0, np.int64)
+        polygons = PolygonSet(poly[:, 2].astype(np.int32), offsets, edges.astype(np.int32))
+        lo, hi = np.asarray(bsp.lo), np.asarray(bsp.hi)
+        if len(sizes):
+            from csgnb.exact.predicates import to_double_position
+
+            pos = to_double_position(vx)
+            lo = np.floor(pos.min(axis=0)).astype(np.int64)
+            hi = np.ceil(pos.max(axis=0)).astype(np.int64)
+        n = bsp.tree.palette.shape[0]
+        tree = (bsp.tree.plane.copy(), bsp.tree.neg, bsp.tree.pos, bsp.tree.label)
+        del n
+        return cls("mesh", _object_planes(palette), lo, hi, polygons=polygons, tree=tree, grid=grid)
+
+    # -- placement ------------------------------------------------------------------
+
+    def translated(self, t) -> Tool:
+        """The tool moved by the integer vector ``t`` (exact: ``d' = d - n·t``)."""
+        t = np.asarray(t)
+        if t.shape != (3,) or t.dtype.kind not in "iu":
+            raise TypeError(f"a translation must be a (3,) integer vector, got {t.dtype} {t.shape}")
+        moved = Tool.__new__(Tool)
+        moved.__dict__.update(self.__dict__)
+        tt = t.astype(object)
+        planes = self.planes.copy()
+        planes[:, 3] = planes[:, 3] - planes[:, :3] @ tt
+        moved.planes = planes
+        moved.lo = self.lo + t.astype(np.int64)
+        moved.hi = self.hi + t.astype(np.int64)
+        moved.offset = self.offset + t.astype(np.int64)
+        moved._wide = {}
+        return moved
+
+    def planes_wide(self, width: int) -> np.ndarray:
+        """The planes as a ``(k, 4)`` wide array (cached per width)."""
+        if width not in self._wide:
+            self._wide[width] = to_wide(self.planes, width)
+        return self._wide[width]
+
+    @property
+    def n_planes(self) -> int:
+        """Number of planes."""
+        return int(self.planes.shape[0])
+
+    def __repr__(self) -> str:
+        what = f"{len(self.polygons)} polygons" if self.polygons is not None else f"{self.n_planes} facets"
+        return f"Tool({self.kind}, {what}, box {self.lo.tolist()}..{self.hi.tolist()})"
+
+
+def _rows_of(subset: np.ndarray, palette: np.ndarray) -> np.ndarray:
+    """For each row of the wide ``subset``, its row in ``palette`` (exact equality of limbs)."""
+    if subset.shape[0] == 0:
+        return np.zeros(0, np.int64)
+    if width_of(subset) != width_of(palette):
+        raise GeometryError("palettes of different widths")
+    key = np.ascontiguousarray(palette).view(np.dtype((np.void, palette.dtype.itemsize * 4))).reshape(-1)
+    sub = np.ascontiguousarray(subset).view(np.dtype((np.void, palette.dtype.itemsize * 4))).reshape(-1)
+    index = {bytes(k): i for i, k in enumerate(key)}
+    return np.array([index[bytes(k)] for k in sub], np.int64)

@@ -1,0 +1,639 @@
+"""``Workpiece``: a persistent, exact solid for iterated CSG -- BSPs embedded in an octree (paper §3.8-3.9, §5).
+
+>>> from csgnb.octree import Workpiece
+>>> from csgnb.mesh.hull import convex_hull
+>>> w = Workpiece.box([0, 0, 0], [8, 8, 8])
+>>> w -= convex_hull([[4, 4, 4], [12, 4, 4], [4, 12, 4], [4, 4, 12]])
+>>> w.volume()
+Fraction(1376, 3)
+
+Each Boolean touches only the octree cells that meet the tool's box; a cell the tool covers
+or misses is relabelled without a merge; the merges of one operation run in one kernel call
+(:mod:`csgnb.octree.kernels`). Cells whose BSP outgrows the threshold split, eight cells that
+fit together again combine. Everything is exact: the result classifies every point exactly
+as one BSP of the same sequence of Booleans would.
+
+Coordinates: a workpiece lives on a :class:`csgnb.exact.Grid`. Integer arrays are grid
+coordinates; tools are :class:`~csgnb.mesh.hull.ConvexHull`\\ s, :class:`csgnb.bsp.BSP`\\ s,
+closed integer meshes ``(vertices, faces)``, or :class:`~csgnb.octree.tool.Tool`\\ s, all in
+grid coordinates (float meshes: quantize them with the workpiece's grid first). Volumes are
+in grid units cubed (``model_volume`` converts).
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass, field
+from fractions import Fraction
+
+import numpy as np
+
+from csgnb._resumable import DONE, FAILED, grown
+from csgnb.bsp.extract import extract_boundary, extract_cells
+from csgnb.bsp.merging import constant_labels, merge_table
+from csgnb.bsp.polygon import _set_vertices_kernel
+from csgnb.bsp.solid import BSP as SolidBSP
+from csgnb.bsp.solid import DIFFERENCE, INTERSECTION, UNION
+from csgnb.bsp.surface import BoundarySurface
+from csgnb.bsp.tree import BSPTree
+from csgnb.errors import GeometryError, InternalError, PrecisionError
+from csgnb.exact.budgets import budget
+from csgnb.exact.predicates import homogeneous_points, to_double_position
+from csgnb.exact.quantization import Grid
+from csgnb.exact.wide import DEFAULT_WIDTH, wide_dtype
+from csgnb.mesh.hull import ConvexHull
+from csgnb.mesh.volume import cells_volume
+from csgnb.octree import kernels as K
+from csgnb.octree.global_tree import _global_size, _global_tree_kernel
+from csgnb.octree.layout import (
+    BSP,
+    N_NODES,
+    N_PAL,
+    N_POOL,
+    POOL_LIVE,
+    R_AXIS,
+    R_NODES,
+    R_PALETTE,
+    R_POOL,
+    R_SPLIT_STACK,
+    RESOURCE_NAMES,
+    S_CELL_OPS,
+    S_COMBINES,
+    S_MERGES,
+    S_PATHOLOGICAL,
+    S_RELABELS,
+    S_SPLITS,
+    UNIFORM,
+    AxisMap,
+    OctArrays,
+    Pool,
+    grown_octree,
+    grown_pool,
+    new_axis_map,
+    new_octree,
+    new_pool,
+    new_tree_arrays,
+)
+from csgnb.octree.tool import Tool
+from csgnb.octree.workspace import ToolArrays, grow, new_workspace, with_palette
+
+__all__ = ["DEFAULT_THRESHOLD", "OpReport", "Workpiece"]
+
+DEFAULT_THRESHOLD = 150
+"""Maximum BSP nodes per octree cell (the paper found 100-200 best; ``benchmarks/bench_iterated.py --sweep``)."""
+
+_MAX_RESUMPTIONS = 100
+
+
+def identity_grid(width: int = DEFAULT_WIDTH) -> Grid:
+    """The grid on which model coordinates are the integers themselves (scale 1, origin 0)."""
+    return Grid(scale=1.0, origin=(0.0, 0.0, 0.0), width=width, max_coordinate=budget(width).max_mesh_coordinate)
+
+
+@dataclass
+class OpReport:
+    """What one Boolean did.
+
+    ``cells`` touched, ``merges`` (cells merged with the tool's local BSP), ``relabels`` (cells
+    the tool covers or misses), ``splits`` / ``combines`` of octree cells, ``seconds``, and with
+    ``track_volume=True`` the exact ``volume_change`` (grid units cubed; negative for a removal).
+    """
+
+    cells: int
+    merges: int
+    relabels: int
+    splits: int
+    combines: int
+    seconds: float
+    volume_change: Fraction | None = None
+
+    @property
+    def removed(self) -> Fraction | None:
+        """Volume removed (``-volume_change``), when tracked."""
+        return None if self.volume_change is None else -self.volume_change
+
+
+@dataclass
+class WorkpieceStats:
+    """Counters over the workpiece's life and the per-operation times."""
+
+    operations: int = 0
+    cell_ops: int = 0
+    merges: int = 0
+    relabels: int = 0
+    splits: int = 0
+    combines: int = 0
+    pathological: int = 0
+    seconds: list[float] = field(default_factory=list)
+
+
+class Workpiece:
+    """An exact solid in an octree of BSP cells (see the module docstring).
+
+    Parameters
+    ----------
+    grid : csgnb.exact.Grid, optional
+        The integer grid (default: the identity grid of ``width``).
+    width : int, optional
+        Bit width when no grid is given (default :data:`csgnb.exact.DEFAULT_WIDTH`).
+    threshold : int
+        Maximum BSP nodes per cell before it splits (:data:`DEFAULT_THRESHOLD`).
+    min_cell : int
+        Cells this size (grid units) never split further; their BSPs are accepted as they
+        are and counted as pathological when above the threshold.
+    seed : int
+        Seed of the random insertion orders of redundancy removal.
+    """
+
+    def __init__(self, grid: Grid | None = None, *, width: int | None = None, threshold: int = DEFAULT_THRESHOLD,
+                 min_cell: int = 1, seed: int = 0) -> None:
+        if grid is None:
+            grid = identity_grid(DEFAULT_WIDTH if width is None else width)
+        if not isinstance(grid, Grid):
+            raise TypeError(f"grid must be a csgnb.exact.Grid, got {type(grid).__name__}")
+        if width is not None and width != grid.width:
+            raise GeometryError(f"width={width} but the grid is {grid.width}-bit")
+        if not (isinstance(threshold, int | np.integer) and threshold >= 8):
+            raise ValueError(f"threshold must be an int >= 8 (BSP nodes per cell), got {threshold!r}")
+        if not (isinstance(min_cell, int | np.integer) and min_cell >= 1 and (min_cell & (min_cell - 1)) == 0):
+            raise ValueError(f"min_cell must be a power of two >= 1, got {min_cell!r}")
+        self.grid = grid
+        self.width = grid.width
+        self.threshold = int(threshold)
+        self.min_cell = int(min_cell)
+        self.seed = int(seed)
+        half = 1 << max(int(grid.max_coordinate), 1).bit_length()  # >= max_coordinate
+        self.root_lo = np.array([-half] * 3, np.int64)
+        self.root_size = 2 * half
+        self.oc: OctArrays = new_octree(self.root_lo, self.root_size)
+        self.pool: Pool = new_pool()
+        self.palette = np.zeros((256, 4), wide_dtype(self.width))
+        self.amap: AxisMap = new_axis_map()
+        self.ws = new_workspace(self.palette, self.threshold)
+        self._max_normal, self._max_offset = 1, self.root_size
+        self._volumes: dict[tuple, Fraction] = {}
+        self.stats = WorkpieceStats()
+
+    # -- construction ---------------------------------------------------------------
+
+    @classmethod
+    def box(cls, lo, hi, *, grid: Grid | None = None, **kw) -> Workpiece:
+        """The box ``[lo, hi]`` (model units on ``grid``; integer grid coordinates on the identity grid)."""
+        w = cls(grid, **kw)
+        g = w.grid.to_grid(np.stack([np.asarray(lo, float).reshape(3), np.asarray(hi, float).reshape(3)]))
+        if np.any(g[0] >= g[1]):
+            raise GeometryError(f"the box {np.asarray(lo).tolist()}..{np.asarray(hi).tolist()} is empty on this grid "
+                                f"(resolution {w.grid.resolution:g})")
+        w.union(_box_hull(g[0], g[1], w.width))
+        return w
+
+    @classmethod
+    def empty(cls, grid: Grid | None = None, **kw) -> Workpiece:
+        """No material (unions add it)."""
+        return cls(grid, **kw)
+
+    @classmethod
+    def from_mesh(cls, vertices, faces=None, *, grid: Grid | None = None, **kw) -> Workpiece:
+        """A closed, outward mesh: ``(vertices, faces)`` arrays, a pyvista/trimesh mesh, or a file path (meshio).
+
+        Float vertices are model units, quantized on ``grid`` (default: a grid fitted to the mesh);
+        integer vertices are grid coordinates. Validated like :meth:`csgnb.bsp.BSP.from_mesh`.
+        """
+        V, F = _mesh_arrays(vertices, faces)
+        if grid is None and V.dtype.kind == "f":
+            grid = Grid.fit(V.min(axis=0), V.max(axis=0), width=kw.pop("width", DEFAULT_WIDTH))
+        w = cls(grid, **kw)
+        if V.dtype.kind == "f":
+            V = w.grid.to_grid(V)
+        w.union(Tool.from_mesh(V, F, width=w.width, grid=w.grid))
+        return w
+
+    # -- tools ------------------------------------------------------------------------
+
+    def _tool(self, tool) -> Tool:
+        if isinstance(tool, Tool):
+            t = tool
+        elif isinstance(tool, ConvexHull):
+            t = Tool.from_hull(tool)
+        elif isinstance(tool, SolidBSP):
+            if tool.tree.width != self.width:
+                raise GeometryError(f"the tool BSP is {tool.tree.width}-bit, the workpiece {self.width}-bit; convert "
+                                    "it with BSP.to_width or quantize on the workpiece's grid")
+            t = Tool.from_bsp(tool, grid=self.grid)
+        elif isinstance(tool, Workpiece):
+            raise TypeError("to combine two workpieces, pass the other's BSP (other.to_bsp()) as the tool")
+        elif isinstance(tool, tuple) and len(tool) == 2:
+            V, F = _mesh_arrays(*tool)
+            if V.dtype.kind == "f":
+                raise TypeError("a tool mesh must have integer grid coordinates; quantize it with the workpiece's "
+                                "grid first (w.grid.to_grid(vertices))")
+            t = Tool.from_mesh(V, F, width=self.width, grid=self.grid)
+        else:
+            raise TypeError(f"a tool must be a ConvexHull, a csgnb.bsp.BSP, a Tool or (vertices, faces), "
+                            f"got {type(tool).__name__}")
+        if t.grid is not None and not t.grid.same_as(self.grid):
+            raise GeometryError(f"the tool lies on {t.grid}, the workpiece on {self.grid}: quantize both on one grid")
+        limit = self.grid.max_coordinate
+        if np.abs(np.stack([t.lo, t.hi])).max() > limit:
+            raise PrecisionError(f"the tool's box {t.lo.tolist()}..{t.hi.tolist()} leaves the grid's budget box "
+                                 f"|coordinate| <= {limit} ({self.width}-bit)")
+        return t
+
+    def _add_planes(self, tool: Tool) -> np.ndarray:
+        """Append the tool's planes to the palette (checked against the width's budget); return their rows."""
+        planes = tool.planes
+        if planes.shape[0]:
+            N = max(self._max_normal, max(abs(int(x)) for x in planes[:, :3].reshape(-1)))
+            D = max(self._max_offset, max(abs(int(x)) for x in planes[:, 3]))
+            problems = budget(self.width).plane_violations(N, D)
+            if problems:
+                raise PrecisionError(f"the tool's planes break the {self.width}-bit budget together with the "
+                                     f"workpiece's (N = {N}, D = {D}): " + "; ".join(problems))
+            self._max_normal, self._max_offset = N, D
+        k = planes.shape[0]
+        start = int(self.oc.counts[N_PAL])
+        self._palette_room(k)
+        self.palette[start:start + k] = tool.planes_wide(self.width)
+        self.oc.counts[N_PAL] = start + k
+        return np.arange(start, start + k, dtype=np.int64)
+
+    def _palette_room(self, k: int) -> None:
+        used = int(self.oc.counts[N_PAL])
+        if used + k + 64 > self.palette.shape[0]:
+            self.palette = grown(self.palette, used + k + 64)
+            self.ws = with_palette(self.ws, self.palette)
+
+    def _tool_arrays(self, tool: Tool, rows: np.ndarray) -> tuple[int, ToolArrays]:
+        dtype = self.palette.dtype
+        empty_i32 = np.zeros(0, np.int32)
+        if tool.kind == "convex":
+            k = rows.shape[0]
+            plane = np.full(2 * k + 1, -1, np.int32)
+            neg = np.full(2 * k + 1, -1, np.int32)
+            pos = np.full(2 * k + 1, -1, np.int32)
+            label = np.zeros(2 * k + 1, np.int32)
+            idx = np.arange(k)
+            plane[2 * idx] = rows
+            neg[2 * idx] = 2 * idx + 2
+            pos[2 * idx] = 2 * idx + 1
+            label[2 * idx] = -1
+            label[2 * k] = 1
+            return K.CONVEX_TOOL, ToolArrays(rows, empty_i32, np.zeros(1, np.int32), empty_i32, np.zeros((0, 4), dtype),
+                                             np.zeros((0, 3), np.int64), np.zeros((0, 3), np.int64),
+                                             plane, neg, pos, label)
+        polys = tool.polygons
+        support = np.where(polys.support >= 0, rows[np.maximum(polys.support, 0)],
+                           ~rows[np.maximum(~polys.support, 0)]).astype(np.int32)
+        edges = rows[polys.edges].astype(np.int32)
+        verts = np.empty((edges.shape[0], 4), dtype)
+        _set_vertices_kernel(self.palette, support, polys.offsets, edges, verts)
+        pos = to_double_position(verts) if verts.shape[0] else np.zeros((0, 3))
+        owner = np.repeat(np.arange(len(polys)), polys.sizes)
+        plo = np.full((len(polys), 3), np.inf)
+        phi = np.full((len(polys), 3), -np.inf)
+        np.minimum.at(plo, owner, pos)
+        np.maximum.at(phi, owner, pos)
+        plo = (np.floor(plo) - 1).astype(np.int64)
+        phi = (np.ceil(phi) + 1).astype(np.int64)
+        tp, tn, tq, tl = tool.tree
+        plane = np.where(tp >= 0, rows[np.maximum(tp, 0)], -1).astype(np.int32)
+        return K.MESH_TOOL, ToolArrays(np.zeros(0, np.int64), support, polys.offsets, edges, verts, plo, phi,
+                                       plane, np.ascontiguousarray(tn, np.int32), np.ascontiguousarray(tq, np.int32),
+                                       np.ascontiguousarray(tl, np.int32))
+
+    # -- Booleans -----------------------------------------------------------------------
+
+    def boolean(self, tool, fn: Callable[[int, int], int], *, track_volume: bool = False) -> OpReport:
+        """Replace the solid by ``fn(workpiece label, tool label)`` everywhere (labels 0 = out, 1 = in).
+
+        Only the cells that meet the tool's box are touched (unless ``fn`` changes labels outside
+        the tool, as an intersection does). Returns an :class:`OpReport`; with ``track_volume`` it
+        carries the exact volume change.
+        """
+        t0 = time.perf_counter()
+        tool = self._tool(tool)
+        labels_a = list(range(int(max(self._labels_present())) + 1))
+        table = merge_table(fn, labels_a, [0, 1])
+        if int(table.max()) > 1:
+            raise GeometryError("the octree workpiece holds one material (labels 0 and 1); the label function "
+                                f"returned {int(table.max())}")
+        constant = constant_labels(table, np.array([0, 1]))
+        before = self._total_volume() if track_volume else None
+        rows = self._add_planes(tool)
+        kind, ta = self._tool_arrays(tool, rows)
+        outside_identity = all(int(table[la, 0]) == la for la in labels_a)
+        leaves = self._leaves_meeting(tool.lo, tool.hi) if outside_identity else self._leaves()
+        counts_before = self.oc.counts.copy()
+        if leaves.shape[0]:
+            self._run_boolean(leaves, kind, ta, table, constant)
+            parents = np.unique(self.oc.parent[leaves])
+            parents = parents[parents >= 0]
+            if parents.shape[0]:
+                self._run_combine(parents[np.argsort(-self.oc.size[parents], kind="stable")[::-1]])
+        self._maybe_compact()
+        c = self.oc.counts - counts_before
+        report = OpReport(int(leaves.shape[0]), int(c[S_MERGES]), int(c[S_RELABELS]), int(c[S_SPLITS]),
+                          int(c[S_COMBINES]), 0.0)
+        if track_volume:
+            report.volume_change = self._total_volume() - before
+        report.seconds = time.perf_counter() - t0
+        s = self.stats
+        s.operations += 1
+        s.cell_ops += int(c[S_CELL_OPS])
+        s.merges += report.merges
+        s.relabels += report.relabels
+        s.splits += report.splits
+        s.combines += report.combines
+        s.pathological = int(self.oc.counts[S_PATHOLOGICAL])
+        s.seconds.append(report.seconds)
+        return report
+
+    def difference(self, tool, **kw) -> OpReport:
+        """Subtract ``tool``."""
+        return self.boolean(tool, DIFFERENCE, **kw)
+
+    def union(self, tool, **kw) -> OpReport:
+        """Add ``tool``."""
+        return self.boolean(tool, UNION, **kw)
+
+    def intersection(self, tool, **kw) -> OpReport:
+        """Keep only what lies in ``tool``."""
+        return self.boolean(tool, INTERSECTION, **kw)
+
+    def __isub__(self, tool) -> Workpiece:
+        self.difference(tool)
+        return self
+
+    def __ior__(self, tool) -> Workpiece:
+        self.union(tool)
+        return self
+
+    def __iand__(self, tool) -> Workpiece:
+        self.intersection(tool)
+        return self
+
+    def run(self, tools: Iterable, op: str | Callable = "difference", *, progress: bool = False,
+            track_volume: bool = False) -> list[OpReport]:
+        """Apply ``op`` with every tool in turn; a tqdm progress bar with ``progress=True``."""
+        fn = {"difference": DIFFERENCE, "union": UNION, "intersection": INTERSECTION}.get(op, op) \
+            if isinstance(op, str) else op
+        if isinstance(op, str) and op not in ("difference", "union", "intersection"):
+            raise ValueError(f"op must be 'difference', 'union', 'intersection' or a label function, got {op!r}")
+        tools = list(tools) if not hasattr(tools, "__len__") else tools
+        iterator = tools
+        if progress:
+            from tqdm.auto import tqdm
+
+            iterator = tqdm(tools, desc=f"csgnb {op if isinstance(op, str) else 'boolean'}", unit="op")
+        return [self.boolean(t, fn, track_volume=track_volume) for t in iterator]
+
+    # -- kernels and growth ------------------------------------------------------------------
+
+    def _grow(self, resource: int) -> None:
+        if resource == R_POOL:
+            self.pool = grown_pool(self.pool, int(self.oc.counts[N_POOL]), max(1024, self.pool.plane.shape[0]))
+        elif resource == R_NODES:
+            self.oc = grown_octree(self.oc, max(64, self.oc.child.shape[0]))
+        elif resource == R_PALETTE:
+            self._palette_room(max(256, self.palette.shape[0]))
+        elif resource == R_AXIS:
+            self._grow_axis_map()
+        elif resource == R_SPLIT_STACK:
+            self._split_stack = grown(self._split_stack)
+        elif resource in RESOURCE_NAMES:
+            self.ws = grow(self.ws, resource)
+        else:
+            raise InternalError(f"an octree kernel failed (resource code {resource}; a bug in csgnb: please report it)")
+
+    def _grow_axis_map(self) -> None:
+        old = self.amap
+        new = new_axis_map(2 * old.keys.shape[0])
+        used = old.keys >= 0
+        # re-insert: the kernel hashes, so let it (a tiny kernel call per key is cheap enough here)
+        _reinsert(old.keys[used], old.rows[used], new)
+        self.amap = new
+
+    def _run_boolean(self, leaves: np.ndarray, kind: int, tool: ToolArrays, table, constant) -> None:
+        st = np.zeros(8, np.int64)
+        need = np.zeros(4, np.int64)
+        if not hasattr(self, "_split_stack"):
+            self._split_stack = np.zeros(512, np.int64)
+        leaves = np.ascontiguousarray(leaves, np.int64)
+        for _ in range(_MAX_RESUMPTIONS):
+            self._palette_room(64)
+            status = K._boolean_kernel(self.palette, self.oc, self.pool, self.amap, leaves, kind, tool, table,
+                                       constant, self.ws, st, self._split_stack, self.threshold, self.min_cell,
+                                       self.seed, need)
+            if status == DONE:
+                return
+            if status == FAILED:
+                raise InternalError("an octree Boolean failed an internal check (a bug in csgnb: please report it)")
+            self._grow(int(need[0]))
+        raise InternalError("an octree Boolean kept running short of room (a bug in csgnb: please report it)")
+
+    def _run_combine(self, parents: np.ndarray) -> None:
+        st = np.zeros(2, np.int64)
+        need = np.zeros(4, np.int64)
+        parents = np.ascontiguousarray(parents, np.int64)
+        for _ in range(_MAX_RESUMPTIONS):
+            self._palette_room(64)
+            status = K._combine_kernel(self.palette, self.oc, self.pool, self.amap, parents, self.ws, st,
+                                       self.threshold, self.seed, need)
+            if status == DONE:
+                return
+            if status == FAILED:
+                raise InternalError("an octree combine failed an internal check (a bug in csgnb: please report it)")
+            self._grow(int(need[0]))
+        raise InternalError("an octree combine kept running short of room (a bug in csgnb: please report it)")
+
+    def _maybe_compact(self) -> None:
+        used = int(self.oc.counts[N_POOL])
+        live = int(self.oc.counts[POOL_LIVE])
+        if used > 4096 and live < used // 2:
+            self._compact_pool()
+
+    def _compact_pool(self) -> None:
+        leaves = self._leaves()
+        bsp = leaves[self.oc.kind[leaves] == BSP]
+        total = int(self.oc.length[bsp].sum())
+        pool = new_pool(max(1024, 2 * total))
+        at = 0
+        for node in bsp:
+            s, n = int(self.oc.start[node]), int(self.oc.length[node])
+            for dst, src in zip(pool, self.pool, strict=True):
+                dst[at:at + n] = src[s:s + n]
+            self.oc.start[node] = at
+            at += n
+        self.pool = pool
+        self.oc.counts[N_POOL] = at
+        self.oc.counts[POOL_LIVE] = at
+
+    # -- queries -------------------------------------------------------------------------
+
+    def _labels_present(self) -> list[int]:
+        leaves = self._leaves()
+        labels = set(int(x) for x in self.oc.label[leaves[self.oc.kind[leaves] == UNIFORM]])
+        for node in leaves[self.oc.kind[leaves] == BSP]:
+            s, n = int(self.oc.start[node]), int(self.oc.length[node])
+            lab = self.pool.label[s:s + n]
+            labels.update(int(x) for x in np.unique(lab[self.pool.plane[s:s + n] < 0]))
+        return sorted(labels | {0})
+
+    def _leaves(self) -> np.ndarray:
+        out = np.empty(int(self.oc.counts[N_NODES]), np.int64)
+        n = int(K._leaf_list(self.oc, out))
+        return out[:n]
+
+    def _leaves_meeting(self, lo, hi) -> np.ndarray:
+        out = np.empty(64, np.int64)
+        lo = np.asarray(lo, np.int64)
+        hi = np.asarray(hi, np.int64)
+        n = int(K._leaves_meeting_box(self.oc, lo, hi, out))
+        if n > out.shape[0]:
+            out = np.empty(n, np.int64)
+            K._leaves_meeting_box(self.oc, lo, hi, out)
+        return out[:n]
+
+    @property
+    def n_cells(self) -> int:
+        """Number of octree leaves."""
+        return int(self._leaves().shape[0])
+
+    @property
+    def n_bsp_nodes(self) -> int:
+        """BSP nodes over all cells."""
+        leaves = self._leaves()
+        return int(self.oc.length[leaves[self.oc.kind[leaves] == BSP]].sum())
+
+    def cells(self) -> dict[str, np.ndarray]:
+        """The octree leaves: ``lo`` (k, 3), ``size``, ``kind`` (0 uniform, 1 BSP), ``label``, ``nodes`` (BSP size)."""
+        leaves = self._leaves()
+        return {"node": leaves, "lo": self.oc.lo[leaves].copy(), "size": self.oc.size[leaves].copy(),
+                "kind": self.oc.kind[leaves].copy(), "label": self.oc.label[leaves].copy(),
+                "nodes": np.where(self.oc.kind[leaves] == BSP, self.oc.length[leaves], 0)}
+
+    def cell_bsp(self, node: int) -> BSPTree:
+        """The BSP of leaf ``node`` (its palette is the workpiece's, unreduced)."""
+        if self.oc.child[node] >= 0 or self.oc.kind[node] != BSP:
+            raise GeometryError(f"octree node {node} is not a leaf with a BSP")
+        s, n = int(self.oc.start[node]), int(self.oc.length[node])
+        p = self.pool
+        return BSPTree(self.palette[: int(self.oc.counts[N_PAL])].copy(), p.plane[s:s + n], p.neg[s:s + n],
+                       p.pos[s:s + n], p.label[s:s + n], validate=False)
+
+    def global_tree(self) -> BSPTree:
+        """The whole workpiece as one BSP (octree axis-BSPs over the cells' BSPs), in the root box."""
+        n = int(_global_size(self.oc))
+        need = np.zeros(4, np.int64)
+        for _ in range(_MAX_RESUMPTIONS):
+            self._palette_room(64)
+            t = new_tree_arrays(n)
+            if _global_tree_kernel(self.palette, self.oc, self.pool, self.amap, t, need):
+                break
+            self._grow(int(need[0]))
+        return BSPTree(self.palette[: int(self.oc.counts[N_PAL])].copy(), t.plane[:n], t.neg[:n], t.pos[:n],
+                       t.label[:n], validate=False)
+
+    def to_bsp(self) -> SolidBSP:
+        """The workpiece as a :class:`csgnb.bsp.BSP` (the global tree in the root box)."""
+        return SolidBSP(self.global_tree(), self.root_lo, self.root_lo + self.root_size)
+
+    def classify(self, points) -> np.ndarray:
+        """Labels of points: integer ``(n, 3)`` grid points or homogeneous wide ``(n, 4)`` (-2: on the boundary)."""
+        p = np.asarray(points)
+        if p.dtype.kind in "iu":
+            p = homogeneous_points(np.atleast_2d(p).astype(np.int64), self.width)
+        return self.global_tree().classify(p)
+
+    def _leaf_key(self, node: int) -> tuple:
+        if self.oc.kind[node] == BSP:
+            return (BSP, int(self.oc.lo[node, 0]), int(self.oc.lo[node, 1]), int(self.oc.lo[node, 2]),
+                    int(self.oc.size[node]), int(self.oc.start[node]), int(self.oc.length[node]))
+        return (UNIFORM, int(self.oc.size[node]), int(self.oc.label[node]))
+
+    def _leaf_volume(self, node: int) -> Fraction:
+        if self.oc.kind[node] == UNIFORM:
+            return Fraction(int(self.oc.size[node]) ** 3) if self.oc.label[node] > 0 else Fraction(0)
+        key = self._leaf_key(node)
+        v = self._volumes.get(key)
+        if v is None:
+            lo = self.oc.lo[node]
+            store, cells = extract_cells(self.cell_bsp(node), lo, lo + self.oc.size[node])
+            v = cells_volume(store, cells[:, 1])
+            self._volumes[key] = v
+        return v
+
+    def _total_volume(self) -> Fraction:
+        leaves = self._leaves()
+        keys = {self._leaf_key(int(n)) for n in leaves if self.oc.kind[n] == BSP}
+        for k in list(self._volumes):
+            if k not in keys:
+                del self._volumes[k]
+        return sum((self._leaf_volume(int(n)) for n in leaves), Fraction(0))
+
+    def volume(self) -> Fraction:
+        """Exact volume (grid units cubed); per-cell volumes are cached."""
+        return self._total_volume()
+
+    def model_volume(self) -> Fraction:
+        """Exact volume in model units cubed (the grid scale is a power of two)."""
+        return self.volume() / Fraction(self.grid.scale) ** 3
+
+    def surface(self) -> BoundarySurface:
+        """The exact, closed, conforming boundary (faces between solid cells removed, no T-junctions)."""
+        ex = extract_boundary(self.global_tree(), self.root_lo, self.root_lo + self.root_size, keep_cells=False)
+        return ex.surface
+
+    def to_polydata(self):
+        """The boundary as a triangulated pyvista ``PolyData`` in model units (positions correctly rounded)."""
+        mesh = self.surface().to_polydata()
+        mesh.points = self.grid.to_model(mesh.points)
+        return mesh
+
+    def __repr__(self) -> str:
+        return (f"Workpiece({self.n_cells} cells, {self.n_bsp_nodes} BSP nodes, {self.width}-bit, "
+                f"threshold {self.threshold})")
+
+
+def _box_hull(lo, hi, width: int) -> ConvexHull:
+    from csgnb.mesh.hull import convex_hull
+
+    lo = np.asarray(lo, np.int64)
+    hi = np.asarray(hi, np.int64)
+    corners = np.array([[(hi if k & (1 << a) else lo)[a] for a in range(3)] for k in range(8)], np.int64)
+    return convex_hull(corners, width=width)
+
+
+def _mesh_arrays(vertices, faces):
+    """(V, F) from arrays, a pyvista PolyData, a trimesh.Trimesh or a mesh file path (meshio)."""
+    if faces is not None:
+        return np.asarray(vertices), np.asarray(faces)
+    obj = vertices
+    if isinstance(obj, str) or hasattr(obj, "__fspath__"):
+        import meshio
+
+        mesh = meshio.read(obj)
+        tris = [c.data for c in mesh.cells if c.type == "triangle"]
+        if not tris:
+            raise GeometryError(f"{obj} has no triangles (cell types: {[c.type for c in mesh.cells]})")
+        return np.asarray(mesh.points), np.concatenate(tris)
+    if hasattr(obj, "faces") and hasattr(obj, "vertices"):  # trimesh
+        return np.asarray(obj.vertices), np.asarray(obj.faces)
+    if hasattr(obj, "points") and hasattr(obj, "faces"):  # pyvista
+        tri = obj.triangulate()
+        return np.asarray(tri.points), np.asarray(tri.faces).reshape(-1, 4)[:, 1:]
+    raise TypeError(f"expected (vertices, faces), a pyvista or trimesh mesh, or a file path; got {type(obj).__name__}")
+
+
+def _reinsert(keys: np.ndarray, rows: np.ndarray, new: AxisMap) -> None:
+    mask = new.keys.shape[0] - 1
+    for key, row in zip(keys.tolist(), rows.tolist(), strict=True):
+        h = ((key * -7046029254386353131) & ((1 << 64) - 1))
+        h = (h - (1 << 64) if h >= (1 << 63) else h) >> 20
+        i = h & mask
+        while new.keys[i] != -1:
+            i = (i + 1) & mask
+        new.keys[i] = key
+        new.rows[i] = row
+
