@@ -21,6 +21,11 @@ Python per cell. Per cell, with the mesh store reset:
 :func:`_combine_kernel` merges eight leaf children back into their parent when their BSPs
 fit: an axis-BSP over the children's BSPs, then redundancy removal in the parent box.
 
+The big per-cell steps (tool clipping, merge + redundancy removal, extraction in a box) are
+separately compiled functions rather than inlined ones: they run once per cell, their call
+costs a few microseconds on unmanaged views, and compiling them once instead of inlining them
+into every kernel keeps the first run's compile time reasonable.
+
 Kernels are resumable (:mod:`csgnb._resumable`): before a step that could overflow they
 check room, and on a shortage return ``NEED_ROOM`` with ``need[0]`` naming the resource
 (:data:`csgnb.octree.layout.RESOURCE_NAMES`); the cell in progress is redone from scratch,
@@ -297,7 +302,7 @@ def convex_tool_in_box(pal, rows, corners, dist, tb):
     return 2, n
 
 
-@jit(inline="always")
+@jit
 def clip_tool_polygons(pal, tool, lo, size, brows, arena, bi, need):
     """Clip the tool's polygons whose boxes meet the cell box to it; write the pieces into ``bi``.
 
@@ -415,7 +420,7 @@ def import_polygons(pal, bi, n, bs, seed, t, need):
 # a cell's solid inside a box: extraction + redundancy removal
 
 
-@jit(inline="always")
+@jit
 def simplify_in_box(pal, m, src, box, ws, seed, need):
     """The solid of tree ``src`` inside the box whose walls are ``box`` (6 rows), rebuilt from its boundary.
 
@@ -452,7 +457,7 @@ def simplify_in_box(pal, m, src, box, ws, seed, need):
     return BSP, count
 
 
-@jit(inline="always")
+@jit
 def merge_and_simplify(pal, m, ta, tb, table, constant, box, ws, seed, need):
     """A ∘ B inside the box (``table`` is the label function): merge by cutting, then redundancy removal.
 

@@ -173,6 +173,7 @@ class Workpiece:
         self.ws = new_workspace(self.palette, self.threshold)
         self._max_normal, self._max_offset = 1, self.root_size
         self._volumes: dict[tuple, Fraction] = {}
+        self._meta: dict = {}
         self.stats = WorkpieceStats()
 
     # -- construction ---------------------------------------------------------------
@@ -374,19 +375,118 @@ class Workpiece:
         return self
 
     def run(self, tools: Iterable, op: str | Callable = "difference", *, progress: bool = False,
-            track_volume: bool = False) -> list[OpReport]:
-        """Apply ``op`` with every tool in turn; a tqdm progress bar with ``progress=True``."""
-        fn = {"difference": DIFFERENCE, "union": UNION, "intersection": INTERSECTION}.get(op, op) \
-            if isinstance(op, str) else op
-        if isinstance(op, str) and op not in ("difference", "union", "intersection"):
-            raise ValueError(f"op must be 'difference', 'union', 'intersection' or a label function, got {op!r}")
-        tools = list(tools) if not hasattr(tools, "__len__") else tools
-        iterator = tools
+            track_volume: bool = False, checkpoint=None, checkpoint_every: int = 0) -> list[OpReport]:
+        """Apply ``op`` with every tool in turn; a tqdm progress bar with ``progress=True``.
+
+        With ``checkpoint`` (a path) and ``checkpoint_every=k`` the workpiece is saved there
+        every ``k`` operations (atomically, with the number done). If that file already holds
+        a checkpoint of this run, the workpiece is first restored from it and the operations it
+        had done are skipped, so a run killed at any point and started again ends with a
+        result identical to an uninterrupted one. Returns the reports of the operations run.
+        """
+        if isinstance(op, str):
+            if op not in ("difference", "union", "intersection"):
+                raise ValueError(f"op must be 'difference', 'union', 'intersection' or a label function, got {op!r}")
+            fn = {"difference": DIFFERENCE, "union": UNION, "intersection": INTERSECTION}[op]
+        elif callable(op):
+            fn = op
+        else:
+            raise TypeError(f"op must be a name or a label function, got {type(op).__name__}")
+        tools = list(tools)
+        done = 0
+        if checkpoint is not None:
+            if not (isinstance(checkpoint_every, int | np.integer) and checkpoint_every >= 1):
+                raise ValueError(f"checkpoint_every must be an int >= 1 with a checkpoint, got {checkpoint_every!r}")
+            from pathlib import Path
+
+            if Path(checkpoint).exists():
+                restored = Workpiece.load(checkpoint)
+                done = int(restored._meta.get("completed", 0))
+                if done > len(tools):
+                    raise GeometryError(f"the checkpoint {checkpoint} has {done} operations done, more than the "
+                                        f"{len(tools)} tools given: it belongs to another run")
+                self._adopt(restored)
+        iterator = range(done, len(tools))
         if progress:
             from tqdm.auto import tqdm
 
-            iterator = tqdm(tools, desc=f"csgnb {op if isinstance(op, str) else 'boolean'}", unit="op")
-        return [self.boolean(t, fn, track_volume=track_volume) for t in iterator]
+            iterator = tqdm(iterator, desc=f"csgnb {op if isinstance(op, str) else 'boolean'}", unit="op",
+                            initial=done, total=len(tools))
+        reports = []
+        for i in iterator:
+            reports.append(self.boolean(tools[i], fn, track_volume=track_volume))
+            if checkpoint is not None and ((i + 1) % checkpoint_every == 0 or i + 1 == len(tools)):
+                self.save(checkpoint, completed=i + 1)
+        return reports
+
+    # -- persistence -------------------------------------------------------------------
+
+    def _arrays(self) -> dict[str, np.ndarray]:
+        n = int(self.oc.counts[N_NODES])
+        npool = int(self.oc.counts[N_POOL])
+        npal = int(self.oc.counts[N_PAL])
+        a = {f"oc_{name}": np.ascontiguousarray(getattr(self.oc, name)[:n]) for name in
+             ("child", "parent", "kind", "label", "start", "length", "lo", "size")}
+        a["oc_counts"] = self.oc.counts.copy()
+        a["oc_free_blocks"] = self.oc.free_blocks.copy()
+        for name in ("plane", "neg", "pos", "label"):
+            a[f"pool_{name}"] = np.ascontiguousarray(getattr(self.pool, name)[:npool])
+        a["palette_limbs"] = np.ascontiguousarray(self.palette[:npal]["limbs"])
+        a["axis_keys"] = self.amap.keys.copy()
+        a["axis_rows"] = self.amap.rows.copy()
+        return a
+
+    def save(self, path, *, completed: int | None = None) -> None:
+        """Write the workpiece to ``path`` bit for bit (versioned, checksummed, atomic: an interrupted save
+        leaves the previous file intact). :meth:`load` reads it back."""
+        from csgnb.octree.persist import write_arrays
+
+        header = {"width": self.width, "scale": self.grid.scale, "origin": self.grid.origin.tolist(),
+                  "max_coordinate": self.grid.max_coordinate, "threshold": self.threshold, "min_cell": self.min_cell,
+                  "seed": self.seed, "root_lo": self.root_lo.tolist(), "root_size": int(self.root_size),
+                  "max_normal": str(self._max_normal), "max_offset": str(self._max_offset)}
+        if completed is not None:
+            header["completed"] = int(completed)
+        write_arrays(path, header, self._arrays())
+
+    @classmethod
+    def load(cls, path) -> Workpiece:
+        """Read a workpiece written by :meth:`save` (a damaged file raises ``WorkpieceFileError``)."""
+        from csgnb.octree.persist import WorkpieceFileError, read_arrays
+
+        header, a = read_arrays(path)
+        try:
+            grid = Grid(scale=header["scale"], origin=header["origin"], width=header["width"],
+                        max_coordinate=header["max_coordinate"])
+            w = cls(grid, threshold=header["threshold"], min_cell=header["min_cell"], seed=header["seed"])
+            n = a["oc_child"].shape[0]
+            oc = new_octree(header["root_lo"], header["root_size"], max(n, 16))
+            for name in ("child", "parent", "kind", "label", "start", "length", "lo", "size"):
+                getattr(oc, name)[:n] = a[f"oc_{name}"]
+            oc.counts[:] = a["oc_counts"]
+            fb = a["oc_free_blocks"]
+            oc = oc._replace(free_blocks=np.ascontiguousarray(fb, np.int32) if fb.shape[0] else oc.free_blocks)
+            pool = new_pool(max(a["pool_plane"].shape[0], 64))
+            for name in ("plane", "neg", "pos", "label"):
+                getattr(pool, name)[: a[f"pool_{name}"].shape[0]] = a[f"pool_{name}"]
+            limbs = a["palette_limbs"]
+            palette = np.zeros((max(limbs.shape[0] + 64, 256), 4), wide_dtype(w.width))
+            palette[: limbs.shape[0]]["limbs"] = limbs
+            w.oc, w.pool, w.palette = oc, pool, palette
+            w.amap = AxisMap(np.ascontiguousarray(a["axis_keys"]), np.ascontiguousarray(a["axis_rows"]))
+            w.ws = with_palette(w.ws, palette)
+            w.root_lo = np.asarray(header["root_lo"], np.int64)
+            w.root_size = int(header["root_size"])
+            w._max_normal, w._max_offset = int(header["max_normal"]), int(header["max_offset"])
+            w._meta = header
+        except (KeyError, ValueError, TypeError, IndexError) as exc:
+            raise WorkpieceFileError(f"{path} has an inconsistent workpiece: {exc}") from exc
+        return w
+
+    def _adopt(self, other: Workpiece) -> None:
+        if not other.grid.same_as(self.grid) or other.threshold != self.threshold:
+            raise GeometryError("the checkpoint was made with another grid or threshold: it belongs to another run")
+        self.__dict__.update(other.__dict__)
 
     # -- kernels and growth ------------------------------------------------------------------
 

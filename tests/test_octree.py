@@ -1,0 +1,224 @@
+"""The octree workpiece against independent references: voxel counts, one-BSP results, exact volumes."""
+
+from __future__ import annotations
+
+from fractions import Fraction
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from csgnb.bsp import BSP
+from csgnb.errors import GeometryError, PrecisionError
+from csgnb.exact import Grid, to_wide
+from csgnb.mesh.hull import convex_hull
+from csgnb.octree import Tool, Workpiece
+from csgnb.octree.persist import WorkpieceFileError
+
+OPS = ("difference", "union", "intersection")
+SETTINGS = settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+
+
+def box_hull(lo, hi):
+    lo, hi = np.asarray(lo), np.asarray(hi)
+    return convex_hull(np.array([[(hi if k >> a & 1 else lo)[a] for a in range(3)] for k in range(8)]))
+
+
+def voxel_oracle(ops, size):
+    """The same sequence on a boolean voxel grid (unit voxels of the box [0, size]^3)."""
+    solid = np.zeros((size,) * 3, bool)
+    for op, lo, hi in ops:
+        tool = np.zeros_like(solid)
+        tool[lo[0]:hi[0], lo[1]:hi[1], lo[2]:hi[2]] = True
+        solid = {"difference": solid & ~tool, "union": solid | tool, "intersection": solid & tool}[op]
+    return solid
+
+
+box_strategy = st.tuples(st.lists(st.integers(0, 15), min_size=3, max_size=3),
+                         st.lists(st.integers(1, 9), min_size=3, max_size=3)).map(
+    lambda t: (t[0], [min(16, a + b) for a, b in zip(t[0], t[1], strict=True)]))
+
+
+@SETTINGS
+@given(st.lists(st.tuples(st.sampled_from(OPS), box_strategy), min_size=1, max_size=7),
+       st.sampled_from([16, 40]))
+def test_box_sequences_match_voxel_counts(ops, threshold):
+    w = Workpiece.box([0, 0, 0], [16, 16, 16], threshold=threshold)
+    seq = [("union", [0, 0, 0], [16, 16, 16])]
+    for op, (lo, hi) in ops:
+        getattr(w, op)(box_hull(lo, hi))
+        seq.append((op, lo, hi))
+    solid = voxel_oracle(seq, 16)
+    assert w.volume() == int(solid.sum())
+    # every voxel centre classifies like the oracle: homogeneous (2i + 1, 2j + 1, 2k + 1, 2)
+    idx = np.argwhere(np.ones_like(solid))
+    pts = to_wide(np.column_stack([2 * idx + 1, np.full(len(idx), 2)]), 128)
+    labels = w.classify(pts)
+    assert np.array_equal(labels, solid[tuple(idx.T)].astype(labels.dtype))
+
+
+def random_hull(rng, centre, radius):
+    return convex_hull(centre + rng.integers(-radius, radius + 1, size=(9, 3)))
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_hull_sequences_match_one_bsp(seed):
+    """Random convex hulls, coplanar and touching cases included (coarse integer lattice)."""
+    rng = np.random.default_rng(seed)
+    w = Workpiece.box([0, 0, 0], [40, 40, 40], threshold=24)
+    ref = BSP.box([0, 0, 0], [40, 40, 40])
+    for _ in range(10):
+        h = random_hull(rng, rng.integers(0, 40, size=3) // 4 * 4, int(rng.integers(2, 5)) * 3)
+        op = OPS[int(rng.integers(0, 3))] if rng.random() < 0.2 else OPS[int(rng.integers(0, 2))]
+        getattr(w, op)(h)
+        ref = getattr(ref, op)(BSP(h.to_bsp().tree, [-60] * 3, [100] * 3))
+    assert w.volume() == ref.volume()
+    pts = rng.integers(-20, 180, size=(3000, 3))
+    X = to_wide(np.column_stack([pts, np.full(len(pts), 3)]), 128)
+    assert np.array_equal(w.classify(X), ref.tree.classify(X))
+
+
+def test_surface_is_closed_conforming_and_measures_the_volume():
+    rng = np.random.default_rng(7)
+    w = Workpiece.box([0, 0, 0], [32, 32, 32], threshold=20)
+    for _ in range(6):
+        w -= random_hull(rng, rng.integers(0, 32, size=3), 7)
+    s = w.surface()
+    assert s.is_closed()
+    assert s.exact_volume() == w.volume()
+    assert w.n_cells > 8  # the threshold split cells: faces cross cell walls
+
+
+def test_split_then_combine_keeps_every_point():
+    rng = np.random.default_rng(3)
+    w = Workpiece.box([0, 0, 0], [24, 24, 24], threshold=16)
+    for _ in range(5):
+        w -= random_hull(rng, rng.integers(4, 20, size=3), 5)
+    assert w.stats.splits > 0
+    pts = rng.integers(-10, 80, size=(2000, 3))
+    X = to_wide(np.column_stack([pts, np.full(len(pts), 3)]), 128)
+    before = w.classify(X)
+    vol = w.volume()
+    # filling the holes back: cells become uniform and combine
+    w |= box_hull([0, 0, 0], [24, 24, 24])
+    assert w.volume() == 24**3
+    assert w.stats.combines > 0
+    # and cutting the same holes again gives the same solid
+    rng = np.random.default_rng(3)
+    for _ in range(5):
+        w -= random_hull(rng, rng.integers(4, 20, size=3), 5)
+    assert w.volume() == vol
+    assert np.array_equal(w.classify(X), before)
+    cells = w.cells()
+    big = cells["nodes"] > w.threshold
+    assert np.all(cells["size"][big] <= w.min_cell) or not big.any()
+
+
+def tetra_mesh(a, s):
+    a = np.asarray(a)
+    V = np.array([a, a + [s, 0, 0], a + [0, s, 0], a + [0, 0, s]])
+    F = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])
+    return V, F
+
+
+def test_mesh_and_bsp_tools_match_the_convex_tool():
+    V, F = tetra_mesh([2, 3, 1], 14)
+    hull = convex_hull(V)
+    results = []
+    for tool in (hull, (V, F), Tool.from_mesh(V, F, width=128), BSP(hull.to_bsp().tree, [-5] * 3, [30] * 3)):
+        w = Workpiece.box([0, 0, 0], [12, 12, 12], threshold=16)
+        w -= tool
+        results.append(w.volume())
+    assert len(set(results)) == 1
+    assert results[0] == 12**3 - (BSP.box([0, 0, 0], [12, 12, 12]) & BSP(hull.to_bsp().tree, [-5] * 3, [30] * 3)
+                                  ).volume()
+
+
+def test_translated_tools_are_exact():
+    V, F = tetra_mesh([0, 0, 0], 6)
+    tool = Tool.from_mesh(V, F, width=128)
+    w1 = Workpiece.box([0, 0, 0], [20, 20, 20], threshold=16)
+    w2 = Workpiece.box([0, 0, 0], [20, 20, 20], threshold=16)
+    for t in ([3, 3, 3], [10, 4, 2], [5, 12, 9]):
+        w1 -= tool.translated(np.array(t))
+        w2 -= (V + t, F)
+    assert w1.volume() == w2.volume() == 8000 - 3 * 36
+
+
+def test_volume_tracking_reports_the_exact_change():
+    w = Workpiece.box([0, 0, 0], [10, 10, 10])
+    r = w.difference(box_hull([5, 5, 5], [15, 15, 15]), track_volume=True)
+    assert r.removed == 125
+    r = w.union(convex_hull([[10, 0, 0], [14, 0, 0], [10, 4, 0], [10, 0, 4]]), track_volume=True)
+    assert r.volume_change == Fraction(64, 6)
+
+
+def test_save_load_round_trip_and_interrupted_saves(tmp_path):
+    rng = np.random.default_rng(5)
+    w = Workpiece.box([0, 0, 0], [24, 24, 24], threshold=16)
+    for _ in range(4):
+        w -= random_hull(rng, rng.integers(0, 24, size=3), 6)
+    path = tmp_path / "w.npz"
+    w.save(path)
+    r = Workpiece.load(path)
+    for name, value in w._arrays().items():
+        assert np.array_equal(value, r._arrays()[name]), name
+    assert r.volume() == w.volume()
+    # an interrupted save leaves the previous file loadable
+    from csgnb.octree import persist
+
+    w -= random_hull(rng, [12, 12, 12], 6)
+    for limit in (0, 100, 5000):
+        with pytest.raises(KeyboardInterrupt):
+            persist.write_arrays(path, {}, w._arrays(), _fail_after=limit)
+        assert Workpiece.load(path).volume() == r.volume()
+    assert not list(tmp_path.glob("*.tmp"))
+    # a truncated or corrupted file is a clear error
+    data = path.read_bytes()
+    (tmp_path / "cut.npz").write_bytes(data[: len(data) // 2])
+    with pytest.raises(WorkpieceFileError):
+        Workpiece.load(tmp_path / "cut.npz")
+    bad = bytearray(data)
+    bad[len(bad) // 2] ^= 0xFF
+    (tmp_path / "bad.npz").write_bytes(bytes(bad))
+    with pytest.raises(WorkpieceFileError):
+        Workpiece.load(tmp_path / "bad.npz")
+
+
+def test_a_resumed_run_equals_an_uninterrupted_one(tmp_path):
+    rng = np.random.default_rng(11)
+    tools = [random_hull(rng, rng.integers(0, 24, size=3), 5) for _ in range(9)]
+    whole = Workpiece.box([0, 0, 0], [24, 24, 24], threshold=16)
+    whole.run(tools, "difference")
+    path = tmp_path / "ck.npz"
+    crashed = Workpiece.box([0, 0, 0], [24, 24, 24], threshold=16)
+    crashed.run(tools[:5], "difference", checkpoint=path, checkpoint_every=2)  # "crashes" after 5
+    resumed = Workpiece.box([0, 0, 0], [24, 24, 24], threshold=16)
+    resumed.run(tools, "difference", checkpoint=path, checkpoint_every=2)
+    assert resumed.volume() == whole.volume()
+    for name, value in whole._arrays().items():
+        if name != "oc_counts":
+            assert np.array_equal(value, resumed._arrays()[name]), name
+
+
+def test_bad_tools_are_clear_errors_and_leave_the_workpiece_unchanged():
+    w = Workpiece.box([0, 0, 0], [10, 10, 10])
+    before = w._arrays()
+    V, F = tetra_mesh([0, 0, 0], 5)
+    CV, CF = box_hull([1, 1, 1], [4, 4, 4]).to_mesh()
+    with pytest.raises(GeometryError, match="open"):
+        w -= (CV, CF[1:])
+    with pytest.raises(TypeError, match="quantize"):
+        w -= (V.astype(float), F)
+    other = Grid.from_resolution(0.5, width=128)
+    h = convex_hull(V, grid=other)
+    with pytest.raises(GeometryError, match="grid"):
+        w -= h
+    with pytest.raises(PrecisionError):
+        w -= box_hull([0, 0, 0], [5000, 10, 10])
+    with pytest.raises(TypeError, match="ConvexHull"):
+        w -= 5
+    after = w._arrays()
+    for name in before:
+        assert np.array_equal(before[name], after[name]), name
