@@ -752,11 +752,42 @@ def _needs_split(oc, node, threshold, min_size):
 # the Boolean kernel
 
 
-@jit
-def _boolean_kernel(pal, oc, pool, amap, leaves, tool_kind, tool, table, constant, ws, st, split_stack,
-                    threshold, min_size, seed, need):
-    """Apply one Boolean to every leaf in ``leaves`` (resumable: ``st`` holds the progress).
+@jit(inline="always")
+def tool_polygons_in_box(tool, lo, size, limit):
+    """How many of the tool's polygon boxes meet the closed cell box (counting stops above ``limit``)."""
+    n = 0
+    for i in range(tool.support.shape[0]):
+        if (tool.plo[i, 0] > lo[0] + size or tool.phi[i, 0] < lo[0] or tool.plo[i, 1] > lo[1] + size
+                or tool.phi[i, 1] < lo[1] or tool.plo[i, 2] > lo[2] + size or tool.phi[i, 2] < lo[2]):
+            continue
+        n += 1
+        if n > limit:
+            break
+    return n
 
+
+@jit(inline="always")
+def split_uniform(oc, node, need):
+    """Split a uniform cell into 8 uniform children with its label; 0 when short of nodes."""
+    if oc.counts[N_NODES] + 8 > oc.child.shape[0] and oc.counts[N_FREE_BLOCKS] == 0:
+        need[0] = R_NODES
+        return 0
+    lab = oc.label[node]
+    first = _alloc_children(oc, node)
+    for k in range(8):
+        oc.label[first + k] = lab
+    oc.counts[S_SPLITS] += 1
+    return 1
+
+
+@jit
+def _boolean_kernel(pal, oc, pool, amap, work, tool_kind, tool, table, constant, ws, st, split_stack,
+                    threshold, min_size, max_polygons, seed, need):
+    """Apply one Boolean to every leaf of the worklist ``work[:st[ST_LEAF]]`` (resumable: ``st`` holds the progress).
+
+    A cell that more than ``max_polygons`` of a mesh tool's polygons reach is first split
+    (so no cell merges with a large part of the tool: the tool's local BSPs stay small, as
+    the paper's triangle octree keeps imports local) and its children join the worklist.
     Cells whose BSP grows beyond ``threshold`` nodes are split until under it or down to
     ``min_size`` (then counted as pathological).
     """
@@ -765,7 +796,7 @@ def _boolean_kernel(pal, oc, pool, amap, leaves, tool_kind, tool, table, constan
     amap = unmanaged_tuple(amap)
     tool = unmanaged_tuple(tool)
     pal = unmanaged(pal)
-    leaves = unmanaged(leaves)
+    work = unmanaged(work)
     table = unmanaged(table)
     constant = unmanaged(constant)
     st = unmanaged(st)
@@ -773,36 +804,54 @@ def _boolean_kernel(pal, oc, pool, amap, leaves, tool_kind, tool, table, constan
     need = unmanaged(need)
     ws = unmanaged_workspace(ws)
     need[0] = 0
-    while st[ST_LEAF] < leaves.shape[0]:
-        node = leaves[st[ST_LEAF]]
-        if st[ST_PHASE] == 0:
-            if boolean_cell(pal, oc, pool, amap, node, tool_kind, tool, table, constant, ws, seed, need) == 0:
-                return FAILED if need[0] == 0 else NEED_ROOM
-            oc.counts[S_CELL_OPS] += 1
-            st[ST_PHASE] = 1
-            st[ST_SPLIT_TOP] = 0
-            if _needs_split(oc, node, threshold, min_size):
-                split_stack[0] = node
-                st[ST_SPLIT_TOP] = 1
-        while st[ST_SPLIT_TOP] > 0:
-            top = st[ST_SPLIT_TOP] - 1
-            if top + 8 > split_stack.shape[0]:
+    while True:
+        if st[ST_PHASE] == 1:
+            while st[ST_SPLIT_TOP] > 0:
+                top = st[ST_SPLIT_TOP] - 1
+                if top + 8 > split_stack.shape[0]:
+                    need[0] = R_SPLIT_STACK
+                    return NEED_ROOM
+                x = split_stack[top]
+                if split_step(pal, oc, pool, amap, x, st, ws, threshold, min_size, seed, need) == 0:
+                    return FAILED if need[0] == 0 else NEED_ROOM
+                st[ST_SPLIT_TOP] = top
+                first = oc.child[x]
+                for k in range(8):
+                    ch = first + k
+                    if _needs_split(oc, ch, threshold, min_size):
+                        split_stack[st[ST_SPLIT_TOP]] = ch
+                        st[ST_SPLIT_TOP] += 1
+                    elif oc.kind[ch] == BSP and oc.length[ch] > threshold:
+                        oc.counts[S_PATHOLOGICAL] += 1
+            st[ST_PHASE] = 0
+        if st[ST_LEAF] == 0:
+            break
+        node = work[st[ST_LEAF] - 1]
+        if (tool_kind == MESH_TOOL and oc.size[node] > min_size
+                and tool_polygons_in_box(tool, oc.lo[node], oc.size[node], max_polygons) > max_polygons):
+            if st[ST_LEAF] - 1 + 8 > work.shape[0]:
                 need[0] = R_SPLIT_STACK
                 return NEED_ROOM
-            x = split_stack[top]
-            if split_step(pal, oc, pool, amap, x, st, ws, threshold, min_size, seed, need) == 0:
-                return FAILED if need[0] == 0 else NEED_ROOM
-            st[ST_SPLIT_TOP] = top
-            first = oc.child[x]
+            if oc.kind[node] == BSP:
+                if split_step(pal, oc, pool, amap, node, st, ws, threshold, min_size, seed, need) == 0:
+                    return FAILED if need[0] == 0 else NEED_ROOM
+            elif split_uniform(oc, node, need) == 0:
+                return NEED_ROOM
+            st[ST_LEAF] -= 1
+            first = oc.child[node]
             for k in range(8):
-                ch = first + k
-                if _needs_split(oc, ch, threshold, min_size):
-                    split_stack[st[ST_SPLIT_TOP]] = ch
-                    st[ST_SPLIT_TOP] += 1
-                elif oc.kind[ch] == BSP and oc.length[ch] > threshold:
-                    oc.counts[S_PATHOLOGICAL] += 1
-        st[ST_PHASE] = 0
-        st[ST_LEAF] += 1
+                work[st[ST_LEAF]] = first + k
+                st[ST_LEAF] += 1
+            continue
+        if boolean_cell(pal, oc, pool, amap, node, tool_kind, tool, table, constant, ws, seed, need) == 0:
+            return FAILED if need[0] == 0 else NEED_ROOM
+        oc.counts[S_CELL_OPS] += 1
+        st[ST_LEAF] -= 1
+        st[ST_PHASE] = 1
+        st[ST_SPLIT_TOP] = 0
+        if _needs_split(oc, node, threshold, min_size):
+            split_stack[0] = node
+            st[ST_SPLIT_TOP] = 1
     return DONE
 
 
@@ -837,7 +886,9 @@ def combine_parent(pal, oc, pool, amap, node, ws, threshold, seed, need):
         kind = UNIFORM
         value = lab
     else:
-        if total + 15 > threshold:
+        # Hysteresis: children combine only when well below the threshold, so a region that
+        # the next tool will refine again is not combined after every operation.
+        if 4 * (total + 15) > threshold:
             return 2
         # The axis-BSP (COMBINE A): x, then y, then z mid planes; the children's trees below.
         half = oc.size[node] // 2

@@ -142,12 +142,15 @@ class Workpiece:
     min_cell : int
         Cells this size (grid units) never split further; their BSPs are accepted as they
         are and counted as pathological when above the threshold.
+    max_tool_polygons : int
+        A cell that more polygons of a mesh tool reach is split before it is merged, so each
+        cell merges with a small local part of the tool (default: ``threshold // 2``).
     seed : int
         Seed of the random insertion orders of redundancy removal.
     """
 
     def __init__(self, grid: Grid | None = None, *, width: int | None = None, threshold: int = DEFAULT_THRESHOLD,
-                 min_cell: int = 1, seed: int = 0) -> None:
+                 min_cell: int = 1, max_tool_polygons: int | None = None, seed: int = 0) -> None:
         if grid is None:
             grid = identity_grid(DEFAULT_WIDTH if width is None else width)
         if not isinstance(grid, Grid):
@@ -162,6 +165,7 @@ class Workpiece:
         self.width = grid.width
         self.threshold = int(threshold)
         self.min_cell = int(min_cell)
+        self.max_tool_polygons = max(8, self.threshold // 2) if max_tool_polygons is None else int(max_tool_polygons)
         self.seed = int(seed)
         half = 1 << max(int(grid.max_coordinate), 1).bit_length()  # >= max_coordinate
         self.root_lo = np.array([-half] * 3, np.int64)
@@ -174,6 +178,7 @@ class Workpiece:
         self._max_normal, self._max_offset = 1, self.root_size
         self._volumes: dict[tuple, Fraction] = {}
         self._meta: dict = {}
+        self._tables: dict = {}
         self.stats = WorkpieceStats()
 
     # -- construction ---------------------------------------------------------------
@@ -314,8 +319,11 @@ class Workpiece:
         """
         t0 = time.perf_counter()
         tool = self._tool(tool)
-        labels_a = list(range(int(max(self._labels_present())) + 1))
-        table = merge_table(fn, labels_a, [0, 1])
+        labels_a = [0, 1]  # one material: boolean() refuses label functions that make others
+        table = self._tables.get(fn)
+        if table is None:
+            table = merge_table(fn, labels_a, [0, 1])
+            self._tables[fn] = table
         if int(table.max()) > 1:
             raise GeometryError("the octree workpiece holds one material (labels 0 and 1); the label function "
                                 f"returned {int(table.max())}")
@@ -519,12 +527,16 @@ class Workpiece:
         need = np.zeros(4, np.int64)
         if not hasattr(self, "_split_stack"):
             self._split_stack = np.zeros(512, np.int64)
-        leaves = np.ascontiguousarray(leaves, np.int64)
+        work = np.zeros(max(64, 2 * leaves.shape[0] + 64), np.int64)
+        work[: leaves.shape[0]] = leaves[::-1]
+        st[K.ST_LEAF] = leaves.shape[0]
         for _ in range(_MAX_RESUMPTIONS):
             self._palette_room(64)
-            status = K._boolean_kernel(self.palette, self.oc, self.pool, self.amap, leaves, kind, tool, table,
+            status = K._boolean_kernel(self.palette, self.oc, self.pool, self.amap, work, kind, tool, table,
                                        constant, self.ws, st, self._split_stack, self.threshold, self.min_cell,
-                                       self.seed, need)
+                                       self.max_tool_polygons, self.seed, need)
+            if need[0] == R_SPLIT_STACK:
+                work = grown(work)
             if status == DONE:
                 return
             if status == FAILED:
