@@ -326,11 +326,12 @@ def extract_into(m, tree, stack, state, cells, sc, out, mode, no_path):
     """Cut the box cell down the tree; at each leaf clip, record or release the cell.
 
     ``stack`` rows are (node, cell handle, bound on the cell's face count); ``state`` is
-    (stack size, cells recorded, in leaves reached, label of the last one). At an **in** leaf: with ``PIECES`` its faces are clipped
-    into ``out`` (``WALLS``: box faces too); with ``KEEP_CELLS`` (leaf, handle) is recorded
-    in ``cells``, otherwise the cell is released for reuse. Out cells are released unless
-    kept. ``NAIVE`` cuts with the classify-every-vertex baseline. Returns DONE, NEED_ROOM
-    (nothing of the pending step done: grow and call again) or FAILED.
+    (stack size, cells recorded, in leaves reached, label of the last one). At an **in**
+    leaf: with ``PIECES`` its faces are clipped into ``out`` (``WALLS``: box faces too); with
+    ``KEEP_CELLS`` (leaf, handle) is recorded in ``cells``, otherwise the cell is released for
+    reuse. Out cells are always released. ``NAIVE`` cuts with the classify-every-vertex
+    baseline. Returns DONE, NEED_ROOM (nothing of the pending step done: grow and call
+    again) or FAILED.
     """
     keep = (mode & KEEP_CELLS) != 0
     naive = (mode & NAIVE) != 0
@@ -395,7 +396,8 @@ def extract_into(m, tree, stack, state, cells, sc, out, mode, no_path):
 @jit
 def _extract_kernel(m, tree, stack, state, cells, sc, out, mode, no_path):
     m, tree, sc, out = unmanaged_tuple(m), unmanaged_tuple(tree), unmanaged_tuple(sc), unmanaged_tuple(out)
-    return extract_into(m, tree, unmanaged(stack), unmanaged(state), unmanaged(cells), sc, out, mode, unmanaged(no_path))
+    return extract_into(m, tree, unmanaged(stack), unmanaged(state), unmanaged(cells), sc, out, mode,
+                        unmanaged(no_path))
 
 
 class _Extractor:
