@@ -87,7 +87,9 @@ _EMPTY_KEY = -1
 # tool kinds
 CONVEX_TOOL, MESH_TOOL = 0, 1
 # state columns of the Boolean kernel
-ST_LEAF, ST_PHASE, ST_SPLIT_TOP, ST_SPLIT_CHILD = 0, 1, 2, 3
+ST_LEAF, ST_PHASE, ST_SPLIT_TOP, ST_SPLIT_CHILD, ST_CAND_TOP, ST_DONE, ST_REFINE = 0, 1, 2, 3, 4, 5, 6
+R_CANDIDATES = 117  # need code: the candidate-index arena of the Boolean kernel
+R_WORK = 118  # need code: the worklist or the list of processed cells
 
 
 # ---------------------------------------------------------------------------
@@ -303,8 +305,8 @@ def convex_tool_in_box(pal, rows, corners, dist, tb):
 
 
 @jit
-def clip_tool_polygons(pal, tool, lo, size, brows, arena, bi, need):
-    """Clip the tool's polygons whose boxes meet the cell box to it; write the pieces into ``bi``.
+def clip_tool_polygons(pal, tool, cand, lo, size, brows, arena, bi, need):
+    """Clip the candidate polygons ``cand`` (indices) whose boxes meet the cell box to it; write the pieces into ``bi``.
 
     ``bi`` is the import input (support, offsets, edges, verts: vertex j = support ∩ e_j ∩
     e_j+1). Pieces coplanar with a wall are dropped (the box bounds the cell BSP). Returns
@@ -316,7 +318,8 @@ def clip_tool_polygons(pal, tool, lo, size, brows, arena, bi, need):
     hi0 = lo[0] + size
     hi1 = lo[1] + size
     hi2 = lo[2] + size
-    for i in range(tool.support.shape[0]):
+    for c in range(cand.shape[0]):
+        i = cand[c]
         if (tool.plo[i, 0] > hi0 or tool.phi[i, 0] < lo[0] or tool.plo[i, 1] > hi1 or tool.phi[i, 1] < lo[1]
                 or tool.plo[i, 2] > hi2 or tool.phi[i, 2] < lo[2]):
             continue
@@ -614,8 +617,18 @@ def _centre_point(lo, size, pt):
 
 
 @jit(inline="always")
-def boolean_cell(pal, oc, pool, amap, node, tool_kind, tool, table, constant, ws, seed, need):
+def boolean_cell(pal, oc, pool, amap, node, tool_kind, tool, cand, table, constant, ws, seed, need):
     """Apply the Boolean to one leaf cell and write its result. Returns 1 done, 0 short of room."""
+    if oc.kind[node] == UNIFORM and constant[oc.label[node]] >= 0:
+        # The result does not depend on the tool here (empty space under a difference, solid
+        # under a union): nothing to localise or merge.
+        lab = constant[oc.label[node]]
+        if lab == oc.label[node]:
+            oc.counts[S_UNCHANGED] += 1
+        else:
+            oc.label[node] = lab
+            oc.counts[S_RELABELS] += 1
+        return 1
     lo = oc.lo[node]
     size = oc.size[node]
     if not box_rows(amap, pal, oc, lo[0], lo[1], lo[2], size, ws.box, need):
@@ -629,7 +642,7 @@ def boolean_cell(pal, oc, pool, amap, node, tool_kind, tool, table, constant, ws
             need[0] = R_TREE_B
             return 0
     else:
-        n_poly = clip_tool_polygons(pal, tool, lo, size, ws.box, ws.arena, ws.bi, need)
+        n_poly = clip_tool_polygons(pal, tool, cand, lo, size, ws.box, ws.arena, ws.bi, need)
         if n_poly < 0:
             return 0
         if n_poly == 0:
@@ -753,17 +766,25 @@ def _needs_split(oc, node, threshold, min_size):
 
 
 @jit(inline="always")
-def tool_polygons_in_box(tool, lo, size, limit):
-    """How many of the tool's polygon boxes meet the closed cell box (counting stops above ``limit``)."""
-    n = 0
-    for i in range(tool.support.shape[0]):
-        if (tool.plo[i, 0] > lo[0] + size or tool.phi[i, 0] < lo[0] or tool.plo[i, 1] > lo[1] + size
-                or tool.phi[i, 1] < lo[1] or tool.plo[i, 2] > lo[2] + size or tool.phi[i, 2] < lo[2]):
-            continue
-        n += 1
-        if n > limit:
-            break
-    return n
+def _boxes_meet_open(lo, size, tlo, thi):
+    """Whether the open cell box meets the open box ``(tlo, thi)``."""
+    for c in range(3):
+        if lo[c] >= thi[c] or lo[c] + size <= tlo[c]:
+            return False
+    return True
+
+
+@jit(inline="always")
+def _mean_extent(tool, cand, cs, cn):
+    """Mean largest side of the boxes of polygons ``cand[cs:cs + cn]``."""
+    total = 0
+    for j in range(cs, cs + cn):
+        i = cand[j]
+        e = 0
+        for c in range(3):
+            e = max(e, tool.phi[i, c] - tool.plo[i, c])
+        total += e
+    return total // max(cn, 1)
 
 
 @jit(inline="always")
@@ -781,13 +802,17 @@ def split_uniform(oc, node, need):
 
 
 @jit
-def _boolean_kernel(pal, oc, pool, amap, work, tool_kind, tool, table, constant, ws, st, split_stack,
-                    threshold, min_size, max_polygons, seed, need):
-    """Apply one Boolean to every leaf of the worklist ``work[:st[ST_LEAF]]`` (resumable: ``st`` holds the progress).
+def _boolean_kernel(pal, oc, pool, amap, work, cand, done, tool_kind, tool, tlo, thi, table, constant, ws, st,
+                    split_stack, threshold, min_size, max_polygons, seed, need):
+    """Apply one Boolean to every leaf whose open box meets the open box ``(tlo, thi)`` (resumable via ``st``).
 
-    A cell that more than ``max_polygons`` of a mesh tool's polygons reach is first split
-    (so no cell merges with a large part of the tool: the tool's local BSPs stay small, as
-    the paper's triangle octree keeps imports local) and its children join the worklist.
+    The octree is walked from the entries of ``work`` (``(node, start, count, parent's count)`` rows,
+    ``st[ST_LEAF]`` of them; the root to start with): every entry carries the indices
+    ``cand[start:start + count]`` of the mesh tool's polygons whose boxes meet its cell, and
+    a child keeps the subset that meets it -- a triangle octree of the tool built on the fly,
+    so a cell never scans polygons far away. A leaf reached by more than ``max_polygons`` of
+    them is split first (its local tool BSP stays small, as the paper's import keeps imports
+    local); other leaves get the Boolean (:func:`boolean_cell`) and are recorded in ``done``.
     Cells whose BSP grows beyond ``threshold`` nodes are split until under it or down to
     ``min_size`` (then counted as pathological).
     """
@@ -797,6 +822,10 @@ def _boolean_kernel(pal, oc, pool, amap, work, tool_kind, tool, table, constant,
     tool = unmanaged_tuple(tool)
     pal = unmanaged(pal)
     work = unmanaged(work)
+    cand = unmanaged(cand)
+    done = unmanaged(done)
+    tlo = unmanaged(tlo)
+    thi = unmanaged(thi)
     table = unmanaged(table)
     constant = unmanaged(constant)
     st = unmanaged(st)
@@ -804,6 +833,7 @@ def _boolean_kernel(pal, oc, pool, amap, work, tool_kind, tool, table, constant,
     need = unmanaged(need)
     ws = unmanaged_workspace(ws)
     need[0] = 0
+    mesh = tool_kind == MESH_TOOL
     while True:
         if st[ST_PHASE] == 1:
             while st[ST_SPLIT_TOP] > 0:
@@ -826,27 +856,70 @@ def _boolean_kernel(pal, oc, pool, amap, work, tool_kind, tool, table, constant,
             st[ST_PHASE] = 0
         if st[ST_LEAF] == 0:
             break
-        node = work[st[ST_LEAF] - 1]
-        if (tool_kind == MESH_TOOL and oc.size[node] > min_size
-                and tool_polygons_in_box(tool, oc.lo[node], oc.size[node], max_polygons) > max_polygons):
-            if st[ST_LEAF] - 1 + 8 > work.shape[0]:
-                need[0] = R_SPLIT_STACK
-                return NEED_ROOM
-            if oc.kind[node] == BSP:
+        top = st[ST_LEAF] - 1
+        node = work[top, 0]
+        cs = work[top, 1]
+        cn = work[top, 2]
+        # Refine only while cells are larger than the polygons that reach them: below that,
+        # splitting cannot separate them (each would reach every child) and would not end.
+        if st[ST_REFINE] == node or (oc.child[node] < 0 and mesh and cn > max_polygons
+                                     and oc.size[node] > min_size
+                                     and not (oc.kind[node] == UNIFORM and constant[oc.label[node]] >= 0)
+                                     and oc.size[node] > 2 * _mean_extent(tool, cand, cs, cn)):
+            # too much of the tool here: split the leaf first, then walk into it (a split that ran
+            # short of room is resumed: st[ST_REFINE] names it)
+            st[ST_REFINE] = node
+            if oc.kind[node] == BSP or oc.child[node] >= 0:
                 if split_step(pal, oc, pool, amap, node, st, ws, threshold, min_size, seed, need) == 0:
                     return FAILED if need[0] == 0 else NEED_ROOM
             elif split_uniform(oc, node, need) == 0:
                 return NEED_ROOM
-            st[ST_LEAF] -= 1
+            st[ST_REFINE] = -1
+        if oc.child[node] >= 0:
+            # an inner cell: its children that meet the tool, each with the polygons that reach it
+            if top + 8 > work.shape[0]:
+                need[0] = R_WORK
+                return NEED_ROOM
+            if mesh and st[ST_CAND_TOP] + 8 * cn > cand.shape[0]:
+                need[0] = R_CANDIDATES
+                return NEED_ROOM
             first = oc.child[node]
+            w = top
             for k in range(8):
-                work[st[ST_LEAF]] = first + k
-                st[ST_LEAF] += 1
+                ch = first + k
+                lo = oc.lo[ch]
+                size = oc.size[ch]
+                if not _boxes_meet_open(lo, size, tlo, thi):
+                    continue
+                start = st[ST_CAND_TOP]
+                n = 0
+                if mesh:
+                    for j in range(cs, cs + cn):
+                        i = cand[j]
+                        if (tool.plo[i, 0] > lo[0] + size or tool.phi[i, 0] < lo[0]
+                                or tool.plo[i, 1] > lo[1] + size or tool.phi[i, 1] < lo[1]
+                                or tool.plo[i, 2] > lo[2] + size or tool.phi[i, 2] < lo[2]):
+                            continue
+                        cand[start + n] = i
+                        n += 1
+                    st[ST_CAND_TOP] = start + n
+                work[w, 0] = ch
+                work[w, 1] = start
+                work[w, 2] = n
+                work[w, 3] = cn
+                w += 1
+            st[ST_LEAF] = w
             continue
-        if boolean_cell(pal, oc, pool, amap, node, tool_kind, tool, table, constant, ws, seed, need) == 0:
+        if st[ST_DONE] >= done.shape[0]:
+            need[0] = R_WORK
+            return NEED_ROOM
+        if boolean_cell(pal, oc, pool, amap, node, tool_kind, tool, cand[cs:cs + cn], table, constant, ws, seed,
+                        need) == 0:
             return FAILED if need[0] == 0 else NEED_ROOM
         oc.counts[S_CELL_OPS] += 1
-        st[ST_LEAF] -= 1
+        done[st[ST_DONE]] = node
+        st[ST_DONE] += 1
+        st[ST_LEAF] = top
         st[ST_PHASE] = 1
         st[ST_SPLIT_TOP] = 0
         if _needs_split(oc, node, threshold, min_size):

@@ -332,10 +332,13 @@ class Workpiece:
         rows = self._add_planes(tool)
         kind, ta = self._tool_arrays(tool, rows)
         outside_identity = all(int(table[la, 0]) == la for la in labels_a)
-        leaves = self._leaves_meeting(tool.lo, tool.hi) if outside_identity else self._leaves()
+        if outside_identity:
+            lo, hi = tool.lo, tool.hi  # cells outside the tool's box keep their labels
+        else:
+            lo, hi = self.root_lo - 1, self.root_lo + self.root_size + 1
         counts_before = self.oc.counts.copy()
+        leaves = self._run_boolean(kind, ta, lo, hi, table, constant)
         if leaves.shape[0]:
-            self._run_boolean(leaves, kind, ta, table, constant)
             parents = np.unique(self.oc.parent[leaves])
             parents = parents[parents >= 0]
             if parents.shape[0]:
@@ -522,26 +525,38 @@ class Workpiece:
         _reinsert(old.keys[used], old.rows[used], new)
         self.amap = new
 
-    def _run_boolean(self, leaves: np.ndarray, kind: int, tool: ToolArrays, table, constant) -> None:
+    def _run_boolean(self, kind: int, tool: ToolArrays, lo, hi, table, constant) -> np.ndarray:
+        """Run the Boolean kernel from the root over the open box ``(lo, hi)``; return the leaves it processed."""
         st = np.zeros(8, np.int64)
         need = np.zeros(4, np.int64)
         if not hasattr(self, "_split_stack"):
             self._split_stack = np.zeros(512, np.int64)
-        work = np.zeros(max(64, 2 * leaves.shape[0] + 64), np.int64)
-        work[: leaves.shape[0]] = leaves[::-1]
-        st[K.ST_LEAF] = leaves.shape[0]
+        n_poly = tool.support.shape[0]
+        work = np.zeros((512, 4), np.int64)
+        cand = np.empty(max(1024, 16 * n_poly), np.int32)
+        cand[:n_poly] = np.arange(n_poly, dtype=np.int32)
+        done = np.empty(256, np.int64)
+        work[0] = (0, 0, n_poly, 4 * n_poly + 4)
+        st[K.ST_LEAF] = 1
+        st[K.ST_CAND_TOP] = n_poly
+        st[K.ST_REFINE] = -1
+        tlo = np.ascontiguousarray(lo, np.int64)
+        thi = np.ascontiguousarray(hi, np.int64)
         for _ in range(_MAX_RESUMPTIONS):
             self._palette_room(64)
-            status = K._boolean_kernel(self.palette, self.oc, self.pool, self.amap, work, kind, tool, table,
-                                       constant, self.ws, st, self._split_stack, self.threshold, self.min_cell,
-                                       self.max_tool_polygons, self.seed, need)
-            if need[0] == R_SPLIT_STACK:
-                work = grown(work)
+            status = K._boolean_kernel(self.palette, self.oc, self.pool, self.amap, work, cand, done, kind, tool,
+                                       tlo, thi, table, constant, self.ws, st, self._split_stack, self.threshold,
+                                       self.min_cell, self.max_tool_polygons, self.seed, need)
             if status == DONE:
-                return
+                return done[: st[K.ST_DONE]]
             if status == FAILED:
                 raise InternalError("an octree Boolean failed an internal check (a bug in csgnb: please report it)")
-            self._grow(int(need[0]))
+            if need[0] == K.R_WORK:
+                work, done = grown(work), grown(done)
+            elif need[0] == K.R_CANDIDATES:
+                cand = grown(cand)
+            else:
+                self._grow(int(need[0]))
         raise InternalError("an octree Boolean kept running short of room (a bug in csgnb: please report it)")
 
     def _run_combine(self, parents: np.ndarray) -> None:
