@@ -14,6 +14,7 @@ array([1., 2., 3.])
 """
 
 from .budgets import BitBudget, budget, integer_root
+from .integral import exact_int, integer_array
 from .predicates import (
     are_planes_parallel,
     classify_vertex,
@@ -25,7 +26,7 @@ from .predicates import (
     to_double_position,
 )
 from .quantization import Grid, Quantization, quantize
-from .wide import DEFAULT_WIDTH, WIDTHS, from_wide, is_wide, to_wide, wide_dtype, width_of
+from .wide import DEFAULT_WIDTH, WIDTHS, check_width, from_wide, is_wide, to_wide, to_width, wide_dtype, width_of
 
 __all__ = [
     "WIDTHS",
@@ -35,9 +36,12 @@ __all__ = [
     "Quantization",
     "are_planes_parallel",
     "budget",
+    "check_width",
     "classify_vertex",
+    "exact_int",
     "from_wide",
     "homogeneous_points",
+    "integer_array",
     "integer_root",
     "intersect_3_planes",
     "is_wide",
@@ -47,6 +51,7 @@ __all__ = [
     "signed_distance",
     "to_double_position",
     "to_wide",
+    "to_width",
     "wide_dtype",
     "width_of",
 ]

@@ -17,8 +17,15 @@ offsets are zero.
 
 Planes made from integer mesh vertices bounded by V (``n = (q-p) x (r-p)``) have
 ``N <= 8 V^2`` and ``D <= 24 V^3``, so ``16 N^3 D <= 48 * 8^4 * V^9`` (eq. 8), i.e.
-``V <= 0.239 * 2^(b/9)`` (eq. 9): 4 517 at 128 bits, 633 318 at 192 bits and
-87 281 710 at 256 bits.
+``V <= 0.239 * 2^(b/9)`` (eq. 9). The largest V with ``48 * 8^4 * V^9 < 2^(b-1)``:
+
+>>> [budget(w).max_mesh_coordinate for w in (128, 192, 256)]
+[4567, 631462, 87298202]
+>>> V = budget(128).max_mesh_coordinate
+>>> 48 * 8**4 * V**9 < 2**127 <= 48 * 8**4 * (V + 1)**9
+True
+>>> budget(256).max_mesh_normal, budget(256).max_mesh_offset  # 8 V^2, 24 V^3
+(60967808579462432, 15967140206601733320441792)
 
 Every public predicate checks its inputs against these bounds before any kernel
 runs, using the exact maxima (a jitted arg-max by exact wide comparison, then

@@ -26,7 +26,7 @@ import math
 import numpy as np
 
 from .._jit import jit
-from ..errors import GeometryError
+from ..errors import GeometryError, PrecisionError
 from .budgets import (
     _first_zero_normal,
     check_integer_points_against_planes,
@@ -34,6 +34,7 @@ from .budgets import (
     check_planes,
     check_points_against_planes,
 )
+from .integral import integer_array
 from .intrinsics import (
     classify_at,
     compare_ratio_dyadic_at,
@@ -47,7 +48,7 @@ from .intrinsics import (
     wide_to_float_at,
     wide_to_int64_at,
 )
-from .wide import to_wide, wide_dtype, width_of
+from .wide import check_width, to_wide, wide_dtype, width_of
 
 __all__ = [
     "homogeneous_points",
@@ -186,16 +187,11 @@ def _rows(arr, ncols: int, name: str, *, wide: bool) -> np.ndarray:
     if wide:
         width_of(arr)
     else:
-        arr = np.asarray(arr)
-        if arr.dtype.kind not in "iu":
-            raise TypeError(f"{name} must be integer points ((n, 3) int64), got dtype {arr.dtype}")
-        if arr.dtype == np.uint64 and arr.size and arr.max() > np.iinfo(np.int64).max:
-            raise OverflowError(f"{name} has values beyond int64")
-        arr = arr.astype(np.int64, copy=False)
+        arr = integer_array(arr, name)
     if arr.ndim == 1:
         arr = arr[None, :]
     if arr.ndim != 2 or arr.shape[1] != ncols:
-        raise ValueError(f"{name} must have shape (n, {ncols}) or ({ncols},), got {arr.shape}")
+        raise GeometryError(f"{name} must have shape (n, {ncols}) or ({ncols},), got {arr.shape}")
     return np.ascontiguousarray(arr)
 
 
@@ -203,14 +199,15 @@ def _broadcast_length(**arrays: np.ndarray) -> int:
     lengths = {a.shape[0] for a in arrays.values()} - {1}
     if len(lengths) > 1:
         shapes = ", ".join(f"{k}: {v.shape}" for k, v in arrays.items())
-        raise ValueError(f"operands have different numbers of rows and cannot broadcast ({shapes})")
+        raise GeometryError(f"operands have different numbers of rows and cannot broadcast ({shapes})")
     return lengths.pop() if lengths else 1
 
 
 def _same_width(**arrays: np.ndarray) -> int:
     widths = {k: width_of(a) for k, a in arrays.items()}
     if len(set(widths.values())) != 1:
-        raise ValueError(f"operands have different widths {widths}; convert them to one width")
+        raise PrecisionError(f"operands have different widths {widths}; convert them to one width "
+                             "(csgnb.exact.to_width)")
     return next(iter(widths.values()))
 
 
@@ -227,6 +224,7 @@ def _squeeze(result: np.ndarray, *inputs) -> np.ndarray:
 
 def homogeneous_points(points, width: int = 256) -> np.ndarray:
     """Return integer points ``(n, 3) int64`` as homogeneous wide points ``(n, 4)`` with x4 = 1."""
+    width = check_width(width)
     P = _rows(points, 3, "points", wide=False)
     out = np.concatenate([P, np.ones((P.shape[0], 1), np.int64)], axis=1)
     return _squeeze(to_wide(out, width), points)
@@ -257,6 +255,7 @@ def plane_from_points(p, q, r, *, width: int = 256, canonical: bool = True) -> n
     GeometryError
         Three points of a row are collinear (the normal is zero).
     """
+    width = check_width(width)
     P, Q, R = (_rows(x, 3, name, wide=False) for x, name in ((p, "p"), (q, "q"), (r, "r")))
     for arr, name in ((P, "p"), (Q, "q"), (R, "r")):
         check_mesh_points(arr, width, name)
@@ -335,6 +334,9 @@ def classify_vertex(points, planes) -> np.ndarray:
     X = _rows(points, 4, "points", wide=True)
     S = _rows(planes, 4, "planes", wide=True)
     _same_width(points=X, planes=S)
+    bad = int(_first_zero_w(X))
+    if bad >= 0:
+        raise GeometryError(f"points[{bad}] has x4 = 0: a point at infinity lies on no side of a plane")
     check_planes(S)
     check_points_against_planes(X, S)
     out = np.empty(_broadcast_length(points=X, planes=S), np.int8)
