@@ -31,7 +31,7 @@ from ..errors import GeometryError, InternalError, PrecisionError
 from ..exact.budgets import check_mesh_points
 from ..exact.integral import exact_int, integer_array
 from ..exact.intrinsics import classify_at, plane_from_points_into, signed_distance_into, wide_sign_at
-from ..exact.wide import DEFAULT_WIDTH, wide_dtype
+from ..exact.wide import DEFAULT_WIDTH, is_wide, wide_dtype
 from .polygon import PolygonSet, _checked_vertices, copy_point, polygons_from_triangles, split_polygon
 from .tree import OUT, BSPTree
 
@@ -201,6 +201,11 @@ def bsp_from_polygons(palette: np.ndarray, polygons: PolygonSet, *, seed: int = 
         (``~row``) has its **in** child on the positive side of that palette row.
         The palette is reduced to the rows the nodes use (in first-use order).
     """
+    if not (is_wide(palette) and palette.ndim == 2 and palette.shape[1] == 4):
+        raise TypeError(f"palette must be an (p, 4) wide array of planes (csgnb.exact.to_wide), got "
+                        f"{type(palette).__name__} {getattr(palette, 'shape', '')}")
+    if not isinstance(polygons, PolygonSet):
+        raise TypeError(f"polygons must be a csgnb.bsp.PolygonSet, got {type(polygons).__name__}")
     label = check_label(label)
     seed = check_seed(seed)
     verts = _checked_vertices(palette, polygons)
@@ -549,7 +554,7 @@ def _check_nesting(W, T, shell, n_shells, volume6, first_face) -> None:
             np.add.at(per_shell, shell[faces], wind)
             depth = int(per_shell.sum())
             inside_of = np.flatnonzero(per_shell)
-            container = int(inside_of[0]) if inside_of.size else -1
+            container = int(inside_of[-1]) if inside_of.size else -1
         outward = volume6[k] > 0
         if outward and depth == 0 or not outward and depth == 1:
             continue
@@ -559,6 +564,11 @@ def _check_nesting(W, T, shell, n_shells, volume6, first_face) -> None:
                 f"{name} lies inside shell {container} and also faces outward, so the space between them would "
                 "be inside twice: if it is a cavity, reverse its faces (e.g. faces[shell_faces, ::-1]); if it "
                 "is a separate solid, move it out of the other one"
+            )
+        if not outward and depth == 0 and container >= 0:
+            raise GeometryError(
+                f"{name} is oriented inward but lies in empty space (inside the cavity shell {container}), so "
+                "there is no material to cut it from: flip its faces to make it an island, or remove it"
             )
         if not outward and depth == 0:
             raise GeometryError(

@@ -30,23 +30,31 @@ from .tree import BSPTree
 __all__ = ["BSP", "UNION", "INTERSECTION", "DIFFERENCE", "SYMMETRIC_DIFFERENCE"]
 
 
+def _labels(a, b) -> tuple[int, int]:
+    return exact_int(a, "label a"), exact_int(b, "label b")
+
+
 def UNION(a: int, b: int) -> int:  # noqa: N802 - merge functions read as constants
     """in if either is in (the larger material wins)."""
+    a, b = _labels(a, b)
     return max(a, b)
 
 
 def INTERSECTION(a: int, b: int) -> int:  # noqa: N802
     """in if both are in (A's material)."""
+    a, b = _labels(a, b)
     return a if b else 0
 
 
 def DIFFERENCE(a: int, b: int) -> int:  # noqa: N802
     """A's label where B is out."""
+    a, b = _labels(a, b)
     return a if not b else 0
 
 
 def SYMMETRIC_DIFFERENCE(a: int, b: int) -> int:  # noqa: N802
     """in where exactly one is in."""
+    a, b = _labels(a, b)
     return (a or b) if not (a and b) else 0
 
 

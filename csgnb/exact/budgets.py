@@ -41,9 +41,10 @@ from functools import cached_property
 import numpy as np
 
 from .._jit import jit
-from ..errors import GeometryError, PrecisionError
+from ..errors import CsgnbError, GeometryError, PrecisionError
+from .integral import exact_int
 from .intrinsics import wide_abs_greater_at, wide_sign_at
-from .wide import WIDTHS, from_wide, width_of
+from .wide import WIDTHS, check_width, from_wide, width_of
 
 __all__ = [
     "BitBudget",
@@ -58,8 +59,9 @@ __all__ = [
 
 def integer_root(value: int, k: int) -> int:
     """Return floor(value ** (1/k)) for a non-negative Python int (exact, no floats)."""
-    if value < 0:
-        raise ValueError("integer_root needs a non-negative value")
+    value, k = exact_int(value, "value"), exact_int(k, "k")
+    if value < 0 or k < 1:
+        raise CsgnbError(f"integer_root needs value >= 0 and k >= 1, got value = {value}, k = {k}")
     if value < 2:
         return value
     x = 1 << -(-value.bit_length() // k)  # an upper bound
@@ -86,8 +88,7 @@ class BitBudget:
     width: int
 
     def __post_init__(self) -> None:
-        if self.width not in WIDTHS:
-            raise ValueError(f"width must be one of {WIDTHS} bits, got {self.width!r}")
+        object.__setattr__(self, "width", check_width(self.width))
 
     @property
     def limit(self) -> int:
@@ -111,18 +112,23 @@ class BitBudget:
 
     def max_vertex_coordinate(self, max_normal: int) -> int:
         """Largest vertex coordinate v+ usable with normals bounded by ``max_normal`` (eq. 7)."""
+        max_normal = exact_int(max_normal, "max_normal")
         if max_normal < 1:
-            raise ValueError("max_normal must be >= 1")
+            raise PrecisionError(f"max_normal must be >= 1, got {max_normal}")
         return (self.limit - 1) // (48 * max_normal**4)
 
     def max_normal_coefficient(self, max_vertex: int) -> int:
         """Largest normal bound n+ usable with vertex coordinates bounded by ``max_vertex`` (eq. 7)."""
+        max_vertex = exact_int(max_vertex, "max_vertex")
         if max_vertex < 1:
-            raise ValueError("max_vertex must be >= 1")
+            raise PrecisionError(f"max_vertex must be >= 1, got {max_vertex}")
         return integer_root((self.limit - 1) // (48 * max_vertex), 4)
 
     def plane_violations(self, N: int, D: int) -> list[str]:
         """Return the bounds that planes with max normal ``N`` and max offset ``D`` break (empty if none)."""
+        N, D = exact_int(N, "N"), exact_int(D, "D")
+        if N < 0 or D < 0:
+            raise PrecisionError(f"N and D are bounds on magnitudes (>= 0), got N = {N}, D = {D}")
         problems = []
         if 16 * N**3 * D >= self.limit:
             problems.append(
@@ -144,7 +150,7 @@ class BitBudget:
 
 def budget(width: int) -> BitBudget:
     """Return the :class:`BitBudget` of ``width`` bits (128, 192 or 256)."""
-    return _BUDGETS[width] if width in _BUDGETS else BitBudget(width)
+    return _BUDGETS[check_width(width)]
 
 
 _BUDGETS = {w: BitBudget(w) for w in WIDTHS}

@@ -184,7 +184,10 @@ class Grid:
 
     def to_model(self, points) -> np.ndarray:
         """Return model coordinates ``(n, 3) float64`` of grid or rational (float) ``points``."""
-        return np.ldexp(_real_array(points, "points").astype(np.float64), -self.exponent) + self.origin
+        pts = _real_array(points, "points")
+        if pts.shape[-1:] != (3,):
+            raise GeometryError(f"points must have shape (n, 3) or (3,), got {pts.shape}")
+        return np.ldexp(pts, -self.exponent) + self.origin
 
     def __repr__(self) -> str:
         return (f"Grid(resolution=2**{-self.exponent} ({self.resolution:g}), origin={self.origin.tolist()}, "
