@@ -15,6 +15,7 @@ array([1., 2., 3.])
 
 from .budgets import BitBudget, budget, integer_root
 from .integral import exact_int, integer_array
+from .planes import is_narrow_planes, plane_dtype, plane_width_of, to_full_planes, to_narrow_planes
 from .predicates import (
     are_planes_parallel,
     classify_vertex,
@@ -44,12 +45,17 @@ __all__ = [
     "integer_array",
     "integer_root",
     "intersect_3_planes",
+    "is_narrow_planes",
     "is_wide",
+    "plane_dtype",
     "plane_from_points",
+    "plane_width_of",
     "points_equal",
     "quantize",
     "signed_distance",
     "to_double_position",
+    "to_full_planes",
+    "to_narrow_planes",
     "to_wide",
     "to_width",
     "wide_dtype",
