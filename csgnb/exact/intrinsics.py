@@ -468,28 +468,26 @@ def compare_ratio_dyadic_at(typingctx, X, i, jn, jd, M, E):
 
 @intrinsic
 def scan_rows(typingctx, arr, start, stop, acc):
-    """Fold rows ``[start, stop)`` of ``arr`` into ``acc`` ((4k + 2,) uint64, k = width / 64).
+    """Fold rows ``[start, stop)`` of ``arr`` into ``acc`` (see :class:`csgnb.exact.lowering.Scan`).
 
-    ``arr`` is an ``(n, 4)`` wide array (planes or points) or narrow planes. See
-    :func:`csgnb.exact.lowering.scan_rows`: per-(column, limb) maxima of one's-complement
-    magnitudes, then the minimum OR of the normal limbs and of the x4 limbs over the rows.
+    ``arr`` is an ``(n, 4)`` wide array (planes or points) or narrow planes, with ``acc``
+    ``(4k + 2,) uint64`` (k = width / 64): per-(column, limb) maxima of one's-complement
+    magnitudes and the zero-normal / zero-x4 flags; or ``(n, 3) int64`` points with ``acc``
+    ``(2,) int64`` = [max, min].
     """
-    layout = lw.plane_layout(arr, "scan_rows")
-    bits = layout.bits
-    if not (isinstance(acc, types.Array) and acc.dtype == types.uint64 and acc.layout == "C" and acc.ndim == 1):
-        raise TypingError(f"scan_rows: acc must be a C-contiguous 1-D uint64 array, got {acc}")
+    if isinstance(arr, types.Array) and arr.dtype == types.int64:
+        lw.int_array(arr, "scan_rows")
+        want = types.int64
+    else:
+        lw.plane_layout(arr, "scan_rows")
+        want = types.uint64
+    if not (isinstance(acc, types.Array) and acc.dtype == want and acc.layout == "C" and acc.ndim == 1):
+        raise TypingError(f"scan_rows: acc must be a C-contiguous 1-D {want} array, got {acc}")
 
     def codegen(context, builder, sig, args):
-        ary = context.make_array(sig.args[0])(context, builder, args[0])
-        data = builder.bitcast(ary.data, I64.as_pointer())
-        acc_ary = context.make_array(sig.args[3])(context, builder, args[3])
         lo = context.cast(builder, args[1], sig.args[1], types.int64)
         hi = context.cast(builder, args[2], sig.args[2], types.int64)
-        acc_ptr = builder.bitcast(acc_ary.data, I64.as_pointer())
-        if layout.narrow:
-            lw.scan_narrow(builder, data, lo, hi, layout, bits // 64, acc_ptr)
-        else:
-            lw.scan_rows(builder, data, lo, hi, bits // 64, acc_ptr)
+        lw.scan_rows(context, builder, sig.args[0], args[0], sig.args[3], args[3], lo, hi)
         return context.get_dummy_value()
 
     return types.none(arr, start, stop, acc), codegen
@@ -541,3 +539,4 @@ def half_ulp(typingctx, x):
         return context.make_tuple(builder, types.UniTuple(types.float64, 2), [up, down])
 
     return types.UniTuple(types.float64, 2)(x), codegen
+

@@ -334,74 +334,188 @@ def _declare(builder, name, ret, args, overload):
     return cgutils.get_or_insert_function(builder.module, ir.FunctionType(ret, args), full)
 
 
-def scan_rows(builder, data, start, stop, k, acc_ptr):
-    """Fold rows ``[start, stop)`` of an ``(n, 4)`` array of ``k``-limb values into ``acc_ptr``.
+class Scan:
+    """The running bounds of one operand inside a loop (accumulators promoted to registers).
 
-    ``acc_ptr`` points at ``4k + 2`` uint64: per (column, limb) the maximum of the
-    one's-complement magnitude limbs (``v XOR sign``: |v| for v >= 0, |v| - 1 below), then
-    the minimum over rows of the OR of all limbs of columns 0-2 (0 iff some row has a zero
-    normal) and of column 3 (0 iff some row has x4 = 0). A whole row is one vector of
-    ``4k`` limbs, so the loop body is a handful of SIMD instructions.
+    The accumulator array holds ``4k + 2`` uint64 (k = width / 64): per (column, limb) the
+    maximum of the one's-complement magnitude limbs (``v XOR sign``: |v| for v >= 0, |v| - 1
+    below), then two flags that become 0 once a row has a zero normal (columns 0-2 all
+    zero) or a zero x4 (column 3). A wide row is one vector of ``4k`` limbs: the magnitudes
+    cost a shift, a shuffle, an xor and an unsigned max; the zero tests one vector compare
+    into a mask register and a few scalar bit operations (no horizontal reductions).
+    Narrow plane records fill the same slots from their fields (normals in limb 0 of
+    columns 0-2, the offset in limbs 0-1 of column 3). ``(n, 3) int64`` points keep their
+    [max, min] instead (a 2-element int64 accumulator).
     """
-    L = 4 * k
-    V = ir.VectorType(I64, L)
-    acc_vec_ptr = builder.bitcast(acc_ptr, V.as_pointer())
-    acc = cgutils.alloca_once_value(builder, builder.load(acc_vec_ptr, align=8))
-    acc_n = cgutils.alloca_once_value(builder, builder.load(builder.gep(acc_ptr, [ir.Constant(I64, L)]), align=8))
-    acc_w = cgutils.alloca_once_value(builder, builder.load(builder.gep(acc_ptr, [ir.Constant(I64, L + 1)]), align=8))
-    tops = ir.Constant(ir.VectorType(ir.IntType(32), L), [(i // k) * k + k - 1 for i in range(L)])
-    normal = ir.Constant(ir.VectorType(ir.IntType(32), 3 * k), list(range(3 * k)))
-    last = ir.Constant(ir.VectorType(ir.IntType(32), k), list(range(3 * k, 4 * k)))
-    V3, Vk = ir.VectorType(I64, 3 * k), ir.VectorType(I64, k)
-    umax = _declare(builder, "llvm.umax", V, [V, V], [V])
-    reduce3 = _declare(builder, "llvm.vector.reduce.or", I64, [V3], [V3])
-    reducek = _declare(builder, "llvm.vector.reduce.or", I64, [Vk], [Vk])
-    umin = _declare(builder, "llvm.umin", I64, [I64, I64], [I64])
-    shift = ir.Constant(V, [63] * L)
-    with cgutils.for_range_slice(builder, start, stop, ir.Constant(I64, 1), intp=I64) as (r, _):
-        ptr = builder.bitcast(builder.gep(data, [builder.mul(r, ir.Constant(I64, L))]), V.as_pointer())
-        row = builder.load(ptr, align=8)
-        sgn = builder.ashr(builder.shuffle_vector(row, row, tops), shift)
-        builder.store(builder.call(umax, [builder.load(acc), builder.xor(row, sgn)]), acc)
-        n_or = builder.call(reduce3, [builder.shuffle_vector(row, row, normal)])
-        w_or = builder.call(reducek, [builder.shuffle_vector(row, row, last)])
-        builder.store(builder.call(umin, [builder.load(acc_n), n_or]), acc_n)
-        builder.store(builder.call(umin, [builder.load(acc_w), w_or]), acc_w)
-    builder.store(builder.load(acc), acc_vec_ptr, align=8)
-    builder.store(builder.load(acc_n), builder.gep(acc_ptr, [ir.Constant(I64, L)]), align=8)
-    builder.store(builder.load(acc_w), builder.gep(acc_ptr, [ir.Constant(I64, L + 1)]), align=8)
 
+    def __init__(self, builder, kind: str, acc_ptr, k: int = 0, layout: PlaneLayout | None = None, last=None):
+        self.builder, self.kind, self.acc_ptr, self.k, self.layout = builder, kind, acc_ptr, k, layout
+        self.last = last  # narrow: address of the last record (no vector over-read there)
+        if kind == "wide":
+            L = 4 * k
+            # A row in vectors of at most 8 lanes (one zmm): LLVM keeps a <12 x i64> accumulator
+            # in scalar registers, so 192-bit rows are an 8-lane and a 4-lane vector.
+            self.chunks = [(lo, min(lo + 8, L)) for lo in range(0, L, 8)]
+            self.vecs = []
+            for lo, hi in self.chunks:
+                V = ir.VectorType(I64, hi - lo)
+                ptr = builder.bitcast(builder.gep(acc_ptr, [ir.Constant(I64, lo)]), V.as_pointer())
+                self.vecs.append(cgutils.alloca_once_value(builder, builder.load(ptr, align=8)))
+            self.slots = {s: self._slot(s) for s in (L, L + 1)}
+        elif kind == "narrow":
+            self.slots = {s: self._slot(s) for s in (0, k, 2 * k, 3 * k, 3 * k + 1, 4 * k)}
+            # Vector path: the record plus what follows it, 8 lanes of the normal field's size
+            # (lanes 0-2 normals, 3-4 the offset), its maxima folded into the slots at the end.
+            self.NV = ir.VectorType(ir.IntType(layout.normal_bits), 8)
+            self.nvec = cgutils.alloca_once_value(builder, ir.Constant(self.NV, [0] * 8))
+        else:  # int3: [max, min]
+            self.slots = {s: self._slot(s) for s in (0, 1)}
 
-def scan_narrow(builder, data, start, stop, layout: PlaneLayout, k, acc_ptr):
-    """:func:`scan_rows` for narrow plane records: the same ``4k + 2`` accumulators, filled from the fields.
+    def _slot(self, s):
+        return cgutils.alloca_once_value(self.builder, self.builder.load(self._ptr(s), align=8))
 
-    Normals land in limb 0 of columns 0-2 and the offset in limbs 0-1 of column 3 (as
-    one's-complement magnitudes), so one bound formula serves both layouts.
-    """
-    N, D = ir.IntType(layout.normal_bits), ir.IntType(layout.offset_bits)
-    nb, size = layout.normal_bits // 8, 3 * layout.normal_bits // 8 + layout.offset_bits // 8
-    slots = {s: cgutils.alloca_once_value(builder, builder.load(builder.gep(acc_ptr, [ir.Constant(I64, s)]),
-                                                                 align=8))
-             for s in (0, k, 2 * k, 3 * k, 3 * k + 1, 4 * k)}
-    umax = _declare(builder, "llvm.umax", I64, [I64, I64], [I64])
-    umin = _declare(builder, "llvm.umin", I64, [I64, I64], [I64])
-    base = builder.bitcast(data, I8.as_pointer())
+    def _ptr(self, s):
+        return self.builder.gep(self.acc_ptr, [ir.Constant(I64, s)])
 
-    def fold(slot, fn, value):
-        builder.store(builder.call(fn, [builder.load(slots[slot]), value]), slots[slot])
+    def _fold(self, s, op, value):
+        b = self.builder
+        if op == "and":
+            new = b.and_(b.load(self.slots[s]), value)
+        else:
+            new = b.call(_declare(b, f"llvm.{op}", I64, [I64, I64], [I64]), [b.load(self.slots[s]), value])
+        b.store(new, self.slots[s])
 
-    with cgutils.for_range_slice(builder, start, stop, ir.Constant(I64, 1), intp=I64) as (r, _):
-        rec = builder.gep(base, [builder.mul(r, ir.Constant(I64, size))])
+    def row(self, base):
+        """Fold the row at byte pointer ``base``."""
+        b = self.builder
+        if self.kind == "wide":
+            k, L = self.k, 4 * self.k
+            base64 = b.bitcast(base, I64.as_pointer())
+            parts = []
+            for lo, hi in self.chunks:
+                V = ir.VectorType(I64, hi - lo)
+                parts.append(b.load(b.bitcast(b.gep(base64, [ir.Constant(I64, lo)]), V.as_pointer()), align=8))
+            zero_lanes = ir.Constant(ir.IntType(L), 0)
+            for j, ((lo, hi), part) in enumerate(zip(self.chunks, parts, strict=True)):
+                n = hi - lo
+                V = ir.VectorType(I64, n)
+                # The top limb of each lane's column, from this chunk or the next one.
+                nxt = parts[j + 1] if j + 1 < len(parts) else part
+                if nxt.type.count != n:
+                    nxt = b.shuffle_vector(nxt, nxt, ir.Constant(ir.VectorType(ir.IntType(32), n),
+                                                                 [i % nxt.type.count for i in range(n)]))
+                tops = [((lane // k) * k + k - 1) - lo for lane in range(lo, hi)]
+                tops = ir.Constant(ir.VectorType(ir.IntType(32), n), tops)
+                sgn = b.ashr(b.shuffle_vector(part, nxt, tops), ir.Constant(V, [63] * n))
+                umax = _declare(b, "llvm.umax", V, [V, V], [V])
+                b.store(b.call(umax, [b.load(self.vecs[j]), b.xor(part, sgn)]), self.vecs[j])
+                zeros = b.zext(b.bitcast(b.icmp_unsigned("==", part, ir.Constant(V, [0] * n)), ir.IntType(n)),
+                               ir.IntType(L))
+                zero_lanes = b.or_(zero_lanes, b.shl(zeros, ir.Constant(ir.IntType(L), lo)))
+            M = ir.IntType(L)
+            for slot, lanes in ((L, (1 << (3 * k)) - 1), (L + 1, ((1 << k) - 1) << (3 * k))):
+                mask = ir.Constant(M, lanes)
+                all_zero = b.icmp_unsigned("==", b.and_(zero_lanes, mask), mask)
+                self._fold(slot, "and", b.zext(b.not_(all_zero), I64))
+        elif self.kind == "narrow":
+            last = b.icmp_unsigned(">=", b.ptrtoint(base, I64), self.last)
+            with b.if_else(last, likely=False) as (scalar, vector):
+                with scalar:
+                    self._narrow_scalar(base)
+                with vector:
+                    self._narrow_vector(base)
+        else:
+            for c in range(3):
+                v = load(b, base, c, I64)
+                self._fold(0, "smax", v)
+                self._fold(1, "smin", v)
+
+    def _narrow_vector(self, base):
+        """One narrow record as a vector (reads up to 24 bytes of the next record, never past the array)."""
+        b, NV = self.builder, self.NV
+        W = NV.element.width
+        v = b.load(b.bitcast(base, NV.as_pointer()), align=4)
+        tops = ir.Constant(ir.VectorType(ir.IntType(32), 8), [0, 1, 2, 4, 4, 5, 6, 7])
+        sgn = b.ashr(b.shuffle_vector(v, v, tops), ir.Constant(NV, [W - 1] * 8))
+        umax = _declare(b, "llvm.umax", NV, [NV, NV], [NV])
+        b.store(b.call(umax, [b.load(self.nvec), b.xor(v, sgn)]), self.nvec)
+        zeros = b.bitcast(b.icmp_unsigned("==", v, ir.Constant(NV, [0] * 8)), ir.IntType(8))
+        all_zero = b.icmp_unsigned("==", b.and_(zeros, ir.Constant(ir.IntType(8), 7)), ir.Constant(ir.IntType(8), 7))
+        self._fold(4 * self.k, "and", b.zext(b.not_(all_zero), I64))
+
+    def _narrow_scalar(self, base):
+        b = self.builder
+        k, layout = self.k, self.layout
+        N, D = ir.IntType(layout.normal_bits), ir.IntType(layout.offset_bits)
+        nb = layout.normal_bits // 8
         normal_or = ir.Constant(I64, 0)
         for c in range(3):
-            v = builder.sext(_load_at(builder, rec, c * nb, N), I64)
-            fold(c * k, umax, builder.xor(v, builder.ashr(v, ir.Constant(I64, 63))))
-            normal_or = builder.or_(normal_or, v)
-        fold(4 * k, umin, normal_or)
-        d = _load_at(builder, rec, 3 * nb, D)
-        m = builder.xor(d, builder.ashr(d, ir.Constant(D, D.width - 1)))
-        fold(3 * k, umax, builder.trunc(m, I64))
+            v = b.sext(_load_at(b, base, c * nb, N), I64)
+            self._fold(c * k, "umax", b.xor(v, b.ashr(v, ir.Constant(I64, 63))))
+            normal_or = b.or_(normal_or, v)
+        self._fold(4 * k, "and", b.zext(b.icmp_unsigned("!=", normal_or, ir.Constant(I64, 0)), I64))
+        d = _load_at(b, base, 3 * nb, D)
+        m = b.xor(d, b.ashr(d, ir.Constant(D, D.width - 1)))
+        self._fold(3 * k, "umax", b.trunc(m, I64))
         if D.width > 64:
-            fold(3 * k + 1, umax, builder.trunc(builder.lshr(m, ir.Constant(D, 64)), I64))
-    for s, slot in slots.items():
-        builder.store(builder.load(slot), builder.gep(acc_ptr, [ir.Constant(I64, s)]), align=8)
+            self._fold(3 * k + 1, "umax", b.trunc(b.lshr(m, ir.Constant(D, 64)), I64))
+
+    def end(self):
+        b = self.builder
+        if self.kind == "narrow":
+            # Lane maxima are per-field (offsets: per half) upper bounds; fold them into the limb slots.
+            v, k = b.load(self.nvec), self.k
+            lane = [b.zext(b.extract_element(v, ir.Constant(ir.IntType(32), i)), I64) for i in range(5)]
+            for c in range(3):
+                self._fold(c * k, "umax", lane[c])
+            if self.NV.element.width == 32:  # offset halves: max(hi) * 2**32 + max(lo) bounds max(offset)
+                self._fold(3 * k, "umax", b.or_(b.shl(lane[4], ir.Constant(I64, 32)), lane[3]))
+            else:
+                self._fold(3 * k, "umax", lane[3])
+                self._fold(3 * k + 1, "umax", lane[4])
+        if self.kind == "wide":
+            for (lo, hi), vec in zip(self.chunks, self.vecs, strict=True):
+                V = ir.VectorType(I64, hi - lo)
+                b.store(b.load(vec), b.bitcast(b.gep(self.acc_ptr, [ir.Constant(I64, lo)]), V.as_pointer()), align=8)
+        for s, slot in self.slots.items():
+            b.store(b.load(slot), self._ptr(s), align=8)
+
+
+def row_bytes(aty) -> int:
+    """Bytes per row of a wide (n, 4) array, narrow planes or (n, 3) int64 points."""
+    if isinstance(aty.dtype, types.Record):
+        return aty.dtype.size * (4 if aty.ndim == 2 else 1)
+    return 8 * 3
+
+
+def begin_scan(context, builder, aty, aval, acc_ty, acc_val) -> Scan:
+    """A :class:`Scan` for operand type ``aty`` folding into the accumulator array ``acc_val``."""
+    acc_ptr = builder.bitcast(context.make_array(acc_ty)(context, builder, acc_val).data, I64.as_pointer())
+    if isinstance(aty.dtype, types.Record):
+        layout = plane_layout(aty, "scan")
+        if not layout.narrow:
+            return Scan(builder, "wide", acc_ptr, layout.bits // 64, layout)
+        ary = context.make_array(aty)(context, builder, aval)
+        n = cgutils.unpack_tuple(builder, ary.shape, 1)[0]
+        last = builder.add(builder.ptrtoint(ary.data, I64),
+                           builder.mul(builder.sub(n, ir.Constant(I64, 1)), ir.Constant(I64, row_bytes(aty))))
+        return Scan(builder, "narrow", acc_ptr, layout.bits // 64, layout, last)
+    return Scan(builder, "int3", acc_ptr)
+
+
+def data_pointer(context, builder, aty, aval):
+    return builder.bitcast(context.make_array(aty)(context, builder, aval).data, I8.as_pointer())
+
+
+def row_base(builder, data, row, nbytes):
+    return builder.gep(data, [builder.mul(row, ir.Constant(I64, nbytes))])
+
+
+def scan_rows(context, builder, aty, aval, acc_ty, acc_val, start, stop):
+    """Fold rows ``[start, stop)`` of ``aval`` into its accumulator (see :class:`Scan`)."""
+    scan = begin_scan(context, builder, aty, aval, acc_ty, acc_val)
+    data = data_pointer(context, builder, aty, aval)
+    nbytes = row_bytes(aty)
+    with cgutils.for_range_slice(builder, start, stop, ir.Constant(I64, 1), intp=I64) as (r, _):
+        scan.row(row_base(builder, data, r, nbytes))
+    scan.end()

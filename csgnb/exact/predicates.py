@@ -34,6 +34,7 @@ import numpy as np
 
 from .._jit import jit
 from ..errors import GeometryError, PrecisionError
+from .blocks import classify_rows, distance_rows, intersect_rows, parallel_rows, points_equal_rows
 from .budgets import (
     check_integer_points_against_planes,
     check_mesh_points,
@@ -45,16 +46,11 @@ from .budgets import (
 )
 from .integral import integer_array
 from .intrinsics import (
-    classify_at,
     compare_ratio_dyadic_at,
     fma,
     half_ulp,
-    intersect_into,
     plane_from_normal_into,
-    planes_parallel_at,
-    points_equal_at,
     scan_rows,
-    signed_distance_into,
     trailing_zeros,
     wide_sign_at,
     wide_split_double_at,
@@ -85,7 +81,9 @@ BLOCK = 256
 
 @jit
 def _scan_operand(arr, many, start, stop, acc):
-    """Scan rows [start, stop) of a broadcast operand (its single row once, at the first block)."""
+    """Scan rows [start, stop) of a broadcast operand (its single row once, at the first block).
+
+    """
     if many:
         scan_rows(arr, start, stop, acc)
     elif start == 0:
@@ -94,46 +92,31 @@ def _scan_operand(arr, many, start, stop, acc):
 
 @jit
 def _classify_kernel(points, planes, out, acc_x, acc_s):
-    many_x, many_s = points.shape[0] != 1, planes.shape[0] != 1
-    n = out.shape[0]
-    for b in range(0, n, BLOCK):
-        e = min(b + BLOCK, n)
-        _scan_operand(points, many_x, b, e, acc_x)
-        _scan_operand(planes, many_s, b, e, acc_s)
-        for t in range(b, e):
-            out[t] = classify_at(points, t if many_x else 0, planes, t if many_s else 0)
+    classify_rows(points, points.shape[0] != 1, planes, planes.shape[0] != 1, 0, out.shape[0], out, acc_x, acc_s)
 
 
 @jit
 def _intersect_kernel(P, Q, R, out, acc_p, acc_q, acc_r, acc_out):
-    mp, mq, mr = P.shape[0] != 1, Q.shape[0] != 1, R.shape[0] != 1
-    n = out.shape[0]
-    for b in range(0, n, BLOCK):
-        e = min(b + BLOCK, n)
-        _scan_operand(P, mp, b, e, acc_p)
-        _scan_operand(Q, mq, b, e, acc_q)
-        _scan_operand(R, mr, b, e, acc_r)
-        for t in range(b, e):
-            intersect_into(P, t if mp else 0, Q, t if mq else 0, R, t if mr else 0, out, t)
-        scan_rows(out, b, e, acc_out)
+    intersect_rows(P, P.shape[0] != 1, Q, Q.shape[0] != 1, R, R.shape[0] != 1, 0, out.shape[0], out,
+                   acc_p, acc_q, acc_r, acc_out)
 
 
 @jit
 def _gcd(u, v):
-    """gcd of non-negative int64 ``u``, ``v`` (binary: shifts and subtractions, no division)."""
+    """gcd of non-negative int64 ``u``, ``v``: binary, branch-free steps (shift, min, |difference|)."""
     if u == 0:
         return v
     if v == 0:
         return u
     shift = trailing_zeros(u | v)
     u >>= trailing_zeros(u)
-    while True:
+    v >>= trailing_zeros(v)
+    while u != v:  # both odd
+        d = v - u
+        u = min(u, v)
+        v = abs(d)
         v >>= trailing_zeros(v)
-        if u > v:
-            u, v = v, u
-        v -= u
-        if v == 0:
-            return u << shift
+    return u << shift
 
 
 @jit
@@ -182,41 +165,17 @@ def _plane_from_points_kernel(P, Q, R, out, canonical, ext, state):
 
 @jit
 def _signed_distance_kernel(points, planes, out, ext, acc_s):
-    many_v, many_s = points.shape[0] != 1, planes.shape[0] != 1
-    n = out.shape[0]
-    for b in range(0, n, BLOCK):
-        e = min(b + BLOCK, n)
-        if many_v:
-            _extremes(points, b, e, ext)
-        elif b == 0:
-            _extremes(points, 0, 1, ext)
-        _scan_operand(planes, many_s, b, e, acc_s)
-        for t in range(b, e):
-            signed_distance_into(points, t if many_v else 0, planes, t if many_s else 0, out, t)
+    distance_rows(points, points.shape[0] != 1, planes, planes.shape[0] != 1, 0, out.shape[0], out, ext, acc_s)
 
 
 @jit
 def _parallel_kernel(P, Q, out, acc_p, acc_q):
-    mp, mq = P.shape[0] != 1, Q.shape[0] != 1
-    n = out.shape[0]
-    for b in range(0, n, BLOCK):
-        e = min(b + BLOCK, n)
-        _scan_operand(P, mp, b, e, acc_p)
-        _scan_operand(Q, mq, b, e, acc_q)
-        for t in range(b, e):
-            out[t] = planes_parallel_at(P, t if mp else 0, Q, t if mq else 0)
+    parallel_rows(P, P.shape[0] != 1, Q, Q.shape[0] != 1, 0, out.shape[0], out, acc_p, acc_q)
 
 
 @jit
 def _points_equal_kernel(X, Y, out, acc_x, acc_y):
-    mx, my = X.shape[0] != 1, Y.shape[0] != 1
-    n = out.shape[0]
-    for b in range(0, n, BLOCK):
-        e = min(b + BLOCK, n)
-        _scan_operand(X, mx, b, e, acc_x)
-        _scan_operand(Y, my, b, e, acc_y)
-        for t in range(b, e):
-            out[t] = points_equal_at(X, t if mx else 0, Y, t if my else 0)
+    points_equal_rows(X, X.shape[0] != 1, Y, Y.shape[0] != 1, 0, out.shape[0], out, acc_x, acc_y)
 
 
 _TWO_POW_53 = 9007199254740992.0
@@ -257,7 +216,7 @@ def _ratio_to_double(points, i, c):
     return q if sn * sw > 0 else -q
 
 
-@jit
+@jit(inline="always")
 def _position(points, t, out, counts):
     """out[t] = (x1, x2, x3) / x4 correctly rounded: a certified double-double quotient, else the exact path.
 
