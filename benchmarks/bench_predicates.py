@@ -34,6 +34,7 @@ import math
 import pathlib
 import time
 from fractions import Fraction
+from functools import partial
 
 import numpy as np
 
@@ -62,10 +63,13 @@ API_TARGET = 1.5
 
 
 # ---------------------------------------------------------------------------
-# bare kernels: the operation alone, no checks (what Table 1 times)
+# bare kernels: the operation alone, no checks (what Table 1 times). Not cached: numba keys a
+# cache outside the package on this file alone and would keep serving kernels compiled
+# against an older csgnb.
+bare_jit = partial(jit, cache=False)
 
 
-@jit
+@bare_jit
 def _bare_pfp(P, Q, R, out):
     for t in range(out.shape[0]):
         x1, y1, z1 = Q[t, 0] - P[t, 0], Q[t, 1] - P[t, 1], Q[t, 2] - P[t, 2]
@@ -81,37 +85,36 @@ def _bare_pfp(P, Q, R, out):
         plane_from_normal_into(a, b, c, P, t, out, t)
 
 
-@jit
+@bare_jit
 def _bare_parallel(P, Q, out):
     for t in range(out.shape[0]):
         out[t] = planes_parallel_at(P, t, Q, t)
 
 
-@jit
+@bare_jit
 def _bare_distance(V, S, out):
     for t in range(out.shape[0]):
         signed_distance_into(V, t, S, t, out, t)
 
 
-@jit
+@bare_jit
 def _bare_to_double(X, out, counts):
-    for t in range(X.shape[0]):
-        K._position(X, t, out, counts)
+    K._positions(X, 0, X.shape[0], out, counts)
 
 
-@jit
+@bare_jit
 def _bare_intersect(P, Q, R, out):
     for t in range(out.shape[0]):
         intersect_into(P, t, Q, t, R, t, out, t)
 
 
-@jit
+@bare_jit
 def _bare_classify(X, S, out):
     for t in range(out.shape[0]):
         out[t] = classify_at(X, t, S, t)
 
 
-@jit
+@bare_jit
 def _clock_chain(n, m):
     x = m
     for i in range(n):

@@ -56,6 +56,7 @@ __all__ = [
     "wide_divexact_at",
     "compare_ratio_dyadic_at",
     "scan_rows",
+    "positions_into",
     "trailing_zeros",
     "fma",
     "half_ulp",
@@ -491,6 +492,35 @@ def scan_rows(typingctx, arr, start, stop, acc):
         return context.get_dummy_value()
 
     return types.none(arr, start, stop, acc), codegen
+
+
+@intrinsic
+def positions_into(typingctx, X, i, out, io):
+    """Store x_c / x4 of the point ``X[i]`` into ``out[io, 0:3]`` (float64); return the certified lanes (int8 bits).
+
+    All three quotients at once in 4-lane vectors (x4 in the fourth): a truncated double-double
+    split, one reciprocal and an FMA-exact residual per lane, certified against the midpoints
+    with the relative error bound :data:`csgnb.exact.lowering.CERTIFY` (see
+    :func:`csgnb.exact.predicates._positions` for its derivation).
+    Bit c of the result is set when out[io, c] is the correctly rounded quotient; the caller
+    recomputes the other lanes exactly. ``X[i, 3]`` must not be zero.
+    """
+    k = lw.wide_width(X, "positions_into") // 64
+
+    def codegen(context, builder, sig, args):
+        base = lw.row_pointer(context, builder, sig.args[0], args[0], args[1], sig.args[1])
+        V4k = ir.VectorType(I64, 4 * k)
+        row = builder.load(builder.bitcast(base, V4k.as_pointer()), align=8)
+        limbs = [builder.shuffle_vector(row, row, ir.Constant(ir.VectorType(ir.IntType(32), 4),
+                                                              [c * k + j for c in range(4)])) for j in range(k)]
+        values, mask = lw.certified_quotients(builder, limbs, k, lw.CERTIFY)
+        out_base = lw.row_pointer(context, builder, sig.args[2], args[2], args[3], sig.args[3])
+        for c in range(3):
+            ptr = builder.bitcast(builder.gep(out_base, [ir.Constant(I64, 8 * c)]), F64.as_pointer())
+            builder.store(builder.extract_element(values, ir.Constant(ir.IntType(32), c)), ptr)
+        return mask
+
+    return types.int8(X, i, out, io), codegen
 
 
 @intrinsic

@@ -254,23 +254,35 @@ def split_double(builder, v):
     """|v| truncated to its leading 106 bits as two doubles (hi, lo): hi = the top 53 bits, lo = the next 53.
 
     Both are exact doubles (53-bit integers times powers of two) and
-    ``0 <= |v| - (hi + lo) < 2**-105 * |v|``; zero gives (0, 0).
+    ``0 <= |v| - (hi + lo) < 2**-105 * |v|``; zero gives (0, 0). Only the leading limb and
+    the two below it are shifted (a funnel shift by the leading zeros), never the whole value.
     """
     T = v.type
-    W = T.width
+    k = T.width // 64
     magnitude = absolute(builder, v)
-    lz = builder.call(bit_count_intrinsic(builder, "llvm.ctlz", T), [magnitude, ir.Constant(I1, 0)])
-    norm = builder.shl(magnitude, lz)  # leading bit at W - 1 (or all zero)
-    top = builder.trunc(builder.lshr(norm, ir.Constant(T, W - 64)), I64)
+    limbs = [builder.trunc(builder.lshr(magnitude, ir.Constant(T, 64 * j)), I64) if j else builder.trunc(magnitude, I64)
+             for j in range(k)]
+    zero64 = ir.Constant(I64, 0)
+    # (a, b, c): the leading non-zero limb and the two below it; j: its index.
+    a, b_, c, j = limbs[0], zero64, zero64, ir.Constant(I64, 0)
+    for i in range(1, k):
+        nz = builder.icmp_unsigned("!=", limbs[i], zero64)
+        a = builder.select(nz, limbs[i], a)
+        b_ = builder.select(nz, limbs[i - 1], b_)
+        c = builder.select(nz, limbs[i - 2] if i >= 2 else zero64, c)
+        j = builder.select(nz, ir.Constant(I64, i), j)
+    lz = builder.call(bit_count_intrinsic(builder, "llvm.ctlz", I64), [a, ir.Constant(I1, 0)])
+    fshl = builder.module.declare_intrinsic("llvm.fshl", [I64], ir.FunctionType(I64, [I64, I64, I64]))
+    top = builder.call(fshl, [a, b_, lz])  # the leading 64 bits, leading bit at 63
+    nxt = builder.call(fshl, [b_, c, lz])  # the next 64
     hi_bits = builder.lshr(top, ir.Constant(I64, 11))  # 53 bits
-    nxt = builder.trunc(builder.lshr(norm, ir.Constant(T, W - 128)), I64)  # the next 64 bits
     lo_bits = builder.or_(builder.shl(builder.and_(top, ir.Constant(I64, 0x7FF)), ir.Constant(I64, 42)),
                           builder.lshr(nxt, ir.Constant(I64, 22)))
-    # |v| ~ hi_bits * 2**(W - 53 - lz) + lo_bits * 2**(W - 106 - lz)
-    e = builder.sub(ir.Constant(I64, W - 53), builder.trunc(lz, I64))
+    # The leading bit has weight 2**(64 j + 63 - lz); hi_bits' unit is 2**(64 j + 11 - lz).
+    e = builder.sub(builder.add(builder.mul(j, ir.Constant(I64, 64)), ir.Constant(I64, 11)), lz)
     hi = builder.fmul(builder.uitofp(hi_bits, F64), power_of_two(builder, e))
     lo = builder.fmul(builder.uitofp(lo_bits, F64), power_of_two(builder, builder.sub(e, ir.Constant(I64, 53))))
-    zero = builder.icmp_unsigned("==", magnitude, ir.Constant(T, 0))
+    zero = builder.icmp_unsigned("==", a, zero64)
     hi = builder.select(zero, ir.Constant(F64, 0.0), hi)
     lo = builder.select(zero, ir.Constant(F64, 0.0), lo)
     return hi, lo
@@ -325,6 +337,8 @@ def divexact_by(builder, v, negative, twos, inverse):
 def _type_suffix(t) -> str:
     if isinstance(t, ir.VectorType):
         return f"v{t.count}{_type_suffix(t.element)}"
+    if isinstance(t, ir.DoubleType):
+        return "f64"
     return f"i{t.width}"
 
 
@@ -519,3 +533,97 @@ def scan_rows(context, builder, aty, aval, acc_ty, acc_val, start, stop):
     with cgutils.for_range_slice(builder, start, stop, ir.Constant(I64, 1), intp=I64) as (r, _):
         scan.row(row_base(builder, data, r, nbytes))
     scan.end()
+
+
+#: The fast quotient of :func:`certified_quotients` is within 2**-100 |x/w| of the true one; its
+#: rounding is certified only when the tail stays this much (relative) farther from a midpoint.
+CERTIFY = 2.0**-96
+
+
+def _v4(builder, T, values):
+    return ir.Constant(ir.VectorType(T, 4), values if isinstance(values, list) else [values] * 4)
+
+
+def split_double_v4(builder, limbs, k):
+    """:func:`split_double` of four values at once: ``limbs[j]`` is the <4 x i64> of limb j of each value.
+
+    Returns (hi, lo, negative): <4 x double> truncated double-doubles of the magnitudes and
+    the <4 x i1> signs. The same arithmetic as the scalar version, lane by lane (vplzcntq,
+    vpshldvq, vcvtuqq2pd on AVX-512).
+    """
+    V = ir.VectorType(I64, 4)
+    zero = _v4(builder, I64, 0)
+    sign = builder.ashr(limbs[k - 1], _v4(builder, I64, 63))
+    negative = builder.icmp_signed("<", limbs[k - 1], zero)
+    carry = builder.and_(sign, _v4(builder, I64, 1))
+    mags = []
+    for j in range(k):  # |v| = (v XOR sign) + (1 if negative), carried limb by limb
+        m = builder.add(builder.xor(limbs[j], sign), carry)
+        mags.append(m)
+        carry = builder.and_(carry, builder.zext(builder.icmp_unsigned("==", m, zero), V))
+    a, b_, c, idx = mags[0], zero, zero, zero
+    for i in range(1, k):
+        nz = builder.icmp_unsigned("!=", mags[i], zero)
+        a = builder.select(nz, mags[i], a)
+        b_ = builder.select(nz, mags[i - 1], b_)
+        c = builder.select(nz, mags[i - 2] if i >= 2 else zero, c)
+        idx = builder.select(nz, _v4(builder, I64, i), idx)
+    ctlz = _declare(builder, "llvm.ctlz", V, [V, I1], [V])
+    lz = builder.call(ctlz, [a, ir.Constant(I1, 0)])
+    fshl = _declare(builder, "llvm.fshl", V, [V, V, V], [V])
+    top = builder.call(fshl, [a, b_, lz])
+    nxt = builder.call(fshl, [b_, c, lz])
+    hi_bits = builder.lshr(top, _v4(builder, I64, 11))
+    lo_bits = builder.or_(builder.shl(builder.and_(top, _v4(builder, I64, 0x7FF)), _v4(builder, I64, 42)),
+                          builder.lshr(nxt, _v4(builder, I64, 22)))
+    e = builder.sub(builder.add(builder.shl(idx, _v4(builder, I64, 6)), _v4(builder, I64, 11)), lz)
+    D = ir.VectorType(F64, 4)
+
+    def pow2(x):
+        return builder.bitcast(builder.shl(builder.add(x, _v4(builder, I64, 1023)), _v4(builder, I64, 52)), D)
+
+    hi = builder.fmul(builder.uitofp(hi_bits, D), pow2(e))
+    lo = builder.fmul(builder.uitofp(lo_bits, D), pow2(builder.sub(e, _v4(builder, I64, 53))))
+    is_zero = builder.icmp_unsigned("==", a, zero)
+    dzero = ir.Constant(D, [0.0] * 4)
+    return builder.select(is_zero, dzero, hi), builder.select(is_zero, dzero, lo), negative
+
+
+def certified_quotients(builder, limbs, k, certify):
+    """x_c / x4 (c = 0, 1, 2) of one homogeneous point, with a mask of the lanes certified correctly rounded.
+
+    ``limbs[j]`` holds limb j of (x1, x2, x3, x4), x4 != 0. Returns (<4 x double> quotients in
+    lanes 0-2, i8 bit mask of the certified lanes 0-2). See
+    :func:`csgnb.exact.predicates._positions` for the error bound behind ``certify``.
+    """
+    D = ir.VectorType(F64, 4)
+    hi, lo, negative = split_double_v4(builder, limbs, k)
+    three = ir.Constant(ir.VectorType(ir.IntType(32), 4), [3] * 4)
+    bh = builder.shuffle_vector(hi, hi, three)
+    bl = builder.shuffle_vector(lo, lo, three)
+    r = builder.fdiv(ir.Constant(D, [1.0] * 4), bh)
+    fma = _declare(builder, "llvm.fma", D, [D, D, D], [D])
+    q1 = builder.fmul(hi, r)
+    ph = builder.fmul(q1, bh)
+    pl = builder.call(fma, [q1, bh, builder.fneg(ph)])
+    rho = builder.fadd(builder.fsub(builder.fsub(hi, ph), pl), builder.call(fma, [builder.fneg(q1), bl, lo]))
+    corr = builder.fmul(rho, r)
+    s = builder.fadd(q1, corr)
+    tail = builder.fsub(corr, builder.fsub(s, q1))
+    V = ir.VectorType(I64, 4)
+    bits = builder.bitcast(s, V)
+    up = builder.bitcast(builder.sub(builder.and_(bits, _v4(builder, I64, 0x7FF << 52)), _v4(builder, I64, 53 << 52)),
+                         D)
+    pow2 = builder.icmp_unsigned("==", builder.and_(bits, _v4(builder, I64, (1 << 52) - 1)), _v4(builder, I64, 0))
+    down = builder.select(pow2, builder.fmul(up, ir.Constant(D, [0.5] * 4)), up)
+    err = builder.fmul(s, ir.Constant(D, [certify] * 4))
+    ok = builder.and_(builder.fcmp_ordered("<", builder.fadd(tail, err), up),
+                      builder.fcmp_ordered(">", builder.fsub(tail, err), builder.fneg(down)))
+    zero_num = builder.fcmp_ordered("==", hi, ir.Constant(D, [0.0] * 4))
+    ok = builder.or_(ok, zero_num)
+    # The sign: x_c / x4 is negative when exactly one of them is.
+    flip = builder.xor(negative, builder.shuffle_vector(negative, negative, three))
+    signed = builder.select(flip, builder.fneg(s), s)
+    result = builder.select(zero_num, ir.Constant(D, [0.0] * 4), signed)
+    mask = builder.and_(builder.bitcast(ok, ir.IntType(4)), ir.Constant(ir.IntType(4), 7))
+    return result, builder.zext(mask, I8)

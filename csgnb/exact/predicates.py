@@ -47,13 +47,11 @@ from .budgets import (
 from .integral import integer_array
 from .intrinsics import (
     compare_ratio_dyadic_at,
-    fma,
-    half_ulp,
     plane_from_normal_into,
+    positions_into,
     scan_rows,
     trailing_zeros,
     wide_sign_at,
-    wide_split_double_at,
     wide_to_float_at,
 )
 from .planes import as_planes, plane_dtype, plane_width_of
@@ -180,9 +178,6 @@ def _points_equal_kernel(X, Y, out, acc_x, acc_y):
 
 _TWO_POW_53 = 9007199254740992.0
 _TWO_POW_52 = 4503599627370496
-# The fast quotient q1 + c is within 2**-100 |x/w| of the true one (see _position); the
-# rounding is certified only when the tail stays this much farther from a midpoint.
-_CERTIFY = 2.0**-96
 
 
 @jit
@@ -216,9 +211,12 @@ def _ratio_to_double(points, i, c):
     return q if sn * sw > 0 else -q
 
 
-@jit(inline="always")
-def _position(points, t, out, counts):
-    """out[t] = (x1, x2, x3) / x4 correctly rounded: a certified double-double quotient, else the exact path.
+@jit
+def _positions(points, start, stop, out, counts):
+    """out[t] = (x1, x2, x3) / x4, correctly rounded, for t in [start, stop).
+
+    A certified double-double quotient, else the exact path (one call per block: passing
+    arrays to a per-row function would cost reference counting per row).
 
     With A = |x_c|, B = |x4| split into 106-bit double-doubles (ah + al, bh + bl; relative
     truncation < 2**-105) and r = 1/bh: q1 = ah·r; the residual A - q1·B is formed from
@@ -228,33 +226,17 @@ def _position(points, t, out, counts):
     2**-96 s inside the half-gaps to the neighbouring doubles (the midpoints); otherwise -- a
     tie or a near-tie, about 2**-42 of random quotients -- the exact comparison decides.
     """
-    sw = wide_sign_at(points, t, 3)
-    if sw == 0:
-        for c in range(3):
-            out[t, c] = np.nan
-        return
-    bh, bl = wide_split_double_at(points, t, 3)
-    r = 1.0 / bh
-    for c in range(3):
-        sn = wide_sign_at(points, t, c)
-        if sn == 0:
-            out[t, c] = 0.0
+    for t in range(start, stop):
+        if wide_sign_at(points, t, 3) == 0:
+            for c in range(3):
+                out[t, c] = np.nan
             continue
-        ah, al = wide_split_double_at(points, t, c)
-        q1 = ah * r
-        ph = q1 * bh
-        pl = fma(q1, bh, -ph)
-        rho = ((ah - ph) - pl) + fma(-q1, bl, al)
-        corr = rho * r
-        s = q1 + corr
-        tail = corr - (s - q1)
-        up, down = half_ulp(s)
-        err = s * _CERTIFY
-        if tail + err < up and tail - err > -down:
-            out[t, c] = s if sn * sw > 0 else -s
-        else:
-            counts[0] += 1
-            out[t, c] = _ratio_to_double(points, t, c)
+        certified = positions_into(points, t, out, t)
+        if certified != 7:
+            for c in range(3):
+                if not (certified >> c) & 1:
+                    counts[0] += 1
+                    out[t, c] = _ratio_to_double(points, t, c)
 
 
 @jit
@@ -263,8 +245,7 @@ def _to_double_kernel(points, out, acc, counts):
     for b in range(0, n, BLOCK):
         e = min(b + BLOCK, n)
         scan_rows(points, b, e, acc)
-        for t in range(b, e):
-            _position(points, t, out, counts)
+        _positions(points, b, e, out, counts)
 
 
 @jit
