@@ -23,7 +23,7 @@ Cycles = CPU seconds x clock. The clock is measured in this process (a dependent
 time of this process (``time.process_time``), which keeps figures taken on a shared machine
 from counting other processes' slices -- they are still provisional under load.
 
-    python benchmarks/bench_predicates.py [--n 100000] [--hot-n 2048] [--clock-ghz 2.6] [--json out.json]
+    python benchmarks/bench_predicates.py [--n 100000] [--hot-n 4096] [--clock-ghz 2.6] [--json out.json]
 """
 
 from __future__ import annotations
@@ -77,7 +77,7 @@ def _bare_pfp(P, Q, R, out):
         a = y1 * z2 - z1 * y2
         b = z1 * x2 - x1 * z2
         c = x1 * y2 - y1 * x2
-        g = K._gcd(K._gcd(abs(a), abs(b)), abs(c))
+        g = K._gcd3(a, b, c)
         if g > 1:
             a //= g
             b //= g
@@ -265,7 +265,7 @@ def python_runs(d: dict) -> dict:
 def main(argv=None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--n", type=int, default=100_000, help="elements for the stream and api figures (1e5)")
-    parser.add_argument("--hot-n", type=int, default=2048, help="elements for the in-cache figures (2048)")
+    parser.add_argument("--hot-n", type=int, default=4096, help="elements for the in-cache figures (4096)")
     parser.add_argument("--repeat", type=int, default=7, help="timed runs per figure; the best is kept")
     parser.add_argument("--clock-ghz", type=float, default=None, help="clock for ns -> cycles (default: measured)")
     parser.add_argument("--json", type=pathlib.Path, default=None, help="write the figures to this file")

@@ -204,8 +204,23 @@ def test_budget_edges_are_exact_whatever_the_fast_bound(width):
         bad = exact.to_wide([[N, 0, 0, D + 1], [0, 1, 0, 0], [0, 0, 1, 0]], width)
         with pytest.raises(PrecisionError, match=f"16·N³·D = {16 * N**3 * (D + 1)}"):
             exact.intersect_3_planes(bad[0], bad[1], bad[2])
-        with pytest.raises(PrecisionError, match=r"p\[0\]"):
-            exact.are_planes_parallel(bad, ok)
+        with pytest.raises(PrecisionError, match=r"planes\[0\]"):
+            exact.classify_vertex(exact.to_wide([1, 1, 1, 1], width), bad)
+        exact.are_planes_parallel(bad, ok)  # only the normals matter to the parallel test
+
+
+@pytest.mark.parametrize("width", WIDTHS)
+def test_parallel_refuses_normals_beyond_its_cross_product(width):
+    from csgnb.exact.budgets import CROSS_PRODUCT_BITS
+
+    M = CROSS_PRODUCT_BITS[width]
+    N = integer_root(((1 << (M - 1)) - 1) // 2, 2)  # the largest N with 2 N^2 < 2**(M-1)
+    assert 2 * N**2 < 1 << (M - 1) <= 2 * (N + 1) ** 2
+    rows = [[N, N - 1, 1, 0], [N - 1, N, 1, 0], [N, N - 1, 1, 5]]
+    planes = exact.to_wide(rows, width)
+    assert exact.are_planes_parallel(planes[0], planes[1:]).tolist() == [False, True]
+    with pytest.raises(PrecisionError, match=f"formed at {M} bits"):
+        exact.are_planes_parallel(exact.to_wide([[N + 1, 0, 1, 0]], width), planes[0])
 
 
 @pytest.mark.parametrize("width", WIDTHS)

@@ -104,20 +104,31 @@ def classify_rows(typingctx, X, mx, S, ms, start, stop, out, acc_x, acc_s):
 
 @intrinsic
 def intersect_rows(typingctx, P, mp, Q, mq, R, mr, start, stop, out, acc_p, acc_q, acc_r, acc_out):
-    """out[r] = intersect(P[r], Q[r], R[r]) for r in [start, stop), scanning P, Q, R and the result."""
+    """out[r] = intersect(P[r], Q[r], R[r]) for r in [start, stop), scanning P, Q, R.
+
+    ``acc_out``'s x4 flag (its last slot) becomes 0 if some result has x4 = 0; its other slots
+    are left alone.
+    """
     esig, emit = _element(intersect_into, typingctx, P, _ROW, Q, _ROW, R, _ROW, out, _ROW)
 
     def codegen(context, builder, sig, args):
-        out_scan = lw.begin_scan(context, builder, sig.args[8], args[8], sig.args[12], args[12])
-        out_data = lw.data_pointer(context, builder, sig.args[8], args[8])
-        size = lw.row_bytes(sig.args[8])
+        # Only x4 = 0 matters in the result (linearly dependent normals): tested on the values in
+        # registers -- reloading the row just stored as one vector would stall store forwarding.
+        acc_ptr = builder.bitcast(context.make_array(sig.args[12])(context, builder, args[12]).data,
+                                  I64.as_pointer())
+        T = ir.IntType(lw.wide_width(sig.args[8], "intersect_rows"))
+        flag_ptr = builder.gep(acc_ptr, [ir.Constant(I64, 4 * (T.width // 64) + 1)])
+        flag = cgutils.alloca_once_value(builder, builder.load(flag_ptr))
 
         def body(r, rows):
-            emit(context, builder, esig, [args[0], rows[0], args[2], rows[1], args[4], rows[2], args[8], r])
-            out_scan.row(lw.row_base(builder, out_data, r, size))
+            eargs = [args[0], rows[0], args[2], rows[1], args[4], rows[2], args[8], r]
+            x = emit.values(context, builder, esig, eargs)
+            lw.store_row(context, builder, sig.args[8], args[8], r, types.int64, T, x)
+            nonzero = builder.icmp_unsigned("!=", x[3], ir.Constant(T, 0))
+            builder.store(builder.and_(builder.load(flag), builder.zext(nonzero, I64)), flag)
 
         _loop(context, builder, sig, args, [(0, 1, 9), (2, 3, 10), (4, 5, 11)], 6, 7, body)
-        out_scan.end()
+        builder.store(builder.load(flag), flag_ptr)
         return context.get_dummy_value()
 
     return types.none(P, mp, Q, mq, R, mr, start, stop, out, acc_p, acc_q, acc_r, acc_out), codegen

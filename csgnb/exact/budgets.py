@@ -59,6 +59,7 @@ __all__ = [
     "check_points_against_planes",
     "check_integer_points_against_planes",
     "check_plane_set",
+    "check_cross_product",
     "first_zero_normal",
     "first_zero_w",
     "new_scan",
@@ -160,7 +161,8 @@ class BitBudget:
 
 def budget(width: int) -> BitBudget:
     """Return the :class:`BitBudget` of ``width`` bits (128, 192 or 256)."""
-    return _BUDGETS[check_width(width)]
+    b = _BUDGETS.get(width) if type(width) is int else None
+    return b if b is not None else _BUDGETS[check_width(width)]
 
 
 _BUDGETS = {w: BitBudget(w) for w in WIDTHS}
@@ -201,11 +203,14 @@ def scan_bounds(acc: np.ndarray, width: int) -> list[int]:
     sign bit adds one. Tight to about ``2^-64`` relative unless the leading limb is tiny.
     """
     k = width // 64
+    limbs = acc.tolist()
     bounds = []
     for c in range(4):
-        limbs = [int(v) for v in acc[c * k:(c + 1) * k]]
-        t = max((j for j in range(k) if limbs[j]), default=0)
-        bound = limbs[0] if t == 0 else (limbs[t] << (64 * t)) + ((limbs[t - 1] + 1) << (64 * (t - 1)))
+        col = limbs[c * k:(c + 1) * k]
+        t = k - 1
+        while t > 0 and not col[t]:
+            t -= 1
+        bound = col[0] if t == 0 else (col[t] << (64 * t)) + ((col[t - 1] + 1) << (64 * (t - 1)))
         bounds.append(bound + 1)
     return bounds
 
@@ -356,6 +361,29 @@ def check_plane_set(named: list[tuple[np.ndarray, str]], width: int, scans: list
             + ". Use a wider width or smaller coefficients (csgnb.exact.quantize)."
         )
     return N, D
+
+
+#: The width at which are_planes_parallel forms n_p x n_q for full rows of each width.
+CROSS_PRODUCT_BITS = {128: 128, 192: 128, 256: 192}
+
+
+def check_cross_product(named: list[tuple[np.ndarray, str]], width: int, scans: list[np.ndarray]) -> None:
+    """Check planes for :func:`csgnb.exact.are_planes_parallel`: no zero normal, and 2 N^2 < 2**(M-1).
+
+    M is :data:`CROSS_PRODUCT_BITS`; planes within the width's budget always pass.
+    """
+    _raise_zero_normal(named, scans)
+    M = CROSS_PRODUCT_BITS[width]
+    N = max(max(scan_bounds(acc, width)[:3]) for acc in scans)
+    if 2 * N * N < 1 << (M - 1):
+        return
+    N, wn, _, _ = _exact_plane_maxima(named)
+    if 2 * N * N >= 1 << (M - 1):
+        raise PrecisionError(
+            f"the normals are too large for the {width}-bit parallel test: n_p x n_q is formed at {M} bits and "
+            f"needs 2·N² < 2**{M - 1}, but N = max|a|,|b|,|c| = {N} ({wn}). Planes within the {width}-bit budget "
+            "always pass; use a wider width or smaller coefficients."
+        )
 
 
 def check_planes(planes: np.ndarray, name: str = "planes") -> tuple[int, int]:

@@ -147,13 +147,17 @@ def intersect_into(typingctx, P, ip, Q, iq, R, ir_, out, io):
     narrow = all(layout.narrow for layout in layouts)
     M = _T(2 * layouts[0].normal_bits)
 
-    def codegen(context, builder, sig, args):
+    def values(context, builder, sig, args):
         planes = [lw.load_plane(context, builder, sig.args[2 * k], args[2 * k], args[2 * k + 1], sig.args[2 * k + 1],
                                 None if narrow else T) for k in range(3)]
-        x = _intersect_narrow(builder, *planes, T, M) if narrow else _intersect_full(builder, *planes)
+        return _intersect_narrow(builder, *planes, T, M) if narrow else _intersect_full(builder, *planes)
+
+    def codegen(context, builder, sig, args):
+        x = values(context, builder, sig, args)
         lw.store_row(context, builder, sig.args[6], args[6], args[7], sig.args[7], T, x)
         return context.get_dummy_value()
 
+    codegen.values = values  # the point without the store, for csgnb.exact.blocks
     return types.none(P, ip, Q, iq, R, ir_, out, io), codegen
 
 

@@ -438,11 +438,12 @@ class Scan:
                     self._narrow_scalar(base)
                 with vector:
                     self._narrow_vector(base)
-        else:
-            for c in range(3):
-                v = load(b, base, c, I64)
-                self._fold(0, "smax", v)
-                self._fold(1, "smin", v)
+        else:  # the row's max and min first: one fold per row on each loop-carried accumulator
+            v = [load(b, base, c, I64) for c in range(3)]
+            smax = _declare(b, "llvm.smax", I64, [I64, I64], [I64])
+            smin = _declare(b, "llvm.smin", I64, [I64, I64], [I64])
+            self._fold(0, "smax", b.call(smax, [b.call(smax, [v[0], v[1]]), v[2]]))
+            self._fold(1, "smin", b.call(smin, [b.call(smin, [v[0], v[1]]), v[2]]))
 
     def _narrow_vector(self, base):
         """One narrow record as a vector (reads up to 24 bytes of the next record, never past the array)."""

@@ -44,6 +44,8 @@ def check_width(width) -> int:
 
     A non-integer (``"128"``, ``None``) raises ``TypeError``; ``128.0`` is accepted.
     """
+    if type(width) is int and width in _DTYPES:
+        return width
     try:
         w = exact_int(width, "width")
     except TypeError:
