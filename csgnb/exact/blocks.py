@@ -11,7 +11,8 @@ from the accumulators, once, whether the results may be returned; a row computed
 budget is never seen.
 
 Every loop takes, per operand, the array, a flag ``many`` (false: a single row used for
-all, scanned once) and its accumulator, then ``start, stop`` and the output.
+all, scanned once) and its accumulator (``None``: not scanned), then ``start, stop`` and the
+output.
 """
 
 from __future__ import annotations
@@ -43,7 +44,9 @@ def _loop(context, builder, sig, args, operands, start, stop, body):
     """
     scans, datas, manys, sizes = [], [], [], []
     for a, m, acc in operands:
-        scans.append(lw.begin_scan(context, builder, sig.args[a], args[a], sig.args[acc], args[acc]))
+        # An accumulator passed as None: the operand is not scanned (the caller needs no bound on it).
+        skip = isinstance(sig.args[acc], types.NoneType)
+        scans.append(None if skip else lw.begin_scan(context, builder, sig.args[a], args[a], sig.args[acc], args[acc]))
         datas.append(lw.data_pointer(context, builder, sig.args[a], args[a]))
         manys.append(context.cast(builder, args[m], sig.args[m], types.boolean))
         sizes.append(lw.row_bytes(sig.args[a]))
@@ -52,11 +55,15 @@ def _loop(context, builder, sig, args, operands, start, stop, body):
     zero = ir.Constant(I64, 0)
     nonempty = builder.icmp_signed("<", lo, hi)
     for scan, data, many in zip(scans, datas, manys, strict=True):
-        with builder.if_then(builder.and_(builder.not_(many), nonempty)):
-            scan.row(data)
+        if scan is not None:
+            with builder.if_then(builder.and_(builder.not_(many), nonempty)):
+                scan.row(data)
     with cgutils.for_range_slice(builder, lo, hi, ir.Constant(I64, 1), intp=I64) as (r, _):
         rows = []
         for scan, data, many, size in zip(scans, datas, manys, sizes, strict=True):
+            if scan is None:
+                rows.append(builder.select(many, r, zero))
+                continue
             with builder.if_then(many, likely=True):
                 base = lw.row_base(builder, data, r, size)
                 for line in range(0, size, 64):
@@ -65,7 +72,8 @@ def _loop(context, builder, sig, args, operands, start, stop, body):
             rows.append(builder.select(many, r, zero))
         body(r, rows)
     for scan in scans:
-        scan.end()
+        if scan is not None:
+            scan.end()
 
 
 #: How many rows ahead the loops prefetch: a row of these loops is 100-300 instructions, so the

@@ -60,6 +60,7 @@ __all__ = [
     "check_integer_points_against_planes",
     "check_plane_set",
     "check_cross_product",
+    "check_zero_normals",
     "first_zero_normal",
     "first_zero_w",
     "new_scan",
@@ -323,6 +324,11 @@ def _exact_plane_maxima(named: list[tuple[np.ndarray, str]]) -> tuple[int, str, 
 
 # ---------------------------------------------------------------------------
 # the checks
+
+
+def check_zero_normals(named: list[tuple[np.ndarray, str]], scans: list[np.ndarray]) -> None:
+    """Raise :class:`GeometryError` naming the first plane with a = b = c = 0 among scanned arrays."""
+    _raise_zero_normal(named, scans)
 
 
 def _raise_zero_normal(named: list[tuple[np.ndarray, str]], scans: list[np.ndarray]) -> None:

@@ -41,6 +41,7 @@ from .budgets import (
     check_mesh_points,
     check_plane_set,
     check_points_against_planes,
+    check_zero_normals,
     first_zero_w,
     new_scan,
     scan_has_zero_w,
@@ -439,16 +440,25 @@ def signed_distance(points, planes) -> np.ndarray:
     """Return ``n·v + d`` for integer points v and planes (n, d): the distance times |n|.
 
     ``points`` : (n, 3) int64; ``planes`` : (n, 4) wide or narrow. Returns an (n,) wide array
-    of the planes' width (convert with :func:`csgnb.exact.from_wide`).
+    of the planes' width (convert with :func:`csgnb.exact.from_wide`). Only the value itself
+    must fit: ``3·V·N + D < 2**(b-1)`` for full rows (V = max |coordinate|); narrow planes
+    always fit.
     """
     V = _integer_points(points, "points")
     S = as_planes(planes)
     width = plane_width_of(S)
     out = np.empty(_broadcast_length(points=V, planes=S), wide_dtype(width))
-    ext = np.array([np.iinfo(np.int64).min, np.iinfo(np.int64).max], np.int64)
     acc = new_scan(width)
+    if is_narrow_planes(S):
+        # Narrow fields bound every product: 3 * 2**63 * N + D < 2**(b-1) for any int64 point
+        # (N < 2**31, D < 2**63 at 128 bits; N < 2**63, D < 2**127 above), so only zero normals
+        # are looked for.
+        _signed_distance_kernel(V, S, out, None, acc)
+        check_zero_normals([(S, "planes")], [acc])
+        return _squeeze(out, points, planes)
+    ext = np.array([np.iinfo(np.int64).min, np.iinfo(np.int64).max], np.int64)
     _signed_distance_kernel(V, S, out, ext, acc)
-    check_plane_set([(S, "planes")], width, [acc])
+    check_zero_normals([(S, "planes")], [acc])
     check_integer_points_against_planes(V, S, V=max(int(ext[0]), -int(ext[1])), plane_scan=acc)
     return _squeeze(out, points, planes)
 
