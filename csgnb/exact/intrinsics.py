@@ -31,6 +31,7 @@ from __future__ import annotations
 
 from llvmlite import ir
 from numba import types
+from numba.core import cgutils
 from numba.core.errors import TypingError
 from numba.extending import intrinsic
 
@@ -254,12 +255,15 @@ def planes_parallel_at(typingctx, P, i, Q, j):
         a1, b1, c1, _ = lw.load_plane(context, builder, sig.args[0], args[0], args[1], sig.args[1])
         a2, b2, c2, _ = lw.load_plane(context, builder, sig.args[2], args[2], args[3], sig.args[3])
         zero = ir.Constant(M, 0)
-        cross = [lw.det2(builder, b1, c1, b2, c2, M), lw.det2(builder, c1, a1, c2, a2, M),
-                 lw.det2(builder, a1, b1, a2, b2, M)]
-        result = builder.icmp_signed("==", cross[0], zero)
-        for c in cross[1:]:
-            result = builder.and_(result, builder.icmp_signed("==", c, zero))
-        return result
+        # The z component first: for planes that are not parallel it is almost always non-zero,
+        # and the other two products are skipped.
+        result = cgutils.alloca_once_value(builder, ir.Constant(ir.IntType(1), 0))
+        z = lw.det2(builder, a1, b1, a2, b2, M)
+        with builder.if_then(builder.icmp_signed("==", z, zero), likely=False):
+            x = lw.det2(builder, b1, c1, b2, c2, M)
+            y = lw.det2(builder, c1, a1, c2, a2, M)
+            builder.store(builder.and_(builder.icmp_signed("==", x, zero), builder.icmp_signed("==", y, zero)), result)
+        return builder.load(result)
 
     return types.boolean(P, i, Q, j), codegen
 
