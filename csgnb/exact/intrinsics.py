@@ -84,7 +84,7 @@ def classify_at(typingctx, points, i, planes, j):
     def codegen(context, builder, sig, args):
         x = lw.load_row(context, builder, sig.args[0], args[0], args[1], sig.args[1], T, 4)
         s = lw.load_plane(context, builder, sig.args[2], args[2], args[3], sig.args[3])
-        return builder.mul(lw.sign(builder, lw.dot(builder, x, s, T)), lw.sign(builder, x[3]))
+        return lw.sign_times_sign(builder, lw.dot(builder, x, s, T), x[3])
 
     return types.int8(points, i, planes, j), codegen
 

@@ -179,6 +179,15 @@ def sign(builder, v):
     return builder.sub(pos, neg)
 
 
+def sign_times_sign(builder, a, b):
+    """int8 sign(a)·sign(b) without a multiplication: sign(a), negated when b < 0, zero when b = 0."""
+    s = sign(builder, a)
+    top = builder.trunc(builder.lshr(b, ir.Constant(b.type, b.type.width - 8)), I8)
+    mask = builder.ashr(top, ir.Constant(I8, 7))  # 0 or -1
+    s = builder.sub(builder.xor(s, mask), mask)
+    return builder.select(builder.icmp_unsigned("==", b, ir.Constant(b.type, 0)), ir.Constant(I8, 0), s)
+
+
 def absolute(builder, v):
     """|v| as an unsigned value of the same width (exact also for the minimum)."""
     neg = builder.icmp_signed("<", v, ir.Constant(v.type, 0))
@@ -197,6 +206,16 @@ def mul_exact(builder, a, b, T):
     operands at their stored width keeps it from emitting the full wide multiplication.
     """
     P = ir.IntType(min(T.width, max(64, -(-(a.type.width + b.type.width) // 64) * 64)))
+    if P.width > 64 and min(a.type.width, b.type.width) <= 64 < max(a.type.width, b.type.width):
+        # A wide value times a machine word: sext(w) = zext(w) - 2**64 [w < 0], so one 64-bit
+        # multiply per limb and a conditional subtraction -- LLVM would multiply the sign limbs too.
+        wide, word = (a, b) if a.type.width > 64 else (b, a)
+        wide, word = resize(builder, wide, P), resize(builder, word, I64)
+        product = builder.mul(wide, builder.zext(word, P))
+        negative = builder.icmp_signed("<", word, ir.Constant(I64, 0))
+        shifted = builder.shl(wide, ir.Constant(P, 64))
+        product = builder.sub(product, builder.select(negative, shifted, ir.Constant(P, 0)))
+        return resize(builder, product, T)
     return resize(builder, builder.mul(resize(builder, a, P), resize(builder, b, P)), T)
 
 
