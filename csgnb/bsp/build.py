@@ -26,14 +26,14 @@ import numpy as np
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
-from .._jit import jit
-from ..errors import GeometryError, InternalError, PrecisionError
-from ..exact.budgets import check_mesh_points
-from ..exact.integral import exact_int, integer_array
-from ..exact.intrinsics import classify_at, plane_from_points_into, signed_distance_into, wide_sign_at
-from ..exact.wide import DEFAULT_WIDTH, is_wide, wide_dtype
-from .polygon import PolygonSet, _checked_vertices, copy_point, polygons_from_triangles, split_polygon
-from .tree import OUT, BSPTree
+from csgnb._jit import jit
+from csgnb.bsp.polygon import PolygonSet, _checked_vertices, copy_point, polygons_from_triangles, split_polygon
+from csgnb.bsp.tree import OUT, BSPTree
+from csgnb.errors import GeometryError, InternalError, PrecisionError
+from csgnb.exact.budgets import check_mesh_points
+from csgnb.exact.integral import exact_int, integer_array
+from csgnb.exact.intrinsics import classify_at, plane_from_points_into, signed_distance_into, wide_sign_at
+from csgnb.exact.wide import DEFAULT_WIDTH, is_wide, wide_dtype
 
 __all__ = ["bsp_from_polygons", "bsp_from_mesh", "validate_mesh", "check_seed", "check_label"]
 

@@ -16,16 +16,16 @@ from fractions import Fraction
 
 import numpy as np
 
-from ..errors import GeometryError
-from ..exact.integral import exact_int, integer_array
-from ..exact.predicates import homogeneous_points
-from ..exact.wide import DEFAULT_WIDTH, check_width, to_width
-from ..mesh.halfedge import box_planes
-from .build import bsp_from_mesh, check_seed
-from .extract import extract_boundary
-from .merging import MergeResult, merge, remove_redundancy
-from .surface import BoundarySurface
-from .tree import BSPTree
+from csgnb.bsp.build import bsp_from_mesh, check_seed
+from csgnb.bsp.extract import extract_boundary
+from csgnb.bsp.merging import MergeResult, merge, remove_redundancy
+from csgnb.bsp.surface import BoundarySurface
+from csgnb.bsp.tree import BSPTree
+from csgnb.errors import GeometryError
+from csgnb.exact.integral import exact_int, integer_array
+from csgnb.exact.predicates import homogeneous_points
+from csgnb.exact.wide import DEFAULT_WIDTH, check_width, to_width
+from csgnb.mesh.halfedge import box_planes
 
 __all__ = ["BSP", "UNION", "INTERSECTION", "DIFFERENCE", "SYMMETRIC_DIFFERENCE"]
 

@@ -13,10 +13,10 @@ ints. Every predicate checks its inputs against the bit budget of the width
 array([1., 2., 3.])
 """
 
-from .budgets import BitBudget, budget, integer_root
-from .integral import exact_int, integer_array
-from .planes import is_narrow_planes, plane_dtype, plane_width_of, to_full_planes, to_narrow_planes
-from .predicates import (
+from csgnb.exact.budgets import BitBudget, budget, integer_root
+from csgnb.exact.integral import exact_int, integer_array
+from csgnb.exact.planes import is_narrow_planes, plane_dtype, plane_width_of, to_full_planes, to_narrow_planes
+from csgnb.exact.predicates import (
     are_planes_parallel,
     classify_vertex,
     homogeneous_points,
@@ -26,8 +26,18 @@ from .predicates import (
     signed_distance,
     to_double_position,
 )
-from .quantization import Grid, Quantization, quantize
-from .wide import DEFAULT_WIDTH, WIDTHS, check_width, from_wide, is_wide, to_wide, to_width, wide_dtype, width_of
+from csgnb.exact.quantization import Grid, Quantization, quantize
+from csgnb.exact.wide import (
+    DEFAULT_WIDTH,
+    WIDTHS,
+    check_width,
+    from_wide,
+    is_wide,
+    to_wide,
+    to_width,
+    wide_dtype,
+    width_of,
+)
 
 __all__ = [
     "WIDTHS",

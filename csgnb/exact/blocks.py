@@ -22,9 +22,15 @@ from numba import types
 from numba.core import cgutils
 from numba.extending import intrinsic
 
-from . import lowering as lw
-from .intrinsics import classify_at, intersect_into, planes_parallel_at, points_equal_at, signed_distance_into
-from .lowering import I64
+from csgnb.exact import lowering as lw
+from csgnb.exact.intrinsics import (
+    classify_at,
+    intersect_into,
+    planes_parallel_at,
+    points_equal_at,
+    signed_distance_into,
+)
+from csgnb.exact.lowering import I64
 
 __all__ = ["classify_rows", "intersect_rows", "parallel_rows", "distance_rows", "points_equal_rows"]
 

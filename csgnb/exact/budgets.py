@@ -43,12 +43,12 @@ from functools import cached_property
 
 import numpy as np
 
-from .._jit import jit
-from ..errors import CsgnbError, GeometryError, PrecisionError
-from .integral import exact_int
-from .intrinsics import scan_rows, wide_abs_greater_at, wide_sign_at
-from .planes import is_narrow_planes, plane_width_of
-from .wide import WIDTHS, check_width, from_wide, wide_dtype
+from csgnb._jit import jit
+from csgnb.errors import CsgnbError, GeometryError, PrecisionError
+from csgnb.exact.integral import exact_int
+from csgnb.exact.intrinsics import scan_rows, wide_abs_greater_at, wide_sign_at
+from csgnb.exact.planes import is_narrow_planes, plane_width_of
+from csgnb.exact.wide import WIDTHS, check_width, from_wide, wide_dtype
 
 __all__ = [
     "BitBudget",

@@ -29,7 +29,7 @@ from fractions import Fraction
 
 import numpy as np
 
-from ..errors import GeometryError, PrecisionError
+from csgnb.errors import GeometryError, PrecisionError
 
 __all__ = ["exact_int", "integer_array", "integer_scalar", "python_int_array"]
 

@@ -35,8 +35,8 @@ from numba.core import cgutils
 from numba.core.errors import TypingError
 from numba.extending import intrinsic
 
-from . import lowering as lw
-from .lowering import F64, I8, I64
+from csgnb.exact import lowering as lw
+from csgnb.exact.lowering import F64, I8, I64
 
 __all__ = [
     "classify_at",
@@ -62,6 +62,18 @@ __all__ = [
     "fma",
     "half_ulp",
 ]
+
+
+# The names other packages' intrinsics import (csgnb.mesh.volume, csgnb.exact.wide_store): the
+# code generation moved to csgnb.exact.lowering.
+_wide_width = lw.wide_width
+_row_pointer = lw.row_pointer
+_element_pointer = lw.element_pointer
+_load = lw.load
+_load_row = lw.load_row
+_store_row = lw.store_row
+_sign = lw.sign
+_abs = lw.absolute
 
 
 def _T(bits: int) -> ir.IntType:

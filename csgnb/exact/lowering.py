@@ -22,8 +22,8 @@ from numba import types
 from numba.core import cgutils
 from numba.core.errors import TypingError
 
-from .planes import plane_dtype
-from .wide import WIDTHS
+from csgnb.exact.planes import plane_dtype
+from csgnb.exact.wide import WIDTHS
 
 I1 = ir.IntType(1)
 I8 = ir.IntType(8)

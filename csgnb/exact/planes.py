@@ -29,8 +29,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..errors import GeometryError, PrecisionError
-from .wide import WIDTHS, check_width, from_wide, is_wide, to_wide, wide_dtype, width_of
+from csgnb.errors import GeometryError, PrecisionError
+from csgnb.exact.wide import WIDTHS, check_width, from_wide, is_wide, to_wide, wide_dtype, width_of
 
 __all__ = [
     "plane_dtype",
@@ -99,7 +99,7 @@ def _field_limits(width: int) -> tuple[int, int]:
 
 def narrow_fields_hold_the_mesh_budget(width: int) -> bool:
     """Whether planes through vertices within the mesh budget (|n| <= 8 V^2, |d| <= 24 V^3) fit the narrow fields."""
-    from .budgets import budget  # budgets checks planes of both layouts: imported here, not at the top
+    from csgnb.exact.budgets import budget  # budgets checks planes of both layouts: imported here, not at the top
 
     b = budget(width)
     n_max, d_max = _field_limits(check_width(width))

@@ -32,10 +32,10 @@ import math
 
 import numpy as np
 
-from .._jit import jit
-from ..errors import GeometryError, PrecisionError
-from .blocks import classify_rows, distance_rows, intersect_rows, parallel_rows, points_equal_rows
-from .budgets import (
+from csgnb._jit import jit
+from csgnb.errors import GeometryError, PrecisionError
+from csgnb.exact.blocks import classify_rows, distance_rows, intersect_rows, parallel_rows, points_equal_rows
+from csgnb.exact.budgets import (
     check_cross_product,
     check_integer_points_against_planes,
     check_mesh_points,
@@ -46,8 +46,8 @@ from .budgets import (
     new_scan,
     scan_has_zero_w,
 )
-from .integral import integer_array
-from .intrinsics import (
+from csgnb.exact.integral import integer_array
+from csgnb.exact.intrinsics import (
     compare_ratio_dyadic_at,
     plane_from_normal_into,
     planes_parallel_at,
@@ -57,8 +57,8 @@ from .intrinsics import (
     wide_sign_at,
     wide_to_float_at,
 )
-from .planes import as_planes, is_narrow_planes, plane_dtype, plane_width_of
-from .wide import check_width, to_wide, wide_dtype, width_of
+from csgnb.exact.planes import as_planes, is_narrow_planes, plane_dtype, plane_width_of
+from csgnb.exact.wide import check_width, to_wide, wide_dtype, width_of
 
 __all__ = [
     "BLOCK",

@@ -13,10 +13,10 @@ import numbers
 
 import numpy as np
 
-from ..errors import GeometryError, PrecisionError
-from .budgets import budget
-from .integral import exact_int, integer_scalar
-from .wide import DEFAULT_WIDTH, check_width
+from csgnb.errors import GeometryError, PrecisionError
+from csgnb.exact.budgets import budget
+from csgnb.exact.integral import exact_int, integer_scalar
+from csgnb.exact.wide import DEFAULT_WIDTH, check_width
 
 __all__ = ["Grid", "Quantization", "quantize"]
 

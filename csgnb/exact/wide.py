@@ -14,8 +14,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..errors import PrecisionError
-from .integral import exact_int, integer_array, python_int_array
+from csgnb.errors import PrecisionError
+from csgnb.exact.integral import exact_int, integer_array, python_int_array
 
 __all__ = [
     "DEFAULT_WIDTH",
