@@ -155,9 +155,14 @@ def test_grid_construction():
         Grid(scale=1.0, origin=(0, np.nan, 0))
     with pytest.raises(AttributeError, match="immutable"):
         g.exponent = 3
-    assert g == Grid(exponent=-2, origin=(1.0, 2.0, 3.0), width=192) and hash(g) == hash(Grid(exponent=-2,
-                                                                                               origin=(1, 2, 3),
-                                                                                               width=192))
+    assert g == Grid(exponent=-2, origin=(1.0, 2.0, 3.0), width=192)
+    assert hash(g) == hash(Grid(exponent=-2, origin=(1, 2, 3), width=192))
+    import copy
+    import pickle
+
+    tiny = Grid(exponent=1100, width=256)
+    for grid in (g, tiny):
+        assert pickle.loads(pickle.dumps(grid)) == grid == copy.deepcopy(grid)
 
 
 # ---------------------------------------------------------------------------

@@ -87,6 +87,9 @@ class Grid:
     def __setattr__(self, name, value):
         raise AttributeError("a Grid is immutable")
 
+    def __reduce__(self):  # pickling and copying (the immutable slots cannot be set one by one)
+        return _restore_grid, (self.exponent, tuple(self.origin.tolist()), self.width, self.max_coordinate)
+
     # -- construction ---------------------------------------------------------
 
     @classmethod
@@ -192,6 +195,10 @@ class Grid:
     def __repr__(self) -> str:
         return (f"Grid(resolution=2**{-self.exponent} ({self.resolution:g}), origin={self.origin.tolist()}, "
                 f"width={self.width}, max_coordinate={self.max_coordinate})")
+
+
+def _restore_grid(exponent: int, origin, width: int, max_coordinate: int) -> Grid:
+    return Grid(origin=origin, width=width, max_coordinate=max_coordinate, exponent=exponent)
 
 
 Quantization = Grid
