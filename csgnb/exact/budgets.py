@@ -352,9 +352,10 @@ def check_plane_set(named: list[tuple[np.ndarray, str]], width: int, scans: list
     if scans is None:
         scans = [scan(arr, width) for arr, _ in named]
     _raise_zero_normal(named, scans)
-    bounds = [scan_bounds(acc, width) for acc in scans]
-    N = max((max(bd[:3]) for bd in bounds), default=0)
-    D = max((bd[3] for bd in bounds), default=0)
+    N = D = 0
+    for acc in scans:
+        a, b_, c, d = scan_bounds(acc, width)
+        N, D = max(N, a, b_, c), max(D, d)
     if not b.plane_violations(N, D):
         return N, D
     N, wn, D, wd = _exact_plane_maxima(named)
@@ -423,19 +424,23 @@ def check_mesh_points(points: np.ndarray, width: int, name: str = "points", V: i
 
 
 def check_points_against_planes(points: np.ndarray, planes: np.ndarray, point_scan: np.ndarray | None = None,
-                                plane_scan: np.ndarray | None = None) -> None:
+                                plane_scan: np.ndarray | None = None, plane_bounds: tuple[int, int] | None = None
+                                ) -> None:
     """Check that every ``x·s`` of wide homogeneous ``points`` against ``planes`` fits the width.
 
     Conservative for arbitrary points: (|x1|+|x2|+|x3|)·N + |x4|·D < 2**(b-1) with
     column-wise maxima (fast bounds first, exact maxima if those do not settle it).
+    ``plane_bounds``: (N, D) bounds already derived from ``plane_scan`` (:func:`check_plane_set`).
     """
     width = plane_width_of(planes)
     b = budget(width)
     point_scan = scan(points, width) if point_scan is None else point_scan
     plane_scan = scan(planes, width) if plane_scan is None else plane_scan
     X = scan_bounds(point_scan, width)
-    P = scan_bounds(plane_scan, width)
-    if (X[0] + X[1] + X[2]) * max(P[:3]) + X[3] * P[3] < b.limit:
+    if plane_bounds is None:
+        P = scan_bounds(plane_scan, width)
+        plane_bounds = (max(P[:3]), P[3])
+    if (X[0] + X[1] + X[2]) * plane_bounds[0] + X[3] * plane_bounds[1] < b.limit:
         return
     N, _, D, _ = _plane_maxima(planes)
     X = [m for m, _ in _column_max_abs(points)]

@@ -52,6 +52,8 @@ def exact_int(value, name: str = "value", index=None) -> int:
     :class:`GeometryError` for NaN or infinities and :class:`PrecisionError` for
     non-integral values. ``name`` and ``index`` name the argument in the message.
     """
+    if type(value) is int:  # the common case, first
+        return value
     where = _where(name, index)
     if isinstance(value, bool | np.bool_):
         raise TypeError(f"{where} is a boolean ({value!r}); pass an integer")

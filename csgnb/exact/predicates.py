@@ -504,8 +504,8 @@ def classify_vertex(points, planes) -> np.ndarray:
     _classify_kernel(X, S, out, acc_x, acc_s)
     if scan_has_zero_w(acc_x):
         raise GeometryError(f"points[{first_zero_w(X)}] has x4 = 0: a point at infinity lies on no side of a plane")
-    check_plane_set([(S, "planes")], width, [acc_s])
-    check_points_against_planes(X, S, acc_x, acc_s)
+    bounds = check_plane_set([(S, "planes")], width, [acc_s])
+    check_points_against_planes(X, S, acc_x, acc_s, bounds)
     return _squeeze(out, points, planes)
 
 

@@ -37,6 +37,7 @@ DEFAULT_WIDTH: int = 128
 the fastest, with a mesh budget of |coordinate| <= 4567 (eq. 8). Pass ``width=192`` or ``256`` for finer grids."""
 
 _DTYPES = {w: np.dtype([("limbs", "<u8", (w // 64,))]) for w in WIDTHS}
+_WIDTH_OF_DTYPE = {dt: w for w, dt in _DTYPES.items()}
 
 
 def check_width(width) -> int:
@@ -64,7 +65,7 @@ def wide_dtype(width: int) -> np.dtype:
 
 def is_wide(arr: np.ndarray) -> bool:
     """Return whether ``arr`` is a wide-integer array (one of the dtypes of :func:`wide_dtype`)."""
-    return isinstance(arr, np.ndarray) and arr.dtype in _DTYPES.values()
+    return isinstance(arr, np.ndarray) and arr.dtype in _WIDTH_OF_DTYPE
 
 
 def width_of(arr: np.ndarray) -> int:
