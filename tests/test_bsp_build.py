@@ -290,12 +290,13 @@ def test_rejects_bad_arrays():
     V, F = SOLIDS["tetrahedron"]
     with pytest.raises(GeometryError, match=r"shape \(n, 3\)"):
         bsp_from_mesh(V[:, :2], F)
-    with pytest.raises(GeometryError, match="quantize"):
-        bsp_from_mesh(V.astype(float), F)
+    with pytest.raises(PrecisionError, match="quantize"):
+        bsp_from_mesh(V + 0.5, F)
+    assert bsp_from_mesh(V.astype(float), F).n_nodes == bsp_from_mesh(V, F).n_nodes  # integral floats are fine
     with pytest.raises(GeometryError, match="triangles"):
         bsp_from_mesh(V, np.c_[F, F[:, :1]])
     with pytest.raises(GeometryError, match="integer vertex indices"):
-        bsp_from_mesh(V, F.astype(float))
+        bsp_from_mesh(V, F + 0.5)
     with pytest.raises(GeometryError, match="outside 0 .. 3"):
         bsp_from_mesh(V, np.where(F == 3, 4, F))
     with pytest.raises(GeometryError, match="at least 4 faces"):

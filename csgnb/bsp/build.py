@@ -16,23 +16,26 @@ of palette planes, so the import is exact and within the palette's bit budget.
 
 :func:`bsp_from_mesh` first checks that an integer triangle mesh bounds a solid —
 within the budget, no degenerate faces, closed, edge-manifold, consistently and
-outwardly oriented, not self-intersecting — and raises an error naming the first
-defect it finds.
+outwardly oriented, not self-intersecting, its shells properly nested (cavities face
+inward) — and raises an error naming the first defect it finds.
 """
 
 from __future__ import annotations
 
 import numpy as np
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
 
 from csgnb._jit import jit
 from csgnb.bsp.polygon import PolygonSet, _checked_vertices, copy_point, polygons_from_triangles, split_polygon
 from csgnb.bsp.tree import OUT, BSPTree
-from csgnb.errors import GeometryError
+from csgnb.errors import GeometryError, InternalError, PrecisionError
 from csgnb.exact.budgets import check_mesh_points
+from csgnb.exact.integral import exact_int, integer_array
 from csgnb.exact.intrinsics import classify_at, plane_from_points_into, signed_distance_into, wide_sign_at
-from csgnb.exact.wide import DEFAULT_WIDTH, wide_dtype
+from csgnb.exact.wide import DEFAULT_WIDTH, is_wide, wide_dtype
 
-__all__ = ["bsp_from_polygons", "bsp_from_mesh", "validate_mesh"]
+__all__ = ["bsp_from_polygons", "bsp_from_mesh", "validate_mesh", "check_seed", "check_label"]
 
 
 # ---------------------------------------------------------------------------
@@ -139,6 +142,33 @@ def _build_kernel(palette, support, offsets, edges, verts, order, label,
     return n_nodes
 
 
+_MAX_LABEL = np.iinfo(np.int32).max
+
+
+def check_label(label, name: str = "label") -> int:
+    """Return the material label ``label`` as an int in ``[1, 2**31 - 1]``; a clear error otherwise."""
+    try:
+        v = exact_int(label, name)
+    except PrecisionError:
+        raise GeometryError(f"{name} must be an integer >= 1 (0 is out), got {label!r}") from None
+    if not 1 <= v <= _MAX_LABEL:
+        raise GeometryError(f"{name} must be an integer in [1, {_MAX_LABEL}] (0 is out; labels are int32), got {v}")
+    return v
+
+
+def check_seed(seed) -> int:
+    """Return the random seed ``seed`` as a non-negative int; a clear error otherwise."""
+    try:
+        v = exact_int(seed, "seed")
+    except TypeError:
+        raise TypeError(f"seed must be a non-negative integer, got {type(seed).__name__} {seed!r}") from None
+    except ValueError:
+        raise GeometryError(f"seed must be a non-negative integer, got {seed!r}") from None
+    if v < 0:
+        raise GeometryError(f"seed must be a non-negative integer (numpy.random.default_rng), got {v}")
+    return v
+
+
 def _initial_capacities(n_polygons: int, max_size: int) -> tuple[int, int, int]:
     """Starting sizes of the node arrays, the piece arena and the work stack (doubled when too small)."""
     return 4 * n_polygons + 16, 64 * max_size + 4096, 256
@@ -171,8 +201,13 @@ def bsp_from_polygons(palette: np.ndarray, polygons: PolygonSet, *, seed: int = 
         (``~row``) has its **in** child on the positive side of that palette row.
         The palette is reduced to the rows the nodes use (in first-use order).
     """
-    if int(label) < 1:
-        raise GeometryError(f"label must be >= 1 (0 is out), got {label}")
+    if not (is_wide(palette) and palette.ndim == 2 and palette.shape[1] == 4):
+        raise TypeError(f"palette must be an (p, 4) wide array of planes (csgnb.exact.to_wide), got "
+                        f"{type(palette).__name__} {getattr(palette, 'shape', '')}")
+    if not isinstance(polygons, PolygonSet):
+        raise TypeError(f"polygons must be a csgnb.bsp.PolygonSet, got {type(polygons).__name__}")
+    label = check_label(label)
+    seed = check_seed(seed)
     verts = _checked_vertices(palette, polygons)
     palette = np.ascontiguousarray(palette)
     n = len(polygons)
@@ -428,6 +463,125 @@ def _first_self_intersection(V: np.ndarray, T: np.ndarray) -> tuple[int, int] | 
 # validation
 
 
+def _describe_shell(k: int, shell: np.ndarray, first_face: np.ndarray) -> str:
+    return f"shell {k} ({int(np.count_nonzero(shell == k))} faces, the first is face {int(first_face[k])})"
+
+
+@jit
+def _shell_windings(V, T, faces, P, Q, lo, hi, wind, pl, sd):
+    """Add the signed crossings of the segment from row P to row Q of ``V`` with ``faces`` to ``wind``.
+
+    ``wind[t]`` gains +1 where the segment leaves through face ``faces[t]`` along its outward
+    normal and -1 where it enters; ``lo``, ``hi`` bound the segment. Returns False when the
+    segment passes exactly through an edge or a vertex of a face, or runs inside a face's plane
+    across it (the caller then tries another direction).
+    """
+    for t in range(faces.shape[0]):
+        f = faces[t]
+        a, b, c = T[f, 0], T[f, 1], T[f, 2]
+        outside = False
+        for k in range(3):
+            if max(V[a, k], V[b, k], V[c, k]) < lo[k] or min(V[a, k], V[b, k], V[c, k]) > hi[k]:
+                outside = True
+        if outside:
+            continue
+        op = _orient3d(V, a, b, c, P, pl, sd)
+        oq = _orient3d(V, a, b, c, Q, pl, sd)
+        if op == 0 and oq == 0:
+            # Inside the face's plane: only a path across the face itself is ambiguous.
+            ax = _dominant_axis(V, a, b, c)
+            if (_segments_meet_2d(V, P, Q, a, b, ax) or _segments_meet_2d(V, P, Q, b, c, ax)
+                    or _segments_meet_2d(V, P, Q, c, a, ax)):
+                return False
+            continue
+        if op == oq or op == 0 or oq == 0:
+            continue  # both on one side, or touching the plane at an end (never inside the face: see caller)
+        s1 = _orient3d(V, P, Q, a, b, pl, sd)
+        s2 = _orient3d(V, P, Q, b, c, pl, sd)
+        s3 = _orient3d(V, P, Q, c, a, pl, sd)
+        if (s1 > 0 or s2 > 0 or s3 > 0) and (s1 < 0 or s2 < 0 or s3 < 0):
+            continue  # the line passes beside the face
+        if s1 == 0 or s2 == 0 or s3 == 0:
+            return False  # through an edge or a vertex
+        wind[t] = oq
+    return True
+
+
+def _check_nesting(W, T, shell, n_shells, volume6, first_face) -> None:
+    """Raise unless every shell is an outer boundary at depth 0 or a cavity (facing inward) at depth 1.
+
+    The winding number of the whole mesh must be 1 inside the solid and 0 outside. Crossing a
+    face of shell k changes it by one, so both sides of every face are right exactly when the
+    winding number of the *other* shells at that face -- the nesting depth of shell k -- is 0
+    for an outward shell and 1 for an inward one. Depths are exact: the winding number of a
+    face centroid of shell k (scaled by 3 to stay integral) with respect to each shell whose
+    bounding box contains it, counted along a segment in a direction that meets no edge.
+    """
+    V3 = 3 * W
+    lo = np.full((n_shells, 3), np.iinfo(np.int64).max)
+    hi = np.full((n_shells, 3), np.iinfo(np.int64).min)
+    corners = V3[T]  # (m, 3, 3)
+    np.minimum.at(lo, shell, corners.min(axis=1))
+    np.maximum.at(hi, shell, corners.max(axis=1))
+    order = np.argsort(shell, kind="stable")
+    bounds = np.searchsorted(shell[order], np.arange(n_shells + 1))
+    far = int(V3[:, 0].max()) + 3
+    span = int(V3.max() - V3.min()) + 3
+    rng = np.random.default_rng(0)
+    VX = np.concatenate([V3, np.zeros((2, 3), np.int64)])
+    p_row, q_row = V3.shape[0], V3.shape[0] + 1
+    pl = np.empty((1, 4), wide_dtype(128))
+    sd = np.empty(1, wide_dtype(128))
+    for k in range(n_shells):
+        f = int(first_face[k])
+        point = W[T[f]].sum(axis=0)  # 3 x the centroid of face f: inside the face, on no other shell
+        holders = np.flatnonzero(np.all((lo < point) & (point < hi), axis=1))
+        holders = holders[holders != k]
+        depth, container = 0, -1
+        if holders.size:
+            faces = np.concatenate([order[bounds[j]:bounds[j + 1]] for j in holders])
+            VX[p_row] = point
+            for _ in range(64):
+                VX[q_row] = (far + int(rng.integers(0, span)), point[1] + int(rng.integers(-span, span + 1)),
+                             point[2] + int(rng.integers(-span, span + 1)))
+                wind = np.zeros(faces.shape[0], np.int64)
+                seg_lo, seg_hi = VX[[p_row, q_row]].min(axis=0), VX[[p_row, q_row]].max(axis=0)
+                if _shell_windings(VX, T, faces, p_row, q_row, seg_lo, seg_hi, wind, pl, sd):
+                    break
+            else:  # pragma: no cover - 64 random directions all through an edge
+                raise InternalError("no segment from a face centroid avoided every edge (a bug: please report)")
+            per_shell = np.zeros(n_shells, np.int64)
+            np.add.at(per_shell, shell[faces], wind)
+            depth = int(per_shell.sum())
+            inside_of = np.flatnonzero(per_shell)
+            container = int(inside_of[-1]) if inside_of.size else -1
+        outward = volume6[k] > 0
+        if outward and depth == 0 or not outward and depth == 1:
+            continue
+        name = _describe_shell(k, shell, first_face)
+        if outward and depth == 1:
+            raise GeometryError(
+                f"{name} lies inside shell {container} and also faces outward, so the space between them would "
+                "be inside twice: if it is a cavity, reverse its faces (e.g. faces[shell_faces, ::-1]); if it "
+                "is a separate solid, move it out of the other one"
+            )
+        if not outward and depth == 0 and container >= 0:
+            raise GeometryError(
+                f"{name} is oriented inward but lies in empty space (inside the cavity shell {container}), so "
+                "there is no material to cut it from: flip its faces to make it an island, or remove it"
+            )
+        if not outward and depth == 0:
+            raise GeometryError(
+                f"{name} is oriented inward (its exact volume {volume6[k]}/6 is negative) but lies inside no "
+                "other shell: flip its faces (e.g. faces[shell_faces, ::-1]); only cavities face inward"
+            )
+        raise GeometryError(
+            f"{name} faces {'outward' if outward else 'inward'} at nesting depth {depth} (inside shell "
+            f"{container}): shells must alternate, an outward boundary around each inward cavity, without "
+            "repeating; reverse or remove the shells that break the alternation"
+        )
+
+
 def _describe_edge(first_index, V, a: int, b: int) -> str:
     return f"({int(first_index[a])}, {int(first_index[b])}) from {V[a].tolist()} to {V[b].tolist()}"
 
@@ -441,7 +595,13 @@ def validate_mesh(vertices, faces, width: int = DEFAULT_WIDTH) -> tuple[np.ndarr
     of degenerate faces; closed (every edge has an opposite half-edge); edge-manifold
     (two faces per edge); consistently oriented; outward (positive exact volume);
     free of self-intersections (exact tests between faces whose bounding boxes
-    overlap, including touching faces and coplanar faces folded over a shared edge).
+    overlap, including touching faces and coplanar faces folded over a shared edge);
+    and, for meshes of several shells (connected components), properly nested: every
+    shell that faces outward lies inside no other solid, every inward-facing shell is a
+    cavity of exactly one (exact winding numbers).
+
+    Vertices may be given as any integer dtype or as integral floats; non-integral
+    coordinates are refused (quantize float meshes with :func:`csgnb.exact.quantize`).
 
     Returns
     -------
@@ -457,22 +617,15 @@ def validate_mesh(vertices, faces, width: int = DEFAULT_WIDTH) -> tuple[np.ndarr
     GeometryError
         Any other defect; the message names the faces or edge concerned.
     """
-    V = np.asarray(vertices)
-    F = np.asarray(faces)
+    V = integer_array(vertices, "vertices")
     if V.ndim != 2 or V.shape[1] != 3:
         raise GeometryError(f"vertices must have shape (n, 3), got {V.shape}")
-    if V.dtype.kind not in "iu":
-        raise GeometryError(
-            f"vertices must be integers (int64), got dtype {V.dtype}; quantize float meshes with csgnb.exact.quantize"
-        )
+    try:
+        F = integer_array(faces, "faces")
+    except (PrecisionError, TypeError) as exc:
+        raise GeometryError(f"faces must be integer vertex indices: {exc}") from None
     if F.ndim != 2 or F.shape[1] != 3:
         raise GeometryError(f"faces must have shape (m, 3) (triangles), got {F.shape}")
-    if F.dtype.kind not in "iu":
-        raise GeometryError(f"faces must be integer vertex indices, got dtype {F.dtype}")
-    if V.dtype == np.uint64 and V.size and V.max() > np.iinfo(np.int64).max:
-        raise GeometryError("vertices have values beyond int64")
-    V = V.astype(np.int64)
-    F = F.astype(np.int64)
     if F.shape[0] < 4:
         raise GeometryError(f"a closed triangle mesh needs at least 4 faces, got {F.shape[0]}")
     if F.min() < 0 or F.max() >= V.shape[0]:
@@ -524,16 +677,32 @@ def validate_mesh(vertices, faces, width: int = DEFAULT_WIDTH) -> tuple[np.ndarr
             f"edge {_describe_edge(first_index, W, a[s], b[s])} in the same direction; reverse one of them"
         )
 
-    # Six times the exact volume: sum of det(p, q, r) = p·(q x r) (q x r fits int64, the sum does not).
+    # Shells: the connected components of the face graph (faces joined across edges),
+    # numbered in the order of their first face.
+    n_shells, shell = connected_components(
+        coo_matrix((np.ones(starts.shape[0]), (face[starts], face[starts + 1])), shape=(m, m)), directed=False)
+    # Six times the exact volume of each shell: sum of det(p, q, r) = p·(q x r) (q x r fits int64, the sum
+    # does not).
     P, Q, R = W[T[:, 0]], W[T[:, 1]], W[T[:, 2]]
-    volume6 = int((P.astype(object) * np.cross(Q, R).astype(object)).sum())
-    if volume6 < 0:
-        raise GeometryError(
-            f"the mesh is oriented inward (its exact volume {volume6}/6 is negative); flip every face, "
-            "e.g. faces[:, ::-1]"
-        )
-    if volume6 == 0:
-        raise GeometryError("the mesh encloses zero volume (it is flat or folds back onto itself)")
+    terms = (P.astype(object) * np.cross(Q, R).astype(object)).sum(axis=1)
+    volume6 = [0] * n_shells
+    for s_, t in zip(shell.tolist(), terms.tolist(), strict=True):
+        volume6[s_] += t
+    first_face = np.full(n_shells, m, np.int64)
+    np.minimum.at(first_face, shell, np.arange(m))
+    if n_shells == 1:
+        if volume6[0] < 0:
+            raise GeometryError(
+                f"the mesh is oriented inward (its exact volume {volume6[0]}/6 is negative); flip every face, "
+                "e.g. faces[:, ::-1]"
+            )
+        if volume6[0] == 0:
+            raise GeometryError("the mesh encloses zero volume (it is flat or folds back onto itself)")
+    else:
+        for k, v in enumerate(volume6):
+            if v == 0:
+                raise GeometryError(f"{_describe_shell(k, shell, first_face)} encloses zero volume (it is flat or "
+                                    "folds back onto itself)")
 
     pair = _first_self_intersection(W, T)
     if pair is not None:
@@ -543,6 +712,8 @@ def validate_mesh(vertices, faces, width: int = DEFAULT_WIDTH) -> tuple[np.ndarr
             f"(corners {W[T[i]].tolist()} and {W[T[j]].tolist()}) cross or touch away from the vertices and edge "
             "they share"
         )
+    if n_shells > 1:
+        _check_nesting(W, T, shell, n_shells, volume6, first_face)
     return W, T
 
 

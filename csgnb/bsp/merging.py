@@ -30,6 +30,7 @@ from csgnb.bsp.polygon import PolygonSet
 from csgnb.bsp.surface import BoundarySurface, assemble_surface
 from csgnb.bsp.tree import OUT, BSPTree
 from csgnb.errors import GeometryError
+from csgnb.exact.integral import exact_int
 from csgnb.exact.wide import width_of
 from csgnb.mesh.cutting import CUT_PROPER, cut_cell
 from csgnb.mesh.halfedge import MeshStore, grown_mesh_arrays, room_for_cut
@@ -126,14 +127,33 @@ def _merge_kernel(m, a, b, b_offset, table, constant, stack, state, o, cells, no
 
 
 def merge_table(fn, labels_a, labels_b) -> np.ndarray:
-    """Tabulate a merge function ``fn(la, lb) -> label`` over the labels that occur, ``(La, Lb) int32``."""
+    """Tabulate a merge function ``fn(la, lb) -> label`` over the labels that occur, ``(La, Lb) int32``.
+
+    ``fn`` must return integer labels in ``[0, 2**31 - 1]`` (0 = out; integral floats such as
+    ``1.0`` are accepted); anything else -- 0.5, None, a string, 2**40 -- raises
+    :class:`GeometryError` (or ``TypeError``) naming the labels it was called with.
+    """
+    if not callable(fn):
+        raise TypeError(f"the merge function must be callable fn(label_a, label_b) -> label, got {fn!r}")
     la_max, lb_max = int(max(labels_a)), int(max(labels_b))
     table = np.zeros((la_max + 1, lb_max + 1), np.int32)
+    top = int(np.iinfo(np.int32).max)
     for la in range(la_max + 1):
         for lb in range(lb_max + 1):
-            value = int(fn(la, lb))
+            raw = fn(la, lb)
+            try:
+                value = exact_int(raw, "label")
+            except TypeError:
+                raise TypeError(f"the merge function returned {raw!r} ({type(raw).__name__}) for labels ({la}, {lb}); "
+                                "it must return an integer label (0 = out)") from None
+            except ValueError:
+                raise GeometryError(f"the merge function returned {raw!r} for labels ({la}, {lb}); labels are "
+                                    "integers (0 = out, k >= 1 = material k)") from None
             if value < 0:
                 raise GeometryError(f"the merge function returned {value} for labels ({la}, {lb}); labels are >= 0")
+            if value > top:
+                raise GeometryError(f"the merge function returned {value} for labels ({la}, {lb}); labels are int32, "
+                                    f"at most {top}")
             table[la, lb] = value
     return table
 

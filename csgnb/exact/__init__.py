@@ -14,6 +14,8 @@ array([1., 2., 3.])
 """
 
 from csgnb.exact.budgets import BitBudget, budget, integer_root
+from csgnb.exact.integral import exact_int, integer_array
+from csgnb.exact.planes import is_narrow_planes, plane_dtype, plane_width_of, to_full_planes, to_narrow_planes
 from csgnb.exact.predicates import (
     are_planes_parallel,
     classify_vertex,
@@ -25,7 +27,17 @@ from csgnb.exact.predicates import (
     to_double_position,
 )
 from csgnb.exact.quantization import Grid, Quantization, quantize
-from csgnb.exact.wide import DEFAULT_WIDTH, WIDTHS, from_wide, is_wide, to_wide, wide_dtype, width_of
+from csgnb.exact.wide import (
+    DEFAULT_WIDTH,
+    WIDTHS,
+    check_width,
+    from_wide,
+    is_wide,
+    to_wide,
+    to_width,
+    wide_dtype,
+    width_of,
+)
 
 __all__ = [
     "WIDTHS",
@@ -35,18 +47,27 @@ __all__ = [
     "Quantization",
     "are_planes_parallel",
     "budget",
+    "check_width",
     "classify_vertex",
+    "exact_int",
     "from_wide",
     "homogeneous_points",
+    "integer_array",
     "integer_root",
     "intersect_3_planes",
+    "is_narrow_planes",
     "is_wide",
+    "plane_dtype",
     "plane_from_points",
+    "plane_width_of",
     "points_equal",
     "quantize",
     "signed_distance",
     "to_double_position",
+    "to_full_planes",
+    "to_narrow_planes",
     "to_wide",
+    "to_width",
     "wide_dtype",
     "width_of",
 ]

@@ -6,10 +6,15 @@ numba has no integer type wider than 64 bits, but LLVM has ``i128``, ``i192``,
 builds by hand. Each intrinsic here reads whole wide elements straight from a
 C-contiguous wide array (see :mod:`csgnb.exact.wide`), computes in LLVM's native
 wide integers and returns a small result (a sign, a bool, a double) or stores
-wide values into an output array.
+wide values into an output array. The code generation lives in
+:mod:`csgnb.exact.lowering`.
 
 The width is read from the array's record dtype at typing time, so one jitted
-kernel compiles to a 128-, 192- and 256-bit version on demand, each cached.
+kernel compiles to a 128-, 192- and 256-bit version on demand, each cached. Plane
+operands may be full ``(n, 4)`` rows or narrow plane records
+(:mod:`csgnb.exact.planes`); the layout is read from the dtype too, and narrow
+planes are computed with narrow products (a product of two int32 normals is one
+64-bit ``imul``).
 
 Why wrap-around is harmless: two's-complement ``add``/``sub``/``mul`` are exact
 modulo ``2**b``. A polynomial whose *final* value lies in ``[-2**(b-1), 2**(b-1))``
@@ -30,10 +35,14 @@ from numba.core import cgutils
 from numba.core.errors import TypingError
 from numba.extending import intrinsic
 
+from csgnb.exact import lowering as lw
+from csgnb.exact.lowering import F64, I8, I64
+
 __all__ = [
     "classify_at",
     "intersect_into",
     "plane_from_points_into",
+    "plane_from_normal_into",
     "signed_distance_into",
     "planes_parallel_at",
     "points_equal_at",
@@ -43,163 +52,32 @@ __all__ = [
     "wide_sign_at",
     "wide_to_float_at",
     "wide_to_int64_at",
+    "wide_split_double_at",
     "wide_abs_greater_at",
     "wide_divexact_at",
     "compare_ratio_dyadic_at",
+    "scan_rows",
+    "positions_into",
+    "trailing_zeros",
+    "fma",
+    "half_ulp",
 ]
 
-_I8 = ir.IntType(8)
-_I64 = ir.IntType(64)
+
+# The names other packages' intrinsics import (csgnb.mesh.volume, csgnb.exact.wide_store): the
+# code generation moved to csgnb.exact.lowering.
+_wide_width = lw.wide_width
+_row_pointer = lw.row_pointer
+_element_pointer = lw.element_pointer
+_load = lw.load
+_load_row = lw.load_row
+_store_row = lw.store_row
+_sign = lw.sign
+_abs = lw.absolute
 
 
-# ---------------------------------------------------------------------------
-# typing helpers
-
-
-def _wide_width(aty, name: str) -> int:
-    """Width in bits of a wide array type; a numba typing error otherwise."""
-    if not (
-        isinstance(aty, types.Array)
-        and isinstance(aty.dtype, types.Record)
-        and aty.dtype.size in (16, 24, 32)
-        and aty.layout == "C"
-    ):
-        raise TypingError(f"{name}: expected a C-contiguous wide-integer array, got {aty}")
-    return aty.dtype.size * 8
-
-
-def _int_array(aty, name: str) -> None:
-    if not (
-        isinstance(aty, types.Array) and aty.dtype == types.int64 and aty.layout == "C"
-    ):
-        raise TypingError(f"{name}: expected a C-contiguous int64 array, got {aty}")
-
-
-def _same_width(name: str, *atys) -> int:
-    widths = {_wide_width(a, name) for a in atys}
-    if len(widths) != 1:
-        raise TypingError(f"{name}: operands have different widths {sorted(widths)}")
-    return widths.pop()
-
-
-# ---------------------------------------------------------------------------
-# codegen helpers
-
-
-def _row_pointer(context, builder, aty, aval, row, row_ty):
-    """Byte pointer (i8*) to the first element of row ``row`` (or element ``row`` of a 1-D array)."""
-    ary = context.make_array(aty)(context, builder, aval)
-    row = context.cast(builder, row, row_ty, types.intp)
-    index = [row] + [ir.Constant(_I64, 0)] * (aty.ndim - 1)
-    ptr = cgutils.get_item_pointer(context, builder, aty, ary, index)
-    return builder.bitcast(ptr, ir.IntType(8).as_pointer())
-
-
-def _element_pointer(builder, base, col, T):
-    """Pointer to column ``col`` (int or i64 value) of a row of ``T`` elements.
-
-    Addressed in bytes: LLVM pads ``i192`` to a 32-byte allocation, so a typed
-    GEP would stride past the 24-byte elements of a 192-bit array.
-    """
-    size = T.width // 8
-    offset = ir.Constant(_I64, col * size) if isinstance(col, int) else builder.mul(col, ir.Constant(_I64, size))
-    return builder.bitcast(builder.gep(base, [offset]), T.as_pointer())
-
-
-def _load(builder, base, col, T):
-    return builder.load(_element_pointer(builder, base, col, T), align=8)
-
-
-def _load_row(context, builder, aty, aval, row, row_ty, T, ncols):
-    """Load ``ncols`` values of a row as ``T`` integers (int64 rows are sign-extended)."""
-    base = _row_pointer(context, builder, aty, aval, row, row_ty)
-    if isinstance(aty.dtype, types.Record):
-        return [_load(builder, base, c, T) for c in range(ncols)]
-    return [builder.sext(_load(builder, base, c, _I64), T) for c in range(ncols)]
-
-
-def _store_row(context, builder, aty, aval, row, row_ty, T, values):
-    base = _row_pointer(context, builder, aty, aval, row, row_ty)
-    for c, v in enumerate(values):
-        builder.store(v, _element_pointer(builder, base, c, T), align=8)
-
-
-def _sign(builder, v):
-    """int8 sign (-1, 0, +1) of the signed integer ``v``."""
-    zero = ir.Constant(v.type, 0)
-    pos = builder.zext(builder.icmp_signed(">", v, zero), _I8)
-    neg = builder.zext(builder.icmp_signed("<", v, zero), _I8)
-    return builder.sub(pos, neg)
-
-
-def _abs(builder, v):
-    """|v| as an unsigned value of the same width (exact also for the minimum)."""
-    neg = builder.icmp_signed("<", v, ir.Constant(v.type, 0))
-    return builder.select(neg, builder.neg(v), v)
-
-
-def _bit_count_intrinsic(builder, name, T):
-    """Declare ``llvm.ctlz``/``llvm.cttz`` for ``T`` with both arguments (llvmlite omits the i1 flag)."""
-    return builder.module.declare_intrinsic(name, [T], ir.FunctionType(T, [T, ir.IntType(1)]))
-
-
-def _to_double(builder, v):
-    """``v`` rounded to the nearest double (ties to even), without compiler-rt calls.
-
-    LLVM lowers a 128-bit ``sitofp`` to ``__floattidf``, which numba cannot link,
-    and folds widening tricks back to it; so: normalise |v| with ``ctlz``, keep
-    the top 64 bits with a sticky bit for everything below (enough for correct
-    rounding to 53 bits), convert those, and scale by an exact power of two.
-    """
-    T = v.type
-    W = T.width
-    magnitude = _abs(builder, v)
-    ctlz = _bit_count_intrinsic(builder, "llvm.ctlz", T)
-    lz = builder.call(ctlz, [magnitude, ir.Constant(ir.IntType(1), 0)])
-    norm = builder.shl(magnitude, lz)
-    top = builder.trunc(builder.lshr(norm, ir.Constant(T, W - 64)), _I64)
-    sticky = builder.icmp_unsigned("!=", builder.trunc(norm, ir.IntType(W - 64)), ir.Constant(ir.IntType(W - 64), 0))
-    top = builder.or_(top, builder.zext(sticky, _I64))
-    f = builder.uitofp(top, ir.DoubleType())
-    exponent = builder.sub(ir.Constant(_I64, W - 64), builder.trunc(lz, _I64))  # in [-63, W - 64]
-    biased = builder.add(exponent, ir.Constant(_I64, 1023))  # 2**exponent built from its IEEE bits
-    scale = builder.bitcast(builder.shl(biased, ir.Constant(_I64, 52)), ir.DoubleType())
-    f = builder.fmul(f, scale)
-    f = builder.select(builder.icmp_signed("<", v, ir.Constant(T, 0)), builder.fneg(f), f)
-    return builder.select(builder.icmp_signed("==", v, ir.Constant(T, 0)), ir.Constant(ir.DoubleType(), 0.0), f)
-
-
-def _divexact(builder, v, g):
-    """``v / g`` for an int64 ``g != 0`` that divides ``v`` exactly, without a division.
-
-    Exact division is an arithmetic shift by the twos in ``g`` followed by a
-    multiplication with the inverse of its odd part modulo 2**W (Newton's
-    iteration doubles the correct low bits each step, from 3).
-    """
-    T = v.type
-    negative = builder.icmp_signed("<", g, ir.Constant(_I64, 0))
-    g = builder.select(negative, builder.neg(g), g)
-    twos = builder.call(_bit_count_intrinsic(builder, "llvm.cttz", _I64), [g, ir.Constant(ir.IntType(1), 1)])
-    odd = builder.zext(builder.lshr(g, twos), T)
-    shifted = builder.ashr(v, builder.zext(twos, T))
-    inverse = odd
-    two = ir.Constant(T, 2)
-    for _ in range(max(1, (T.width // 3).bit_length())):
-        inverse = builder.mul(inverse, builder.sub(two, builder.mul(odd, inverse)))
-    q = builder.mul(shifted, inverse)
-    return builder.select(negative, builder.neg(q), q)
-
-
-def _det2(builder, a, b, c, d):
-    """a*d - b*c."""
-    return builder.sub(builder.mul(a, d), builder.mul(b, c))
-
-
-def _dot(builder, xs, ys):
-    acc = builder.mul(xs[0], ys[0])
-    for x, y in zip(xs[1:], ys[1:], strict=True):
-        acc = builder.add(acc, builder.mul(x, y))
-    return acc
+def _T(bits: int) -> ir.IntType:
+    return ir.IntType(bits)
 
 
 # ---------------------------------------------------------------------------
@@ -210,19 +88,59 @@ def _dot(builder, xs, ys):
 def classify_at(typingctx, points, i, planes, j):
     """Sign of point ``points[i]`` against plane ``planes[j]``: sign(x·s)·sign(x4) (eq. 6).
 
-    ``points`` and ``planes`` are ``(n, 4)`` wide arrays of one width. Returns int8:
-    +1 on the positive side, -1 on the negative side, 0 on the plane.
+    ``points`` is an ``(n, 4)`` wide array, ``planes`` ``(m, 4)`` wide rows or narrow planes, of
+    one width. Returns int8: +1 on the positive side, -1 on the negative side, 0 on the plane.
     """
-    bits = _same_width("classify_at", points, planes)
-    T = ir.IntType(bits)
+    T = _T(lw.same_width("classify_at", points, planes))
 
     def codegen(context, builder, sig, args):
-        pa, ia, la, ja = args
-        x = _load_row(context, builder, sig.args[0], pa, ia, sig.args[1], T, 4)
-        s = _load_row(context, builder, sig.args[2], la, ja, sig.args[3], T, 4)
-        return builder.mul(_sign(builder, _dot(builder, x, s)), _sign(builder, x[3]))
+        x = lw.load_row(context, builder, sig.args[0], args[0], args[1], sig.args[1], T, 4)
+        s = lw.load_plane(context, builder, sig.args[2], args[2], args[3], sig.args[3])
+        return lw.sign_times_sign(builder, lw.dot(builder, x, s, T), x[3])
 
     return types.int8(points, i, planes, j), codegen
+
+
+def _intersect_full(builder, p, q, r):
+    """Eq. 5 for planes loaded at the full width: 2x2 minors of q, r shared by four 3x3 cofactors."""
+    a_p, b_p, c_p, d_p = p
+    a_q, b_q, c_q, d_q = q
+    a_r, b_r, c_r, d_r = r
+    m_ab = lw.det2(builder, a_q, b_q, a_r, b_r)
+    m_ac = lw.det2(builder, a_q, c_q, a_r, c_r)
+    m_ad = lw.det2(builder, a_q, d_q, a_r, d_r)
+    m_bc = lw.det2(builder, b_q, c_q, b_r, c_r)
+    m_bd = lw.det2(builder, b_q, d_q, b_r, d_r)
+    m_cd = lw.det2(builder, c_q, d_q, c_r, d_r)
+    det_bcd = lw.dot(builder, [b_p, c_p, d_p], [m_cd, builder.neg(m_bd), m_bc])
+    det_acd = lw.dot(builder, [a_p, c_p, d_p], [m_cd, builder.neg(m_ad), m_ac])
+    det_abd = lw.dot(builder, [a_p, b_p, d_p], [m_bd, builder.neg(m_ad), m_ab])
+    det_abc = lw.dot(builder, [a_p, b_p, c_p], [m_bc, builder.neg(m_ac), m_ab])
+    return [det_bcd, builder.neg(det_acd), det_abd, builder.neg(det_abc)]
+
+
+def _intersect_narrow(builder, p, q, r, T, M):
+    """Eq. 5 for narrow planes, expanded along the offset column.
+
+    Every cofactor is Σ ±(offset or normal) x (a 2x2 minor of normals); the nine minors are
+    exact at ``M`` (twice the normal field: |a| < 2**(k-1) gives |minor| < 2**(2k-1)), so
+    they cost one narrow ``imul`` per product, and only the nine offset products and three
+    normal products that follow are wide.
+    """
+    rows = (p, q, r)
+    pairs = ((1, 2), (0, 2), (0, 1))  # row pairs (q, r), (p, r), (p, q): the minors for rows p, q, r
+
+    def minors(u, v):
+        return [lw.det2(builder, rows[s][u], rows[s][v], rows[t][u], rows[t][v], M) for s, t in pairs]
+
+    def expand(column, ms):
+        terms = [lw.mul_exact(builder, rows[k][column], ms[k], T) for k in range(3)]
+        return builder.add(builder.sub(terms[0], terms[1]), terms[2])
+
+    m_bc, m_ac, m_ab = minors(1, 2), minors(0, 2), minors(0, 1)
+    det_bcd, det_acd, det_abd = expand(3, m_bc), expand(3, m_ac), expand(3, m_ab)
+    det_abc = expand(0, m_bc)
+    return [det_bcd, builder.neg(det_acd), det_abd, builder.neg(det_abc)]
 
 
 @intrinsic
@@ -232,30 +150,27 @@ def intersect_into(typingctx, P, ip, Q, iq, R, ir_, out, io):
     The homogeneous point is the vector of cofactors of the first row of
     ``det[e1 e2 e3 e4; p; q; r]``, so that ``x·s = det[s; p; q; r]`` for any plane
     ``s`` and ``x·p = x·q = x·r = 0``. ``x4 = -det(n_p, n_q, n_r)`` is zero when the
-    normals are linearly dependent (no unique intersection).
+    normals are linearly dependent (no unique intersection). Planes in either layout;
+    ``out`` an ``(n, 4)`` wide array of their width.
     """
-    bits = _same_width("intersect_into", P, Q, R, out)
-    T = ir.IntType(bits)
+    bits = lw.same_width("intersect_into", P, Q, R, out)
+    lw.wide_width(out, "intersect_into")
+    T = _T(bits)
+    layouts = [lw.plane_layout(a, "intersect_into") for a in (P, Q, R)]
+    narrow = all(layout.narrow for layout in layouts)
+    M = _T(2 * layouts[0].normal_bits)
+
+    def values(context, builder, sig, args):
+        planes = [lw.load_plane(context, builder, sig.args[2 * k], args[2 * k], args[2 * k + 1], sig.args[2 * k + 1],
+                                None if narrow else T) for k in range(3)]
+        return _intersect_narrow(builder, *planes, T, M) if narrow else _intersect_full(builder, *planes)
 
     def codegen(context, builder, sig, args):
-        a_p, b_p, c_p, d_p = _load_row(context, builder, sig.args[0], args[0], args[1], sig.args[1], T, 4)
-        a_q, b_q, c_q, d_q = _load_row(context, builder, sig.args[2], args[2], args[3], sig.args[3], T, 4)
-        a_r, b_r, c_r, d_r = _load_row(context, builder, sig.args[4], args[4], args[5], sig.args[5], T, 4)
-        # 2x2 minors of the rows q, r, shared by the four 3x3 cofactors.
-        m_ab = _det2(builder, a_q, b_q, a_r, b_r)
-        m_ac = _det2(builder, a_q, c_q, a_r, c_r)
-        m_ad = _det2(builder, a_q, d_q, a_r, d_r)
-        m_bc = _det2(builder, b_q, c_q, b_r, c_r)
-        m_bd = _det2(builder, b_q, d_q, b_r, d_r)
-        m_cd = _det2(builder, c_q, d_q, c_r, d_r)
-        det_bcd = _dot(builder, [b_p, c_p, d_p], [m_cd, builder.neg(m_bd), m_bc])
-        det_acd = _dot(builder, [a_p, c_p, d_p], [m_cd, builder.neg(m_ad), m_ac])
-        det_abd = _dot(builder, [a_p, b_p, d_p], [m_bd, builder.neg(m_ad), m_ab])
-        det_abc = _dot(builder, [a_p, b_p, c_p], [m_bc, builder.neg(m_ac), m_ab])
-        x = [det_bcd, builder.neg(det_acd), det_abd, builder.neg(det_abc)]
-        _store_row(context, builder, sig.args[6], args[6], args[7], sig.args[7], T, x)
+        x = values(context, builder, sig, args)
+        lw.store_row(context, builder, sig.args[6], args[6], args[7], sig.args[7], T, x)
         return context.get_dummy_value()
 
+    codegen.values = values  # the point without the store, for csgnb.exact.blocks
     return types.none(P, ip, Q, iq, R, ir_, out, io), codegen
 
 
@@ -264,47 +179,68 @@ def plane_from_points_into(typingctx, Pt, ip, Qt, iq, Rt, ir_, out, io):
     """Store the plane through integer points ``Pt[ip], Qt[iq], Rt[ir_]`` into ``out[io]``.
 
     ``n = (q - p) x (r - p)``, ``d = -n·p``; the points are ``(n, 3) int64`` rows and
-    all arithmetic is done at the width of ``out``. The normal is zero for
-    collinear points.
+    all arithmetic is done at the width of ``out`` (wide rows or narrow planes; narrow
+    fields take the low bits, which callers keep within the mesh budget). The normal is
+    zero for collinear points.
     """
     for a in (Pt, Qt, Rt):
-        _int_array(a, "plane_from_points_into")
-    bits = _wide_width(out, "plane_from_points_into")
-    T = ir.IntType(bits)
+        lw.int_array(a, "plane_from_points_into")
+    T = _T(lw.plane_layout(out, "plane_from_points_into").bits)
 
     def codegen(context, builder, sig, args):
-        p = _load_row(context, builder, sig.args[0], args[0], args[1], sig.args[1], T, 3)
-        q = _load_row(context, builder, sig.args[2], args[2], args[3], sig.args[3], T, 3)
-        r = _load_row(context, builder, sig.args[4], args[4], args[5], sig.args[5], T, 3)
+        p = lw.load_row(context, builder, sig.args[0], args[0], args[1], sig.args[1], T, 3)
+        q = lw.load_row(context, builder, sig.args[2], args[2], args[3], sig.args[3], T, 3)
+        r = lw.load_row(context, builder, sig.args[4], args[4], args[5], sig.args[5], T, 3)
         e1 = [builder.sub(qi, pi) for qi, pi in zip(q, p, strict=True)]
         e2 = [builder.sub(ri, pi) for ri, pi in zip(r, p, strict=True)]
         n = [
-            _det2(builder, e1[1], e1[2], e2[1], e2[2]),
-            _det2(builder, e1[2], e1[0], e2[2], e2[0]),
-            _det2(builder, e1[0], e1[1], e2[0], e2[1]),
+            lw.det2(builder, e1[1], e1[2], e2[1], e2[2]),
+            lw.det2(builder, e1[2], e1[0], e2[2], e2[0]),
+            lw.det2(builder, e1[0], e1[1], e2[0], e2[1]),
         ]
-        d = builder.neg(_dot(builder, n, p))
-        _store_row(context, builder, sig.args[6], args[6], args[7], sig.args[7], T, n + [d])
+        d = builder.neg(lw.dot(builder, n, p))
+        lw.store_plane(context, builder, sig.args[6], args[6], args[7], sig.args[7], n + [d])
         return context.get_dummy_value()
 
     return types.none(Pt, ip, Qt, iq, Rt, ir_, out, io), codegen
 
 
 @intrinsic
+def plane_from_normal_into(typingctx, a, b, c, Pt, ip, out, io):
+    """Store the plane with int64 normal (a, b, c) through the integer point ``Pt[ip]`` into ``out[io]``.
+
+    ``d = -(a, b, c)·p`` is formed from 64 x 64-bit products at the width of ``out`` (either
+    layout), so a kernel that computed and reduced the normal in int64 (planes through mesh
+    vertices: |n| <= 8 V^2 < 2**57) finishes the plane with three ``imul``.
+    """
+    lw.int_array(Pt, "plane_from_normal_into")
+    T = _T(lw.plane_layout(out, "plane_from_normal_into").bits)
+
+    def codegen(context, builder, sig, args):
+        n = [context.cast(builder, v, ty, types.int64) for v, ty in zip(args[:3], sig.args[:3], strict=True)]
+        p = lw.load_row(context, builder, sig.args[3], args[3], args[4], sig.args[4], I64, 3)
+        d = builder.neg(lw.dot(builder, n, p, T))
+        lw.store_plane(context, builder, sig.args[5], args[5], args[6], sig.args[6], n + [d])
+        return context.get_dummy_value()
+
+    return types.none(a, b, c, Pt, ip, out, io), codegen
+
+
+@intrinsic
 def signed_distance_into(typingctx, pts, i, planes, j, out, io):
     """Store ``n·v + d`` of integer point ``pts[i]`` ((n, 3) int64) and plane ``planes[j]`` into ``out[io]``.
 
-    The value is the signed distance scaled by |n| (exact, no division).
+    The value is the signed distance scaled by |n| (exact, no division). ``planes`` in either
+    layout; ``out`` a 1-D wide array of their width.
     """
-    _int_array(pts, "signed_distance_into")
-    bits = _same_width("signed_distance_into", planes, out)
-    T = ir.IntType(bits)
+    lw.int_array(pts, "signed_distance_into")
+    T = _T(lw.same_width("signed_distance_into", planes, out))
 
     def codegen(context, builder, sig, args):
-        v = _load_row(context, builder, sig.args[0], args[0], args[1], sig.args[1], T, 3)
-        s = _load_row(context, builder, sig.args[2], args[2], args[3], sig.args[3], T, 4)
-        value = builder.add(_dot(builder, v, s[:3]), s[3])
-        _store_row(context, builder, sig.args[4], args[4], args[5], sig.args[5], T, [value])
+        v = lw.load_row(context, builder, sig.args[0], args[0], args[1], sig.args[1], I64, 3)
+        s = lw.load_plane(context, builder, sig.args[2], args[2], args[3], sig.args[3])
+        value = builder.add(lw.dot(builder, v, s[:3], T), lw.resize(builder, s[3], T))
+        lw.store_row(context, builder, sig.args[4], args[4], args[5], sig.args[5], T, [value])
         return context.get_dummy_value()
 
     return types.none(pts, i, planes, j, out, io), codegen
@@ -312,19 +248,34 @@ def signed_distance_into(typingctx, pts, i, planes, j, out, io):
 
 @intrinsic
 def planes_parallel_at(typingctx, P, i, Q, j):
-    """Whether the normals of ``P[i]`` and ``Q[j]`` are parallel: n_p x n_q = 0 (eq. 1)."""
-    bits = _same_width("planes_parallel_at", P, Q)
-    T = ir.IntType(bits)
+    """Whether the normals of ``P[i]`` and ``Q[j]`` are parallel: n_p x n_q = 0 (eq. 1).
+
+    The cross product is tested for zero modulo ``2**M``, which is exact as long as its
+    components stay below ``2**(M-1)``: narrow normals (|a| < 2**31 or 2**63) use twice the
+    normal field; full rows use what the budget allows -- every plane within the budget of
+    its width has ``27 N^6 < 2**(2b-2)``, i.e. ``2 N^2 < 2**127`` at 192 bits and ``< 2**170``
+    at 256, so products are formed at 128 and 192 bits instead of 192 and 256.
+    """
+    lp, lq = lw.plane_layout(P, "planes_parallel_at"), lw.plane_layout(Q, "planes_parallel_at")
+    bits = lw.same_width("planes_parallel_at", P, Q)
+    if lp.narrow and lq.narrow:
+        M = _T(2 * lp.normal_bits)
+    else:
+        M = _T({128: 128, 192: 128, 256: 192}[bits])
 
     def codegen(context, builder, sig, args):
-        a1, b1, c1 = _load_row(context, builder, sig.args[0], args[0], args[1], sig.args[1], T, 3)
-        a2, b2, c2 = _load_row(context, builder, sig.args[2], args[2], args[3], sig.args[3], T, 3)
-        zero = ir.Constant(T, 0)
-        cross = [_det2(builder, b1, c1, b2, c2), _det2(builder, c1, a1, c2, a2), _det2(builder, a1, b1, a2, b2)]
-        result = builder.icmp_signed("==", cross[0], zero)
-        for c in cross[1:]:
-            result = builder.and_(result, builder.icmp_signed("==", c, zero))
-        return result
+        a1, b1, c1, _ = lw.load_plane(context, builder, sig.args[0], args[0], args[1], sig.args[1])
+        a2, b2, c2, _ = lw.load_plane(context, builder, sig.args[2], args[2], args[3], sig.args[3])
+        zero = ir.Constant(M, 0)
+        # The z component first: for planes that are not parallel it is almost always non-zero,
+        # and the other two products are skipped.
+        result = cgutils.alloca_once_value(builder, ir.Constant(ir.IntType(1), 0))
+        z = lw.det2(builder, a1, b1, a2, b2, M)
+        with builder.if_then(builder.icmp_signed("==", z, zero), likely=False):
+            x = lw.det2(builder, b1, c1, b2, c2, M)
+            y = lw.det2(builder, c1, a1, c2, a2, M)
+            builder.store(builder.and_(builder.icmp_signed("==", x, zero), builder.icmp_signed("==", y, zero)), result)
+        return builder.load(result)
 
     return types.boolean(P, i, Q, j), codegen
 
@@ -336,17 +287,17 @@ def points_equal_at(typingctx, X, i, Y, j):
     Products are formed at twice the width, so any two wide points compare exactly.
     Both w components must be non-zero (finite points).
     """
-    bits = _same_width("points_equal_at", X, Y)
-    T = ir.IntType(bits)
-    T2 = ir.IntType(2 * bits)
+    bits = lw.same_width("points_equal_at", X, Y)
+    T = _T(bits)
+    T2 = _T(2 * bits)
 
     def codegen(context, builder, sig, args):
-        x = [builder.sext(v, T2) for v in _load_row(context, builder, sig.args[0], args[0], args[1], sig.args[1], T, 4)]
-        y = [builder.sext(v, T2) for v in _load_row(context, builder, sig.args[2], args[2], args[3], sig.args[3], T, 4)]
+        x = lw.load_row(context, builder, sig.args[0], args[0], args[1], sig.args[1], T, 4)
+        y = lw.load_row(context, builder, sig.args[2], args[2], args[3], sig.args[3], T, 4)
         result = ir.Constant(ir.IntType(1), 1)
         for k in range(3):
-            lhs = builder.mul(x[k], y[3])
-            rhs = builder.mul(y[k], x[3])
+            lhs = lw.mul_exact(builder, x[k], y[3], T2)
+            rhs = lw.mul_exact(builder, y[k], x[3], T2)
             result = builder.and_(result, builder.icmp_signed("==", lhs, rhs))
         return result
 
@@ -362,18 +313,18 @@ def compare_plane_values_at(typingctx, X, iu, iv, S, j):
     needs. The dot products are final values bounded by the classification budget;
     the cross products ``(x_u·s)·x4_v`` are formed at twice the width. Returns int8.
     """
-    bits = _same_width("compare_plane_values_at", X, S)
-    T = ir.IntType(bits)
-    T2 = ir.IntType(2 * bits)
+    bits = lw.same_width("compare_plane_values_at", X, S)
+    T = _T(bits)
+    T2 = _T(2 * bits)
 
     def codegen(context, builder, sig, args):
-        xu = _load_row(context, builder, sig.args[0], args[0], args[1], sig.args[1], T, 4)
-        xv = _load_row(context, builder, sig.args[0], args[0], args[2], sig.args[2], T, 4)
-        s = _load_row(context, builder, sig.args[3], args[3], args[4], sig.args[4], T, 4)
-        du = builder.sext(_dot(builder, xu, s), T2)
-        dv = builder.sext(_dot(builder, xv, s), T2)
-        diff = builder.sub(builder.mul(du, builder.sext(xv[3], T2)), builder.mul(dv, builder.sext(xu[3], T2)))
-        return builder.mul(builder.mul(_sign(builder, diff), _sign(builder, xu[3])), _sign(builder, xv[3]))
+        xu = lw.load_row(context, builder, sig.args[0], args[0], args[1], sig.args[1], T, 4)
+        xv = lw.load_row(context, builder, sig.args[0], args[0], args[2], sig.args[2], T, 4)
+        s = lw.load_plane(context, builder, sig.args[3], args[3], args[4], sig.args[4])
+        du = lw.dot(builder, xu, s, T)
+        dv = lw.dot(builder, xv, s, T)
+        diff = builder.sub(lw.mul_exact(builder, du, xv[3], T2), lw.mul_exact(builder, dv, xu[3], T2))
+        return builder.mul(builder.mul(lw.sign(builder, diff), lw.sign(builder, xu[3])), lw.sign(builder, xv[3]))
 
     return types.int8(X, iu, iv, S, j), codegen
 
@@ -385,15 +336,14 @@ def plane_value_into(typingctx, X, i, S, j, out, io):
     The side is sign(x·s)·sign(x4) as in :func:`classify_at`; keeping x·s lets later
     distance comparisons (:func:`compare_cached_values_at`) skip the dot product.
     """
-    bits = _same_width("plane_value_into", X, S, out)
-    T = ir.IntType(bits)
+    T = _T(lw.same_width("plane_value_into", X, S, out))
 
     def codegen(context, builder, sig, args):
-        x = _load_row(context, builder, sig.args[0], args[0], args[1], sig.args[1], T, 4)
-        s = _load_row(context, builder, sig.args[2], args[2], args[3], sig.args[3], T, 4)
-        dot = _dot(builder, x, s)
-        _store_row(context, builder, sig.args[4], args[4], args[5], sig.args[5], T, [dot])
-        return builder.mul(_sign(builder, dot), _sign(builder, x[3]))
+        x = lw.load_row(context, builder, sig.args[0], args[0], args[1], sig.args[1], T, 4)
+        s = lw.load_plane(context, builder, sig.args[2], args[2], args[3], sig.args[3])
+        value = lw.dot(builder, x, s, T)
+        lw.store_row(context, builder, sig.args[4], args[4], args[5], sig.args[5], T, [value])
+        return builder.mul(lw.sign(builder, value), lw.sign(builder, x[3]))
 
     return types.int8(X, i, S, j, out, io), codegen
 
@@ -404,20 +354,19 @@ def compare_cached_values_at(typingctx, D, iu, iv, X):
 
     ``D`` is the 1-D wide array :func:`plane_value_into` filled; products at twice the width.
     """
-    bits = _same_width("compare_cached_values_at", D, X)
-    T = ir.IntType(bits)
-    T2 = ir.IntType(2 * bits)
+    bits = lw.same_width("compare_cached_values_at", D, X)
+    T = _T(bits)
+    T2 = _T(2 * bits)
 
     def codegen(context, builder, sig, args):
-        du = _load_row(context, builder, sig.args[0], args[0], args[1], sig.args[1], T, 1)[0]
-        dv = _load_row(context, builder, sig.args[0], args[0], args[2], sig.args[2], T, 1)[0]
-        base_u = _row_pointer(context, builder, sig.args[3], args[3], args[1], sig.args[1])
-        base_v = _row_pointer(context, builder, sig.args[3], args[3], args[2], sig.args[2])
-        wu = _load(builder, base_u, 3, T)
-        wv = _load(builder, base_v, 3, T)
-        diff = builder.sub(builder.mul(builder.sext(du, T2), builder.sext(wv, T2)),
-                           builder.mul(builder.sext(dv, T2), builder.sext(wu, T2)))
-        return builder.mul(builder.mul(_sign(builder, diff), _sign(builder, wu)), _sign(builder, wv))
+        du = lw.load_row(context, builder, sig.args[0], args[0], args[1], sig.args[1], T, 1)[0]
+        dv = lw.load_row(context, builder, sig.args[0], args[0], args[2], sig.args[2], T, 1)[0]
+        base_u = lw.row_pointer(context, builder, sig.args[3], args[3], args[1], sig.args[1])
+        base_v = lw.row_pointer(context, builder, sig.args[3], args[3], args[2], sig.args[2])
+        wu = lw.load(builder, base_u, 3, T)
+        wv = lw.load(builder, base_v, 3, T)
+        diff = builder.sub(lw.mul_exact(builder, du, wv, T2), lw.mul_exact(builder, dv, wu, T2))
+        return builder.mul(builder.mul(lw.sign(builder, diff), lw.sign(builder, wu)), lw.sign(builder, wv))
 
     return types.int8(D, iu, iv, X), codegen
 
@@ -430,13 +379,12 @@ def _element_intrinsic(name, result_type, body):
     """An intrinsic ``f(arr, i, j)`` reading element ``[i, j]`` of a 2-D (or ``[i]`` of a 1-D) wide array."""
 
     def typer(typingctx, arr, i, j):
-        bits = _wide_width(arr, name)
-        T = ir.IntType(bits)
+        T = _T(lw.wide_width(arr, name))
 
         def codegen(context, builder, sig, args):
-            base = _row_pointer(context, builder, sig.args[0], args[0], args[1], sig.args[1])
+            base = lw.row_pointer(context, builder, sig.args[0], args[0], args[1], sig.args[1])
             col = context.cast(builder, args[2], sig.args[2], types.intp)
-            return body(context, builder, _load(builder, base, col, T))
+            return body(context, builder, lw.load(builder, base, col, T))
 
         return result_type(arr, i, j), codegen
 
@@ -444,32 +392,40 @@ def _element_intrinsic(name, result_type, body):
     return intrinsic(typer)
 
 
-wide_sign_at = _element_intrinsic("wide_sign_at", types.int8, lambda ctx, b, v: _sign(b, v))
+wide_sign_at = _element_intrinsic("wide_sign_at", types.int8, lambda ctx, b, v: lw.sign(b, v))
 wide_sign_at.__doc__ = "int8 sign of the wide element ``arr[i, j]``."
 
-wide_to_float_at = _element_intrinsic(
-    "wide_to_float_at", types.float64, lambda ctx, b, v: _to_double(b, v)
-)
+wide_to_float_at = _element_intrinsic("wide_to_float_at", types.float64, lambda ctx, b, v: lw.to_double(b, v))
 wide_to_float_at.__doc__ = "The wide element ``arr[i, j]`` rounded to the nearest double."
 
-wide_to_int64_at = _element_intrinsic("wide_to_int64_at", types.int64, lambda ctx, b, v: b.trunc(v, _I64))
+wide_to_int64_at = _element_intrinsic("wide_to_int64_at", types.int64, lambda ctx, b, v: b.trunc(v, I64))
 wide_to_int64_at.__doc__ = "The low 64 bits of ``arr[i, j]`` as int64 (exact when it fits)."
+
+
+def _split(ctx, builder, v):
+    hi, lo = lw.split_double(builder, v)
+    return ctx.make_tuple(builder, types.UniTuple(types.float64, 2), [hi, lo])
+
+
+wide_split_double_at = _element_intrinsic("wide_split_double_at", types.UniTuple(types.float64, 2), _split)
+wide_split_double_at.__doc__ = (
+    "(hi, lo): |arr[i, j]| truncated to 106 bits as two exact doubles, hi the top 53 bits, lo the next 53 "
+    "(0 <= |v| - hi - lo < 2**-105 |v|).")
 
 
 @intrinsic
 def wide_abs_greater_at(typingctx, A, i, j, B, k, m):
     """Whether ``|A[i, j]| > |B[k, m]|`` (exact, also for the most negative value)."""
-    bits = _same_width("wide_abs_greater_at", A, B)
-    T = ir.IntType(bits)
+    T = _T(lw.same_width("wide_abs_greater_at", A, B))
 
     def codegen(context, builder, sig, args):
         def load(aty, aval, row, row_ty, col, col_ty):
-            base = _row_pointer(context, builder, aty, aval, row, row_ty)
-            return _load(builder, base, context.cast(builder, col, col_ty, types.intp), T)
+            base = lw.row_pointer(context, builder, aty, aval, row, row_ty)
+            return lw.load(builder, base, context.cast(builder, col, col_ty, types.intp), T)
 
         a = load(sig.args[0], args[0], args[1], sig.args[1], args[2], sig.args[2])
         b = load(sig.args[3], args[3], args[4], sig.args[4], args[5], sig.args[5])
-        return builder.icmp_unsigned(">", _abs(builder, a), _abs(builder, b))
+        return builder.icmp_unsigned(">", lw.absolute(builder, a), lw.absolute(builder, b))
 
     return types.boolean(A, i, j, B, k, m), codegen
 
@@ -477,14 +433,13 @@ def wide_abs_greater_at(typingctx, A, i, j, B, k, m):
 @intrinsic
 def wide_divexact_at(typingctx, arr, i, j, g):
     """Divide ``arr[i, j]`` in place by the int64 ``g`` (the division must be exact)."""
-    bits = _wide_width(arr, "wide_divexact_at")
-    T = ir.IntType(bits)
+    T = _T(lw.wide_width(arr, "wide_divexact_at"))
 
     def codegen(context, builder, sig, args):
-        base = _row_pointer(context, builder, sig.args[0], args[0], args[1], sig.args[1])
-        ptr = _element_pointer(builder, base, context.cast(builder, args[2], sig.args[2], types.intp), T)
+        base = lw.row_pointer(context, builder, sig.args[0], args[0], args[1], sig.args[1])
+        ptr = lw.element_pointer(builder, base, context.cast(builder, args[2], sig.args[2], types.intp), T)
         divisor = context.cast(builder, args[3], sig.args[3], types.int64)
-        builder.store(_divexact(builder, builder.load(ptr, align=8), divisor), ptr, align=8)
+        builder.store(lw.divexact(builder, builder.load(ptr, align=8), divisor), ptr, align=8)
         return context.get_dummy_value()
 
     return types.none(arr, i, j, g), codegen
@@ -494,26 +449,27 @@ def wide_divexact_at(typingctx, arr, i, j, g):
 def compare_ratio_dyadic_at(typingctx, X, i, jn, jd, M, E):
     """Sign of ``|X[i, jn]| - |X[i, jd]| * M * 2**E`` for int64 ``M >= 0`` and int64 ``E``.
 
-    Computed exactly at twice the width: the rounding step of
+    Computed exactly at twice the width: the exact rounding step of
     :func:`csgnb.exact.predicates.to_double_position` compares the rational
     ``x_jn / x_jd`` with the dyadic midpoints between adjacent doubles. Shifts are
     clamped to the double width, which callers keep far away from.
     """
-    bits = _wide_width(X, "compare_ratio_dyadic_at")
-    T = ir.IntType(bits)
-    T2 = ir.IntType(2 * bits)
+    bits = lw.wide_width(X, "compare_ratio_dyadic_at")
+    T = _T(bits)
+    T2 = _T(2 * bits)
 
     def codegen(context, builder, sig, args):
-        base = _row_pointer(context, builder, sig.args[0], args[0], args[1], sig.args[1])
+        base = lw.row_pointer(context, builder, sig.args[0], args[0], args[1], sig.args[1])
         jn = context.cast(builder, args[2], sig.args[2], types.intp)
         jd = context.cast(builder, args[3], sig.args[3], types.intp)
-        num = builder.zext(_abs(builder, _load(builder, base, jn, T)), T2)
-        den = builder.zext(_abs(builder, _load(builder, base, jd, T)), T2)
+        num = builder.zext(lw.absolute(builder, lw.load(builder, base, jn, T)), T2)
+        den = builder.zext(lw.absolute(builder, lw.load(builder, base, jd, T)), T2)
         m = builder.zext(context.cast(builder, args[4], sig.args[4], types.int64), T2)
         e = context.cast(builder, args[5], sig.args[5], types.int64)
         rhs = builder.mul(den, m)
-        limit = ir.Constant(_I64, 2 * bits - 1)
-        zero64 = ir.Constant(_I64, 0)
+        limit = ir.Constant(I64, 2 * bits - 1)
+        zero64 = ir.Constant(I64, 0)
+
         # E >= 0: shift the right side up; E < 0: shift the numerator up instead.
         def clamp(amount):
             amount = builder.select(builder.icmp_signed("<", amount, zero64), zero64, amount)
@@ -524,8 +480,113 @@ def compare_ratio_dyadic_at(typingctx, X, i, jn, jd, M, E):
         nonneg = builder.icmp_signed(">=", e, zero64)
         lhs = builder.select(nonneg, num, builder.shl(num, builder.zext(down, T2)))
         rhs = builder.select(nonneg, builder.shl(rhs, builder.zext(up, T2)), rhs)
-        gt = builder.zext(builder.icmp_unsigned(">", lhs, rhs), _I8)
-        lt = builder.zext(builder.icmp_unsigned("<", lhs, rhs), _I8)
+        gt = builder.zext(builder.icmp_unsigned(">", lhs, rhs), I8)
+        lt = builder.zext(builder.icmp_unsigned("<", lhs, rhs), I8)
         return builder.sub(gt, lt)
 
     return types.int8(X, i, jn, jd, M, E), codegen
+
+
+@intrinsic
+def scan_rows(typingctx, arr, start, stop, acc):
+    """Fold rows ``[start, stop)`` of ``arr`` into ``acc`` (see :class:`csgnb.exact.lowering.Scan`).
+
+    ``arr`` is an ``(n, 4)`` wide array (planes or points) or narrow planes, with ``acc``
+    ``(4k + 2,) uint64`` (k = width / 64): per-(column, limb) maxima of one's-complement
+    magnitudes and the zero-normal / zero-x4 flags; or ``(n, 3) int64`` points with ``acc``
+    ``(2,) int64`` = [max, min].
+    """
+    if isinstance(arr, types.Array) and arr.dtype == types.int64:
+        lw.int_array(arr, "scan_rows")
+        want = types.int64
+    else:
+        lw.plane_layout(arr, "scan_rows")
+        want = types.uint64
+    if not (isinstance(acc, types.Array) and acc.dtype == want and acc.layout == "C" and acc.ndim == 1):
+        raise TypingError(f"scan_rows: acc must be a C-contiguous 1-D {want} array, got {acc}")
+
+    def codegen(context, builder, sig, args):
+        lo = context.cast(builder, args[1], sig.args[1], types.int64)
+        hi = context.cast(builder, args[2], sig.args[2], types.int64)
+        lw.scan_rows(context, builder, sig.args[0], args[0], sig.args[3], args[3], lo, hi)
+        return context.get_dummy_value()
+
+    return types.none(arr, start, stop, acc), codegen
+
+
+@intrinsic
+def positions_into(typingctx, X, i, out, io):
+    """Store x_c / x4 of the point ``X[i]`` into ``out[io, 0:3]`` (float64); return the certified lanes (int8 bits).
+
+    All three quotients at once in 4-lane vectors (x4 in the fourth): a truncated double-double
+    split, one reciprocal and an FMA-exact residual per lane, certified against the midpoints
+    with the relative error bound :data:`csgnb.exact.lowering.CERTIFY` (see
+    :func:`csgnb.exact.predicates._positions` for its derivation).
+    Bit c of the result is set when out[io, c] is the correctly rounded quotient; the caller
+    recomputes the other lanes exactly. ``X[i, 3]`` must not be zero.
+    """
+    k = lw.wide_width(X, "positions_into") // 64
+
+    def codegen(context, builder, sig, args):
+        base = lw.row_pointer(context, builder, sig.args[0], args[0], args[1], sig.args[1])
+        V4k = ir.VectorType(I64, 4 * k)
+        row = builder.load(builder.bitcast(base, V4k.as_pointer()), align=8)
+        limbs = [builder.shuffle_vector(row, row, ir.Constant(ir.VectorType(ir.IntType(32), 4),
+                                                              [c * k + j for c in range(4)])) for j in range(k)]
+        values, mask = lw.certified_quotients(builder, limbs, k, lw.CERTIFY)
+        out_base = lw.row_pointer(context, builder, sig.args[2], args[2], args[3], sig.args[3])
+        for c in range(3):
+            ptr = builder.bitcast(builder.gep(out_base, [ir.Constant(I64, 8 * c)]), F64.as_pointer())
+            builder.store(builder.extract_element(values, ir.Constant(ir.IntType(32), c)), ptr)
+        return mask
+
+    return types.int8(X, i, out, io), codegen
+
+
+@intrinsic
+def trailing_zeros(typingctx, x):
+    """Number of trailing zero bits of the int64 ``x`` (64 for 0): ``llvm.cttz``."""
+    if x != types.int64:
+        raise TypingError(f"trailing_zeros: expected int64, got {x}")
+
+    def codegen(context, builder, sig, args):
+        f = lw.bit_count_intrinsic(builder, "llvm.cttz", I64)
+        return builder.call(f, [args[0], ir.Constant(ir.IntType(1), 0)])
+
+    return types.int64(x), codegen
+
+
+@intrinsic
+def fma(typingctx, a, b, c):
+    """a * b + c with a single rounding (``llvm.fma.f64``; one instruction on x86-64 with FMA)."""
+    if not (a == b == c == types.float64):
+        raise TypingError(f"fma: expected three float64, got {a}, {b}, {c}")
+
+    def codegen(context, builder, sig, args):
+        f = builder.module.declare_intrinsic("llvm.fma", [F64], ir.FunctionType(F64, [F64, F64, F64]))
+        return builder.call(f, list(args))
+
+    return types.float64(a, b, c), codegen
+
+
+@intrinsic
+def half_ulp(typingctx, x):
+    """(up, down) for a positive normal double ``x``: half the gap to the next double above and below.
+
+    ``down`` is half of ``up`` when ``x`` is a power of two (the gap below is half as wide).
+    Built from the IEEE bits: exact, no division, no libm call.
+    """
+    if x != types.float64:
+        raise TypingError(f"half_ulp: expected float64, got {x}")
+
+    def codegen(context, builder, sig, args):
+        bits = builder.bitcast(args[0], I64)
+        exponent = builder.and_(bits, ir.Constant(I64, 0x7FF << 52))
+        up = builder.bitcast(builder.sub(exponent, ir.Constant(I64, 53 << 52)), F64)  # 2**(e - 53)
+        mantissa = builder.and_(bits, ir.Constant(I64, (1 << 52) - 1))
+        pow2 = builder.icmp_unsigned("==", mantissa, ir.Constant(I64, 0))
+        down = builder.select(pow2, builder.fmul(up, ir.Constant(F64, 0.5)), up)
+        return context.make_tuple(builder, types.UniTuple(types.float64, 2), [up, down])
+
+    return types.UniTuple(types.float64, 2)(x), codegen
+

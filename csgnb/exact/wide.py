@@ -15,6 +15,7 @@ from __future__ import annotations
 import numpy as np
 
 from csgnb.errors import PrecisionError
+from csgnb.exact.integral import exact_int, integer_array, python_int_array
 
 __all__ = [
     "DEFAULT_WIDTH",
@@ -22,8 +23,10 @@ __all__ = [
     "wide_dtype",
     "width_of",
     "to_wide",
+    "to_width",
     "from_wide",
     "is_wide",
+    "check_width",
 ]
 
 #: The supported integer widths in bits.
@@ -34,19 +37,35 @@ DEFAULT_WIDTH: int = 128
 the fastest, with a mesh budget of |coordinate| <= 4567 (eq. 8). Pass ``width=192`` or ``256`` for finer grids."""
 
 _DTYPES = {w: np.dtype([("limbs", "<u8", (w // 64,))]) for w in WIDTHS}
+_WIDTH_OF_DTYPE = {dt: w for w, dt in _DTYPES.items()}
+
+
+def check_width(width) -> int:
+    """Return ``width`` as an int if it is one of :data:`WIDTHS`; raise :class:`PrecisionError` otherwise.
+
+    A non-integer (``"128"``, ``None``) raises ``TypeError``; ``128.0`` is accepted.
+    """
+    if type(width) is int and width in _DTYPES:
+        return width
+    try:
+        w = exact_int(width, "width")
+    except TypeError:
+        raise TypeError(f"width must be one of {WIDTHS} bits (an int), got {width!r}") from None
+    except ValueError:
+        raise PrecisionError(f"width must be one of {WIDTHS} bits, got {width!r}") from None
+    if w not in _DTYPES:
+        raise PrecisionError(f"width must be one of {WIDTHS} bits, got {width!r}")
+    return w
 
 
 def wide_dtype(width: int) -> np.dtype:
     """Return the record dtype of a ``width``-bit integer (``width`` in 128, 192, 256)."""
-    try:
-        return _DTYPES[int(width)]
-    except (KeyError, TypeError, ValueError):
-        raise ValueError(f"width must be one of {WIDTHS} bits, got {width!r}") from None
+    return _DTYPES[check_width(width)]
 
 
 def is_wide(arr: np.ndarray) -> bool:
     """Return whether ``arr`` is a wide-integer array (one of the dtypes of :func:`wide_dtype`)."""
-    return isinstance(arr, np.ndarray) and arr.dtype in _DTYPES.values()
+    return isinstance(arr, np.ndarray) and arr.dtype in _WIDTH_OF_DTYPE
 
 
 def width_of(arr: np.ndarray) -> int:
@@ -65,7 +84,8 @@ def to_wide(values, width: int) -> np.ndarray:
     Parameters
     ----------
     values : array_like of int
-        Python ints (any size) or a numpy integer array; any shape.
+        Python ints (any size), numpy integers, or integral floats, Fractions and
+        Decimals (converted exactly); any shape.
     width : int
         128, 192 or 256.
 
@@ -76,13 +96,20 @@ def to_wide(values, width: int) -> np.ndarray:
     Raises
     ------
     PrecisionError
-        If a value does not fit in ``width``-bit two's complement.
+        If a value does not fit in ``width``-bit two's complement, or is not an
+        integer (``0.5``: quantize float geometry first, :func:`csgnb.exact.quantize`).
+    TypeError
+        For strings, complex numbers, booleans and other non-numbers.
     """
     dtype = wide_dtype(width)
+    width = check_width(width)
     k = width // 64
-    # Lists go through object arrays: numpy would turn ints beyond 64 bits into floats.
-    arr = values if isinstance(values, np.ndarray) else np.array(values, dtype=object)
-    if arr.dtype.kind in "iu" and arr.dtype.itemsize <= 8:
+    if is_wide(values):
+        return to_width(values, width)
+    arr = values if isinstance(values, np.ndarray) else None
+    if arr is not None and arr.dtype.kind == "f" and arr.size and np.all(np.abs(arr) < 2.0**63):
+        arr = integer_array(arr, "values")  # integral floats within int64: checked, then the fast path
+    if arr is not None and arr.dtype.kind in "iu" and arr.dtype.itemsize <= 8:
         # Fast path: sign-extend 64-bit integers limb by limb, no Python loop.
         out = np.zeros(arr.shape, dtype)
         limbs = out["limbs"]
@@ -95,13 +122,11 @@ def to_wide(values, width: int) -> np.ndarray:
                 ..., None
             ]
         return out
-    if arr.dtype.kind not in "iuO":
-        raise TypeError(f"to_wide needs integers, got dtype {arr.dtype}")
-    flat = arr.reshape(-1)
+    # Everything else goes through exact Python ints (numpy would turn ints beyond 64 bits into floats).
+    ints = python_int_array(values, "values")
     lo, hi = -(1 << (width - 1)), (1 << (width - 1)) - 1
     chunks = []
-    for v in flat:
-        v = int(v)
+    for v in ints.reshape(-1):
         if not lo <= v <= hi:
             raise PrecisionError(
                 f"integer {v} does not fit in {width} bits: the signed range is "
@@ -109,7 +134,42 @@ def to_wide(values, width: int) -> np.ndarray:
             )
         chunks.append(v.to_bytes(8 * k, "little", signed=True))
     out = np.frombuffer(b"".join(chunks), dtype=dtype).copy()
-    return out.reshape(arr.shape)
+    return out.reshape(ints.shape)
+
+
+def to_width(arr: np.ndarray, width: int) -> np.ndarray:
+    """Return the wide array ``arr`` converted to ``width`` bits (same values, same shape).
+
+    Widening always succeeds (sign extension); narrowing raises :class:`PrecisionError`
+    naming the first value that does not fit. Returns ``arr`` itself when the width is
+    already ``width``.
+    """
+    old = width_of(arr)
+    width = check_width(width)
+    if old == width:
+        return arr
+    k_old, k_new = old // 64, width // 64
+    src = np.ascontiguousarray(arr)["limbs"]
+    out = np.empty(arr.shape, wide_dtype(width))
+    dst = out["limbs"]
+    k = min(k_old, k_new)
+    dst[..., :k] = src[..., :k]
+    if k_new > k_old:
+        sign = np.where(src[..., k_old - 1] >> np.uint64(63), np.uint64(0xFFFFFFFFFFFFFFFF), np.uint64(0))
+        dst[..., k_old:] = sign[..., None]
+    else:
+        # Fits iff every dropped limb, and the top bit of the kept ones, repeat the sign.
+        kept_sign = np.where(src[..., k_new - 1] >> np.uint64(63), np.uint64(0xFFFFFFFFFFFFFFFF), np.uint64(0))
+        ok = np.all(src[..., k_new:] == kept_sign[..., None], axis=-1)
+        if not ok.all():
+            bad = np.argwhere(~ok)[0]
+            value = int(from_wide(np.asarray(arr)[tuple(bad)][None])[0])
+            where = ", ".join(str(int(i)) for i in bad)
+            raise PrecisionError(
+                f"value [{where}] = {value} does not fit in {width} bits (signed range "
+                f"[-2**{width - 1}, 2**{width - 1} - 1]); keep the {old}-bit width or use smaller inputs"
+            )
+    return out
 
 
 def from_wide(arr: np.ndarray) -> np.ndarray:
