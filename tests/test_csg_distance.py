@@ -8,7 +8,7 @@ from csgnb.csg.bounds import term_boxes
 from csgnb.quadric import plane
 from csgnb.sampling.kernel import relative_distance_pruned
 from csgnb.sampling.tasks import build_tasks
-from tests.test_csg_raycast import graph_first_order_distance, graph_value, ray_surface_points
+from tests.raycast_reference import graph_first_order_distance, graph_value, ray_surface_points
 
 
 def _model():

@@ -18,7 +18,7 @@ from scipy.spatial import cKDTree
 import csgnb.csg as csg
 from csgnb.quadric import elliptic_cone, elliptic_cylinder, signed_distance
 from csgnb.sampling import sample_csg
-from tests.test_csg_raycast import graph_first_order_distance, random_rays, ray_surface_points
+from tests.raycast_reference import graph_first_order_distance, random_rays, ray_surface_points
 
 
 def _spheres():

@@ -29,13 +29,8 @@ import math
 
 import numpy as np
 
-from csgnb._jit import jit
 from csgnb.csg.normal_form import NormalForm
-from csgnb.quadric.evaluate import as_points, ieee_jit
-
-#: ieee_jit for scalar helpers called from loops: LLVM always inlines them, which also removes the
-#: reference counting of their array arguments (a call per sample would otherwise cost ~100 ns).
-inline_jit = jit(error_model="numpy", inline="always")
+from csgnb.quadric.evaluate import as_points, ieee_jit, inline_jit
 
 __all__ = ["csg_distance", "relative_distance", "csg_value", "quadric_distance", "box_distance", "inline_jit"]
 

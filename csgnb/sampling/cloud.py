@@ -16,6 +16,7 @@ from numba.typed import Dict
 
 from csgnb._jit import jit
 from csgnb.csg.normal_form import NormalForm
+from csgnb.csg.normalisation import ModelFrame
 
 __all__ = ["SampleCloud", "SamplingStats", "SamplingTrace", "deduplicate_clip_sets"]
 
@@ -28,10 +29,12 @@ class SamplingStats:
     distance_queries : int — evaluations of d_Qab (eq. 22) at region corners.
     clip_indices : int — length of the clip indirection buffer.
     regions : int — triangles visited (basic-region pieces and their subdivisions).
-    unresolved : int — regions given up below the size floor (0 in normal use).
+    unresolved : int — regions given up below the size floor (``tolerances.MIN_REGION``): only
+        around isolated tangency points (see ``csgnb.sampling.kernel``, rule 5).
     quadrics : int — quadrics of the normal form; sampled_quadrics : int — those with a task.
     terms : int — terms of the normal form.
     seconds : float — wall time of the whole run (normal form, bounds, regions, kernels, output).
+    feature_points : int — single samples placed on tangency curves by the edge search (rule 3).
     """
 
     samples: int
@@ -43,6 +46,7 @@ class SamplingStats:
     sampled_quadrics: int
     terms: int
     seconds: float
+    feature_points: int = 0
 
 
 @dataclass(frozen=True)
@@ -50,11 +54,12 @@ class SamplingTrace:
     """What the adaptive subdivision did, for pictures (Figure 9) and checks.
 
     Leaves (one row per final region): ``leaf_quadric``, ``leaf_plane``, ``leaf_sheet`` (±1),
-    ``leaf_triangle`` (t, 3, 2) plane coordinates, ``leaf_uv`` (1: sides are (u, v)-segments),
-    ``leaf_quadrant`` (t, 2), ``leaf_status`` (codes of ``kernel.STATUS``), ``leaf_depth``.
-    Distance evaluations: ``point_quadric``, ``point_plane``, ``point_sheet``, ``point_xy``
-    (e, 2) plane coordinates, ``point_world`` (e, 3), ``point_distance`` (e,) the value of d_Qab.
-    ``planes[(quadric, k)] = (origin (3,), frame (3, 3), alpha (3,))``.
+    ``leaf_triangle`` (t, 3, 2) plane coordinates, ``leaf_uv`` (squared-coordinate flags of its
+    (U, V)-sides: bit 0 x, bit 1 y; 0 straight), ``leaf_quadrant`` (t, 2), ``leaf_status`` (codes
+    of ``kernel.STATUS``), ``leaf_depth``. Distance evaluations: ``point_quadric``,
+    ``point_plane``, ``point_sheet``, ``point_xy`` (e, 2) plane coordinates, ``point_world``
+    (e, 3), ``point_distance`` (e,) the value of d_Qab. ``planes[(quadric, k)]``: the
+    :class:`~csgnb.quadric.SamplingPlane` those plane coordinates refer to. All in world units.
     """
 
     leaf_quadric: np.ndarray
@@ -73,6 +78,18 @@ class SamplingTrace:
     point_distance: np.ndarray
     planes: dict
 
+    def leaf_outline(self, i: int, samples_per_side: int = 12) -> np.ndarray:
+        """Return the boundary of leaf ``i`` in its plane coordinates : (m, 2) (sides as the curves they are)."""
+        tri = self.leaf_triangle[i]
+        flags = int(self.leaf_uv[i])
+        sq = np.array([flags & 1, flags & 2], dtype=bool)
+        quad = self.leaf_quadrant[i]
+        uv = np.where(sq, tri**2, tri)
+        s = np.linspace(0.0, 1.0, samples_per_side, endpoint=False)[:, None]
+        sides = [(1.0 - s) * uv[e] + s * uv[(e + 1) % 3] for e in range(3)]
+        pts = np.vstack(sides + [uv[:1]])
+        return np.where(sq, np.sqrt(np.maximum(pts, 0.0)) * quad, pts)
+
 
 @dataclass(frozen=True)
 class SampleCloud:
@@ -86,8 +103,11 @@ class SampleCloud:
     clip_indices : (k,) int32 — the clip indirection buffer (normal-form indices, each distinct
         set stored once).
     radius : float — the requested splat radius.
-    normal_form : NormalForm — what was sampled.
+    normal_form : NormalForm — what was sampled (world coordinates).
     stats : SamplingStats; trace : SamplingTrace or None.
+    frame : ModelFrame or None — the normalised frame the sampler worked in
+        (:mod:`csgnb.csg.normalisation`): ``frame.to_local(positions)`` gives coordinates of unit
+        size, where the quadrics keep full precision even for models far from the origin.
 
     Guarantee (§4.2): every sample lies on the CSG surface, and every point of the CSG surface
     (inside the bounds) has a sample on the same quadric within its radius.
@@ -104,6 +124,7 @@ class SampleCloud:
     normal_form: NormalForm
     stats: SamplingStats
     trace: SamplingTrace | None = None
+    frame: ModelFrame | None = None
 
     def __len__(self) -> int:
         return len(self.positions)

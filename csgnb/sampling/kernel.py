@@ -1,4 +1,4 @@
-"""The adaptive sampling kernel of §4.2: classify, split or cover the regions of one quadric.
+"""The adaptive sampling kernel of §4.2: classify, split or cover the regions of every quadric.
 
 For every job (a triangle of a basic region on one sheet) the kernel keeps a depth-first stack
 of triangles with d_Qab (eq. 22) known at their corners. A region lies within ``bulge`` of its
@@ -14,11 +14,22 @@ the splat radius:
 2. *classify*: if all corners have the same sign and the discs of radius |d|/δ cover the region
    (an exact power-diagram test on T), it is kept — all of it is on the CSG surface: cover it with
    a triangular lattice such that every point is within r/δ of a lattice point — or discarded;
-3. optionally (``min_size`` > 0) discard unclassified regions smaller than ``min_size``
+3. *feature point* (tangency curves): a region whose corners are all off the surface (d > 0) but
+   whose discs do not cover it, once smaller than ``tolerances.FEATURE_REGION`` of a sample's
+   reach, is searched along its edges for a point with d ≤ ``on_surface`` — a root of either
+   part of eq. 22 (own term, other terms) where that part changes sign between the corners, else
+   the minimum of d by golden section. Such a point is in the closure of the CSG surface on Q_ab
+   (the criterion corners meet in rule 1), and one sample there covers the region: rule 1 at a
+   searched point. This resolves curves where d_Qab is positive on both sides and zero on the
+   curve (a capsule's cap inside its sphere, a boss's base on a plate, the tip where a curve
+   meets a box edge), where no disc cover can close. Counted in ``counters[6]``;
+4. optionally (``min_size`` > 0) discard unclassified regions smaller than ``min_size``
    (faster, but can leave holes, as the paper says);
-4. otherwise split the longest edge (in (u, v) mode at a point of the (u, v)-segment, so that the
-   halves are (u, v)-triangles again), evaluate d_Qab at the new corner and recurse. Regions below
-   ``min_region`` are given up and counted as unresolved (see ``sampler.MIN_REGION``).
+5. otherwise split the longest edge (at a point of its (U, V)-segment, so that the halves are
+   (U, V)-triangles again), evaluate d_Qab at the new corner and recurse. Regions below
+   ``min_region`` are given up and counted as unresolved (``tolerances.MIN_REGION``): left there
+   are isolated points where d_Qab touches 0 without a sign change of either part (a sphere
+   touching a plane at one point), where no edge search finds the point.
 
 Kept regions that would need many samples are split further without distance queries while
 their distortion bound varies (``refine``): a lattice is as dense as its region's largest δ
@@ -28,8 +39,9 @@ sample carries its clip set: the quadrics of its term whose surface may pass wit
 (§6), from per-region lists of the quadrics still in play (pruned as regions shrink) unless the
 corner distances prove the set empty.
 
-Two passes keep the memory traffic low: ``subdivide_quadric`` records the emitting leaves,
-``emit_quadric`` writes their samples into arrays the caller allocated with numpy (numpy asks
+Two passes keep the memory traffic low: ``subdivide_all`` records the emitting leaves of all
+tasks (:class:`.tasks.TaskSet`), ``emit_all`` writes their samples into arrays the caller
+allocated with numpy (numpy asks
 for huge pages; page faults on fresh numba buffers cost more than the sampling itself here).
 Neither kernel binds an array to a new name inside its loops — numba reference-counts such
 bindings (re-bound buffers, array arguments of inlined helpers) with atomic operations, which
@@ -44,8 +56,9 @@ import math
 
 import numpy as np
 
-from csgnb.csg.distance import box_distance, inline_jit, quadric_distance
-from csgnb.quadric.evaluate import ieee_jit
+from csgnb.csg.distance import box_distance, quadric_distance
+from csgnb.quadric import tolerances as tol
+from csgnb.quadric.evaluate import ieee_jit, inline_jit
 from csgnb.sampling.geometry import (
     _norm2,
     arc_midpoint,
@@ -55,12 +68,15 @@ from csgnb.sampling.geometry import (
     lattice_plan,
     lift,
     region_bulge,
+    segment_point,
 )
 
 __all__ = [
     "relative_distance_pruned",
-    "subdivide_quadric",
-    "emit_quadric",
+    "relative_distance_parts",
+    "subdivide_all",
+    "emit_all",
+    "COUNTERS",
     "STATUS",
     "OVERFLOW",
     "LEAF_FLOAT_FIELDS",
@@ -74,7 +90,10 @@ STATUS = {"single": 0, "kept": 1, "discarded": 2, "small": 3, "unresolved": 4}
 #: integers (job, kind, vertices, samples); see ``subdivide_quadric``.
 LEAF_FLOAT_FIELDS = tuple(f"{a}{k}" for k in range(6) for a in "xy") + ("delta", "aux", "reach", "rho")
 LEAF_INT_FIELDS = ("job", "kind", "corners", "count", "clip_start", "clip_len")
-#: Overflow codes returned by ``subdivide_quadric``: which buffer to grow before resuming.
+#: Counters of ``subdivide_all`` (``counters[k]``).
+COUNTERS = ("distance_queries", "regions", "unresolved", "jobs", "quadric_distances", "feature_searches",
+            "feature_points")
+#: Overflow codes returned by ``subdivide_all``: which buffer to grow before resuming.
 OVERFLOW = {"none": 0, "leaves": 1, "trace_leaves": 2, "trace_points": 3, "clip_lists": 4}
 
 _SQRT3 = math.sqrt(3.0)
@@ -93,10 +112,10 @@ def relative_distance_pruned(C, act, a0, na, own_box, other_ptr, other_idx, rcap
     ``act[a0:a0 + na]`` are the quadrics of the own term still in play; the own max also holds
     the signed distance to ``own_box``, an exact distance to a superset of the quadric's surface in
     the term, so the bound stays conservative and reaches ``rcap`` beyond the neighbourhood where
-    the lists hold. If ``keep_below`` > 0, the own-term quadrics with d > -keep_below — those
-    that can still matter closer than that — are copied to ``out[o0:o0 + n]``. (The sampling
-    kernel repeats this code inline in its loop; this function is its reference and its entry
-    for the first corners of a job.)
+    the lists hold. ``other_ptr`` (m + 1,) slices ``other_idx`` into the other terms. If
+    ``keep_below`` > 0, the own-term quadrics with d > -keep_below — those that can still matter
+    closer than that — are copied to ``out[o0:o0 + n]``. (The sampling kernel repeats this code
+    inline in its loop; this function is its reference and its entry for the first corners.)
     """
     own_d = box_distance(own_box, x, y, z)
     n = 0
@@ -124,22 +143,124 @@ def relative_distance_pruned(C, act, a0, na, own_box, other_ptr, other_idx, rcap
 
 
 @ieee_jit
-def subdivide_quadric(
+def relative_distance_parts(C, act, a0, na, own_box, slices, other_idx, x, y, z):
+    """Return the two parts of eq. 22 at (x, y, z): (own-term max, −(min over the other terms)).
+
+    d_Qab = max of the two. Unclamped, from the same pruned lists as ``relative_distance_pruned``
+    (``slices`` (m + 1,) into ``other_idx``).
+    """
+    own_d = box_distance(own_box, x, y, z)
+    for k in range(a0, a0 + na):
+        own_d = max(own_d, quadric_distance(C, act[k], x, y, z))
+    other = math.inf
+    for e in range(slices.shape[0] - 1):
+        m = -math.inf
+        for k in range(slices[e], slices[e + 1]):
+            m = max(m, quadric_distance(C, other_idx[k], x, y, z))
+        other = min(other, m)
+    return own_d, -other
+
+
+@ieee_jit
+def _feature_point(C, act, a0, na, own_box, slices, other_idx, plane, uv, sx, sy, v, on_surface):
+    """Search the edges of the region ``v`` (6,) for a point with d_Qab ≤ ``on_surface``.
+
+    ``plane`` (20,): origin, frame (row-major), form, (αₓ, bₓ, α_y, b_y, α_c), sheet. Per edge
+    (a (U, V)-segment): where a part of eq. 22 changes sign between the ends, its root by the
+    Illinois method (a tangency: both parts vanish there); otherwise the minimum of d by golden
+    section. Returns (found, x, y, evaluations).
+    """
+    evals = 0
+    form = int(plane[12])
+    for e in range(3):
+        f = (e + 1) % 3
+        ax_, ay_ = v[2 * e], v[2 * e + 1]
+        bx_, by_ = v[2 * f], v[2 * f + 1]
+        ends_own = np.empty(2)
+        ends_oth = np.empty(2)
+        for side in range(2):
+            x, y = (ax_, ay_) if side == 0 else (bx_, by_)
+            px, py, pz = lift(plane[0], plane[1], plane[2], plane[3], plane[4], plane[5], plane[6], plane[7],
+                              plane[8], plane[9], plane[10], plane[11], form, plane[13], plane[14], plane[15],
+                              plane[16], plane[17], plane[18], x, y)
+            ends_own[side], ends_oth[side] = relative_distance_parts(C, act, a0, na, own_box, slices, other_idx,
+                                                                     px, py, pz)
+            evals += 1
+        for part in range(2):
+            fa = ends_own[0] if part == 0 else ends_oth[0]
+            fb = ends_own[1] if part == 0 else ends_oth[1]
+            if not (fa * fb < 0.0):
+                continue
+            lo, hi = 0.0, 1.0
+            side = 0
+            for _ in range(60):
+                s = (lo * fb - hi * fa) / (fb - fa)  # regula falsi (Illinois)
+                if not (lo < s < hi):
+                    s = 0.5 * (lo + hi)
+                x, y = segment_point(ax_, ay_, bx_, by_, sx, sy, uv, s)
+                px, py, pz = lift(plane[0], plane[1], plane[2], plane[3], plane[4], plane[5], plane[6], plane[7],
+                                  plane[8], plane[9], plane[10], plane[11], form, plane[13], plane[14], plane[15],
+                                  plane[16], plane[17], plane[18], x, y)
+                po, pt = relative_distance_parts(C, act, a0, na, own_box, slices, other_idx, px, py, pz)
+                evals += 1
+                if max(po, pt) <= on_surface:
+                    return True, x, y, evals
+                fs = po if part == 0 else pt
+                if fs == 0.0 or hi - lo <= 1e-15:
+                    break
+                if (fs < 0.0) == (fa < 0.0):
+                    lo, fa = s, fs
+                    if side == -1:
+                        fb *= 0.5
+                    side = -1
+                else:
+                    hi, fb = s, fs
+                    if side == 1:
+                        fa *= 0.5
+                    side = 1
+        # no sign change (or its root is off the surface): the minimum of d by golden section
+        g = 0.6180339887498949
+        lo, hi = 0.0, 1.0
+        fvals = np.empty(2)
+        pts = np.empty(2)
+        pts[0], pts[1] = hi - g * (hi - lo), lo + g * (hi - lo)
+        for k in range(2):
+            x, y = segment_point(ax_, ay_, bx_, by_, sx, sy, uv, pts[k])
+            px, py, pz = lift(plane[0], plane[1], plane[2], plane[3], plane[4], plane[5], plane[6], plane[7],
+                              plane[8], plane[9], plane[10], plane[11], form, plane[13], plane[14], plane[15],
+                              plane[16], plane[17], plane[18], x, y)
+            po, pt = relative_distance_parts(C, act, a0, na, own_box, slices, other_idx, px, py, pz)
+            evals += 1
+            fvals[k] = max(po, pt)
+            if fvals[k] <= on_surface:
+                return True, x, y, evals
+        for _ in range(tol.FEATURE_SEARCH):
+            if fvals[0] <= fvals[1]:
+                hi = pts[1]
+                pts[1], fvals[1] = pts[0], fvals[0]
+                pts[0] = hi - g * (hi - lo)
+                k = 0
+            else:
+                lo = pts[0]
+                pts[0], fvals[0] = pts[1], fvals[1]
+                pts[1] = lo + g * (hi - lo)
+                k = 1
+            x, y = segment_point(ax_, ay_, bx_, by_, sx, sy, uv, pts[k])
+            px, py, pz = lift(plane[0], plane[1], plane[2], plane[3], plane[4], plane[5], plane[6], plane[7],
+                              plane[8], plane[9], plane[10], plane[11], form, plane[13], plane[14], plane[15],
+                              plane[16], plane[17], plane[18], x, y)
+            po, pt = relative_distance_parts(C, act, a0, na, own_box, slices, other_idx, px, py, pz)
+            evals += 1
+            fvals[k] = max(po, pt)
+            if fvals[k] <= on_surface:
+                return True, x, y, evals
+    return False, 0.0, 0.0, evals
+
+
+@ieee_jit
+def subdivide_all(
     C,
-    own,
-    own_box,
-    other_ptr,
-    other_idx,
-    rcap,
-    origin,
-    frame,
-    alpha,
-    flat,
-    job_plane,
-    job_sheet,
-    job_tri,
-    job_uv,
-    job_quadrant,
+    ts,
     radius,
     min_size,
     min_region,
@@ -156,37 +277,42 @@ def subdivide_quadric(
     TJ,
     counters,
     job_start,
+    job_end,
     nl,
     nla,
     nt,
     npt,
 ):
-    """Pass 1: classify and subdivide the jobs of one quadric from ``job_start`` on.
+    """Pass 1: classify and subdivide the jobs ``job_start:job_end`` of the tasks ``ts`` (a ``tasks.TaskSet``).
 
-    Task arrays as in ``tasks.QuadricTask``. Writes, from the given fill levels on:
+    Writes, from the given fill levels on:
 
     * leaves that emit samples: ``LF`` (cap, 16) float64 (``LEAF_FLOAT_FIELDS``: the triangle —
-      its first vertex alone for a single sample —, the distortion bound δ used, ``aux`` the
+      its sample point alone for a single sample —, the distortion bound δ used, ``aux`` the
       distance from the samples below which no quadric of the term can come (single: |d_Qab| at
-      the corner; lattice: the slack of the keep discs), ``reach`` the world radius covering a
+      the point; lattice: the slack of the keep discs), ``reach`` the world radius covering a
       single sample's region, ``rho`` the plane covering radius of a lattice), ``LI`` (cap, 6)
-      int64 (``LEAF_INT_FIELDS``: job, kind 0 single / 1 lattice, vertex count, sample count, and
-      the slice of ``LA`` listing the quadrics that may reach into the leaf's splats — empty when
-      the corner distances prove that none can);
+      int64 (``LEAF_INT_FIELDS``: global job, kind 0 single / 1 lattice, vertex count, sample
+      count, and the slice of ``LA`` listing the quadrics that may reach into the leaf's splats —
+      empty when the corner distances prove that none can);
     * if ``trace``: final regions ``TT`` (tcap, 6) (triangle) and ``TI`` (tcap, 5) = (job, uv,
       status, depth, plane); distance evaluations ``TP`` (pcap, 3) = (x, y, d_Qab), ``TJ`` (pcap,)
       = job;
-    * ``counters`` (5,) int64 += distance queries, regions visited, unresolved regions, jobs done,
-      quadric distances evaluated (an upper bound: early exits are not counted).
+    * ``counters`` (7,) int64 += the ``COUNTERS``.
 
     Returns ``(nl, nla, nt, npt, next_job, overflow)``: fill levels, the first job not done and an
     ``OVERFLOW`` code. On overflow the unfinished job's output is rolled back; grow that buffer
     and call again from ``next_job``.
     """
+    own_ptr, own_all, other_ptr, slice_ptr, other_idx = ts.own_ptr, ts.own, ts.other_ptr, ts.slice_ptr, ts.other
+    t_own_box, t_rcap = ts.own_box, ts.rcap
+    origin, frame, coef, pform = ts.origin, ts.frame, ts.coef, ts.form
+    job_task, job_plane, job_sheet, job_tri = ts.job_task, ts.job_plane, ts.job_sheet, ts.job_tri
+    job_uv, job_quadrant = ts.job_uv, ts.job_quadrant
+    n_jobs = min(job_end, job_task.shape[0])
     cap = LF.shape[0]
     tcap = TT.shape[0]
     pcap = TP.shape[0]
-    n_terms = other_ptr.shape[0] - 1
     smax = 2 * _MAX_DEPTH + 8
     S_v = np.empty((smax, 6))
     S_d = np.empty((smax, 3))
@@ -197,38 +323,63 @@ def subdivide_quadric(
     S_a0 = np.empty(smax, dtype=np.int64)
     S_an = np.empty(smax, dtype=np.int64)
     S_clamp = np.empty(smax)
-    n_own = own.shape[0]
-    A = np.empty((_MAX_DEPTH + 3) * n_own + 1, dtype=np.int64)
-    A[:n_own] = own
-    b0, b1, b2, b3, b4, b5 = own_box[0], own_box[1], own_box[2], own_box[3], own_box[4], own_box[5]
+    longest_own = 0
+    for t in range(own_ptr.shape[0] - 1):
+        longest_own = max(longest_own, own_ptr[t + 1] - own_ptr[t])
+    A = np.empty((_MAX_DEPTH + 3) * longest_own + 1, dtype=np.int64)
+    own_box = np.empty(6)
+    plane = np.empty(20)
+    region = np.empty(6)
+    task = -1
+    n_own = 0
+    rcap = 0.0
+    t0 = 0
+    t1 = 0
+    s0 = 0
+    b0, b1, b2, b3, b4, b5 = 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
 
-    for job in range(job_start, job_plane.shape[0]):
+    for job in range(job_start, n_jobs):
+        if job_task[job] != task:
+            task = job_task[job]
+            n_own = own_ptr[task + 1] - own_ptr[task]
+            for i in range(n_own):
+                A[i] = own_all[own_ptr[task] + i]
+            for e in range(6):
+                own_box[e] = t_own_box[task, e]
+            b0, b1, b2, b3, b4, b5 = own_box[0], own_box[1], own_box[2], own_box[3], own_box[4], own_box[5]
+            rcap = t_rcap[task]
+            t0, t1 = other_ptr[task], other_ptr[task + 1]  # this task's slices: slice_ptr[t0:t1 + 1]
+            s0 = slice_ptr[t0]
+        slices = slice_ptr[t0 : t1 + 1]
+        n_other = slice_ptr[t1] - s0
         nl0, nla0, nt0, npt0 = nl, nla, nt, npt
         queries = 0
         visited = 0
         unresolved = 0
         evaluated = 0
+        searches = 0
+        features = 0
         overflow = 0
         k = job_plane[job]
-        o0, o1, o2 = origin[k, 0], origin[k, 1], origin[k, 2]
-        f00, f01, f02 = frame[k, 0, 0], frame[k, 0, 1], frame[k, 0, 2]
-        f10, f11, f12 = frame[k, 1, 0], frame[k, 1, 1], frame[k, 1, 2]
-        f20, f21, f22 = frame[k, 2, 0], frame[k, 2, 1], frame[k, 2, 2]
-        ax, ay, ac = alpha[k, 0], alpha[k, 1], alpha[k, 2]
-        fl = flat[k]
+        o0, o1, o2 = origin[task, k, 0], origin[task, k, 1], origin[task, k, 2]
+        f00, f01, f02 = frame[task, k, 0, 0], frame[task, k, 0, 1], frame[task, k, 0, 2]
+        f10, f11, f12 = frame[task, k, 1, 0], frame[task, k, 1, 1], frame[task, k, 1, 2]
+        f20, f21, f22 = frame[task, k, 2, 0], frame[task, k, 2, 1], frame[task, k, 2, 2]
+        fm = pform[task, k]
+        ax, bx, ay, by, ac = coef[task, k, 0], coef[task, k, 1], coef[task, k, 2], coef[task, k, 3], coef[task, k, 4]
         sheet = job_sheet[job]
         sx, sy = job_quadrant[job, 0], job_quadrant[job, 1]
-        uv = job_uv[job] != 0
+        uv = job_uv[job]
         for c in range(3):
             S_v[0, 2 * c] = job_tri[job, c, 0]
             S_v[0, 2 * c + 1] = job_tri[job, c, 1]
-            px, py, pz = lift(o0, o1, o2, f00, f01, f02, f10, f11, f12, f20, f21, f22, ax, ay, ac, sheet,
+            px, py, pz = lift(o0, o1, o2, f00, f01, f02, f10, f11, f12, f20, f21, f22, fm, ax, bx, ay, by, ac, sheet,
                               S_v[0, 2 * c], S_v[0, 2 * c + 1])
-            dd, _ = relative_distance_pruned(C, A, 0, n_own, own_box, other_ptr, other_idx, rcap, px, py, pz,
+            dd, _ = relative_distance_pruned(C, A, 0, n_own, own_box, slices, other_idx, rcap, px, py, pz,
                                              0.0, A, n_own)
             S_d[0, c] = dd
             queries += 1
-            evaluated += n_own + other_idx.shape[0]
+            evaluated += n_own + n_other
             if trace:
                 if npt >= pcap:
                     overflow = 3
@@ -256,7 +407,7 @@ def subdivide_quadric(
             y0 = min(v0y, min(v1y, v2y)) - bulge
             x1 = max(v0x, max(v1x, v2x)) + bulge
             y1 = max(v0y, max(v1y, v2y)) + bulge
-            dlo, delta = delta_range(ax, ay, ac, fl, x0, y0, x1, y1)
+            dlo, delta = delta_range(fm, ax, bx, ay, by, ac, x0, y0, x1, y1)
             if sqrt3_mode:  # assume the worst case of the low-distortion regions (§4.1), never less
                 delta = max(delta, _SQRT3)
                 dlo = delta
@@ -264,6 +415,7 @@ def subdivide_quadric(
             status = -1
             emit_kind = -1
             split = False
+            fx, fy = 0.0, 0.0
             # 1. the single-sample rule
             best = -1
             best_w = 0.0
@@ -299,13 +451,36 @@ def subdivide_quadric(
                 else:
                     diam = max(_norm2(v1x - v0x, v1y - v0y),
                                max(_norm2(v2x - v1x, v2y - v1y), _norm2(v0x - v2x, v0y - v2y)))
-                    if min_size > 0.0 and diam * min(delta, _SQRT3) < min_size:
-                        status = 3
-                    elif diam < min_region or depth >= _MAX_DEPTH:
-                        status = 4
-                        unresolved += 1
-                    else:
-                        split = True
+                    if posi and diam + bulge <= tol.FEATURE_REGION * rho_r and depth < _MAX_DEPTH:
+                        # 3. a point of a tangency curve in the region: one sample there covers it
+                        region[0], region[1], region[2], region[3], region[4], region[5] = (
+                            v0x, v0y, v1x, v1y, v2x, v2y)
+                        plane[0], plane[1], plane[2] = o0, o1, o2
+                        plane[3], plane[4], plane[5] = f00, f01, f02
+                        plane[6], plane[7], plane[8] = f10, f11, f12
+                        plane[9], plane[10], plane[11] = f20, f21, f22
+                        plane[12] = fm
+                        plane[13], plane[14], plane[15], plane[16], plane[17] = ax, bx, ay, by, ac
+                        plane[18] = sheet
+                        found, fx, fy, ev = _feature_point(C, A, a0, an, own_box, slices, other_idx, plane, uv,
+                                                           sx, sy, region, on_surface)
+                        searches += 1
+                        queries += ev
+                        evaluated += ev * (an + n_other)
+                        if found:
+                            features += 1
+                            best = 3
+                            best_w = diam + bulge
+                            emit_kind = 0
+                            status = 0
+                    if status < 0:
+                        if min_size > 0.0 and diam * min(delta, _SQRT3) < min_size:
+                            status = 3
+                        elif diam < min_region or depth >= _MAX_DEPTH:
+                            status = 4
+                            unresolved += 1
+                        else:
+                            split = True
             count = 1
             rho_l = max(rho_r - bulge, 1e-3 * rho_r)  # (bulge ≥ rho_r only at _MAX_DEPTH: never)
             if emit_kind == 1:
@@ -327,7 +502,7 @@ def subdivide_quadric(
                     break
                 # the quadrics that may reach into this leaf's splats (its own-term list), unless
                 # the corner distances already prove that none does
-                dbest = d0 if best == 0 else (d1 if best == 1 else d2)
+                dbest = d0 if best == 0 else (d1 if best == 1 else (d2 if best == 2 else 0.0))
                 if (slack if kept else max(-dbest, 0.0)) >= radius:
                     LI[nl, 4], LI[nl, 5] = 0, 0
                 else:
@@ -343,8 +518,8 @@ def subdivide_quadric(
                 LI[nl, 3] = count
                 LF[nl, 12] = delta
                 if emit_kind == 0:
-                    LF[nl, 0] = v0x if best == 0 else (v1x if best == 1 else v2x)
-                    LF[nl, 1] = v0y if best == 0 else (v1y if best == 1 else v2y)
+                    LF[nl, 0] = v0x if best == 0 else (v1x if best == 1 else (v2x if best == 2 else fx))
+                    LF[nl, 1] = v0y if best == 0 else (v1y if best == 1 else (v2y if best == 2 else fy))
                     LI[nl, 2] = 1
                     LF[nl, 13] = slack if kept else max(-dbest, 0.0)
                     LF[nl, 14] = delta * best_w
@@ -367,7 +542,7 @@ def subdivide_quadric(
                 continue
             if not split:
                 continue
-            # 3. split the longest edge (a (u, v)-side at its midpoint in (u, v))
+            # 5. split the longest edge (at a point of its (U, V)-segment)
             l0 = _norm2(v1x - v0x, v1y - v0y)
             l1 = _norm2(v2x - v1x, v2y - v1y)
             l2 = _norm2(v0x - v2x, v0y - v2y)
@@ -377,8 +552,8 @@ def subdivide_quadric(
                 ex0, ey0, ex1, ey1, ox, oy, de0, de1, do = v1x, v1y, v2x, v2y, v0x, v0y, d1, d2, d0
             else:  # edge v2 v0, opposite v1
                 ex0, ey0, ex1, ey1, ox, oy, de0, de1, do = v2x, v2y, v0x, v0y, v1x, v1y, d2, d0, d1
-            if uv:
-                mx, my = arc_midpoint(ex0, ey0, ex1, ey1, sx, sy)
+            if uv != 0:
+                mx, my = arc_midpoint(ex0, ey0, ex1, ey1, sx, sy, uv)
             else:
                 mx, my = 0.5 * (ex0 + ex1), 0.5 * (ey0 + ey1)
             dm = -rcap
@@ -391,8 +566,8 @@ def subdivide_quadric(
                 # ``relative_distance_pruned``.)
                 world = delta * (max(l0, max(l1, l2)) + 2.0 * bulge)
                 keep_below = max(4.0 * world, radius + 3.0 * world) if 2.0 * world < clamp else 0.0
-                px, py, pz = lift(o0, o1, o2, f00, f01, f02, f10, f11, f12, f20, f21, f22, ax, ay, ac, sheet,
-                                  mx, my)
+                px, py, pz = lift(o0, o1, o2, f00, f01, f02, f10, f11, f12, f20, f21, f22, fm, ax, bx, ay, by, ac,
+                                  sheet, mx, my)
                 e0 = max(b0 - px, px - b3)
                 e1 = max(b1 - py, py - b4)
                 e2 = max(b2 - pz, pz - b5)
@@ -413,9 +588,9 @@ def subdivide_quadric(
                     dm = clamp
                 else:
                     other = math.inf
-                    for e in range(n_terms):
+                    for e in range(t0, t1):
                         mm = -math.inf
-                        for i in range(other_ptr[e], other_ptr[e + 1]):
+                        for i in range(slice_ptr[e], slice_ptr[e + 1]):
                             mm = max(mm, quadric_distance(C, other_idx[i], px, py, pz))
                             if mm >= other:
                                 break
@@ -426,7 +601,7 @@ def subdivide_quadric(
                 if keep_below > 0.0:
                     c_a0, c_an, c_clamp = a_top, cnt, 2.0 * world
                 queries += 1
-                evaluated += an + other_idx.shape[0]
+                evaluated += an + n_other
                 if trace:
                     if npt >= pcap:
                         overflow = 3
@@ -456,41 +631,48 @@ def subdivide_quadric(
         counters[2] += unresolved
         counters[3] += 1
         counters[4] += evaluated
-    return nl, nla, nt, npt, job_plane.shape[0], 0
+        counters[5] += searches
+        counters[6] += features
+    return nl, nla, nt, npt, n_jobs, 0
 
 
 @ieee_jit
-def emit_quadric(C, qid, origin, frame, alpha, job_plane, job_sheet, LF, LI, LA, radius, reduce_radius,
-                 pos, nrm, rad, ccount, cidx, leaf_start, n, nc):
-    """Pass 2: write the samples of one quadric's leaves ``LF``, ``LI``, ``LA`` from ``leaf_start`` on.
+def emit_all(C, ts, LF, LI, LA, radius, reduce_radius, pos, nrm, rad, ccount, ids, cidx, leaf_start, n, nc):
+    """Pass 2: write the samples of the leaves ``LF``, ``LI``, ``LA`` (of all tasks) from ``leaf_start`` on.
 
-    ``pos``, ``nrm`` (N, 3), ``rad`` (N,) float64 and ``ccount`` (N,) int32 are the caller's
-    output arrays, written from index ``n`` on; clip indices go to ``cidx`` from ``nc`` on, in
-    sample order. Returns ``(next_leaf, n, nc)``; ``next_leaf`` < number of leaves means
-    ``cidx`` may be too small for that leaf: grow it and call again with the returned values.
-    Each sample gets its position, the unit normal of its quadric (the sampling plane's, towards
-    the sheet, at a cone's apex where there is none), its radius and its clip set: the quadrics
-    of the leaf's list with |d(Q, s)| below the radius.
+    ``pos``, ``nrm`` (N, 3), ``rad`` (N,) float64, ``ccount`` (N,) int32 and ``ids`` (N,) int32 (the
+    normal-form index of the sample's quadric) are the caller's output arrays, written from index
+    ``n`` on; clip indices go to ``cidx`` from ``nc`` on, in sample order. Returns ``(next_leaf,
+    n, nc)``; ``next_leaf`` < number of leaves means ``cidx`` may be too small for that leaf: grow
+    it and call again with the returned values. Each sample gets its position, the unit normal
+    of its quadric (the sampling plane's, towards the sheet, at a cone's apex where there is
+    none), its radius and its clip set: the quadrics of the leaf's list with |d(Q, s)| below the
+    radius.
     """
+    origin, frame, coef, pform = ts.origin, ts.frame, ts.coef, ts.form
+    job_task, job_plane, job_sheet, t_quadric = ts.job_task, ts.job_plane, ts.job_sheet, ts.quadric
     ccap = cidx.shape[0]
     longest = 0
     for leaf in range(LI.shape[0]):
         longest = max(longest, LI[leaf, 5])
     local = np.empty(longest + 1, dtype=np.int64)
-    q00, q01, q02, q11, q12, q22 = C[qid, 0], C[qid, 1], C[qid, 2], C[qid, 3], C[qid, 4], C[qid, 5]
-    m0, m1, m2 = C[qid, 6], C[qid, 7], C[qid, 8]
     for leaf in range(leaf_start, LI.shape[0]):
         la0, lan = LI[leaf, 4], LI[leaf, 5]
         if nc + LI[leaf, 3] * lan > ccap:
             return leaf, n, nc
         job = LI[leaf, 0]
+        task = job_task[job]
+        qid = t_quadric[task]
+        q00, q01, q02, q11, q12, q22 = C[qid, 0], C[qid, 1], C[qid, 2], C[qid, 3], C[qid, 4], C[qid, 5]
+        m0, m1, m2 = C[qid, 6], C[qid, 7], C[qid, 8]
         k = job_plane[job]
         sheet = job_sheet[job]
-        o0, o1, o2 = origin[k, 0], origin[k, 1], origin[k, 2]
-        f00, f01, f02 = frame[k, 0, 0], frame[k, 0, 1], frame[k, 0, 2]
-        f10, f11, f12 = frame[k, 1, 0], frame[k, 1, 1], frame[k, 1, 2]
-        f20, f21, f22 = frame[k, 2, 0], frame[k, 2, 1], frame[k, 2, 2]
-        ax, ay, ac = alpha[k, 0], alpha[k, 1], alpha[k, 2]
+        o0, o1, o2 = origin[task, k, 0], origin[task, k, 1], origin[task, k, 2]
+        f00, f01, f02 = frame[task, k, 0, 0], frame[task, k, 0, 1], frame[task, k, 0, 2]
+        f10, f11, f12 = frame[task, k, 1, 0], frame[task, k, 1, 1], frame[task, k, 1, 2]
+        f20, f21, f22 = frame[task, k, 2, 0], frame[task, k, 2, 1], frame[task, k, 2, 2]
+        fm = pform[task, k]
+        ax, bx, ay, by, ac = coef[task, k, 0], coef[task, k, 1], coef[task, k, 2], coef[task, k, 3], coef[task, k, 4]
         delta = LF[leaf, 12]
         single = LI[leaf, 1] == 0
         v0x, v0y, v1x, v1y, v2x, v2y = LF[leaf, 0], LF[leaf, 1], LF[leaf, 2], LF[leaf, 3], LF[leaf, 4], LF[leaf, 5]
@@ -510,7 +692,8 @@ def emit_quadric(C, qid, origin, frame, alpha, job_plane, job_sheet, LF, LI, LA,
             n_loc = 0
             if lan > 0:
                 far = max(_norm2(v1x - v0x, v1y - v0y), _norm2(v2x - v0x, v2y - v0y))
-                px, py, pz = lift(o0, o1, o2, f00, f01, f02, f10, f11, f12, f20, f21, f22, ax, ay, ac, sheet, v0x, v0y)
+                px, py, pz = lift(o0, o1, o2, f00, f01, f02, f10, f11, f12, f20, f21, f22, fm, ax, bx, ay, by, ac,
+                                  sheet, v0x, v0y)
                 for i in range(la0, la0 + lan):
                     if abs(quadric_distance(C, LA[i], px, py, pz)) < radius + delta * far:
                         local[n_loc] = LA[i]
@@ -533,7 +716,8 @@ def emit_quadric(C, qid, origin, frame, alpha, job_plane, job_sheet, LF, LI, LA,
                         x, y = v0x + u * e1x + w * e2x, v0y + u * e1y + w * e2y
                     else:
                         x, y = v0x + (i * inv) * e1x + (j * inv) * e2x, v0y + (i * inv) * e1y + (j * inv) * e2y
-                    px, py, pz = lift(o0, o1, o2, f00, f01, f02, f10, f11, f12, f20, f21, f22, ax, ay, ac, sheet, x, y)
+                    px, py, pz = lift(o0, o1, o2, f00, f01, f02, f10, f11, f12, f20, f21, f22, fm, ax, bx, ay, by, ac,
+                                      sheet, x, y)
                     pos[n, 0], pos[n, 1], pos[n, 2] = px, py, pz
                     g0 = q00 * px + q01 * py + q02 * pz + m0
                     g1 = q01 * px + q11 * py + q12 * pz + m1
@@ -544,6 +728,7 @@ def emit_quadric(C, qid, origin, frame, alpha, job_plane, job_sheet, LF, LI, LA,
                     else:  # a cone's apex: no normal; take the sampling plane's towards the sheet
                         nrm[n, 0], nrm[n, 1], nrm[n, 2] = sheet * f02, sheet * f12, sheet * f22
                     rad[n] = r_s
+                    ids[n] = qid
                     c0 = nc
                     for t in range(n_loc):
                         if abs(quadric_distance(C, local[t], px, py, pz)) < r_s:

@@ -1,0 +1,102 @@
+"""Every float tolerance of the quadric track (``csgnb.quadric``, ``csgnb.csg``, ``csgnb.sampling``).
+
+The exact track (``exact``, ``mesh``, ``bsp``) has none: its predicates are exact. Here floats are
+unavoidable, and each tolerance says *relative to what* it is, so that no decision depends on the
+units of a model. Two kinds occur:
+
+* **relative to the terms of a computation** (units cancel): a quantity is treated as zero when it
+  is below ``TOL × (the magnitude of the terms it was computed from)`` — e.g. an eigenvalue against
+  the entries of A it came from, α_c against |qᵀb| + |c|. These hold at any scale.
+* **relative to the model's scale**: the sampler works in a *normalised frame* where the model's
+  box has half-diagonal ≈ 1 (``csgnb.sampling.frame``); tolerances on lengths and areas there are
+  fractions of the model size. Functions that take a world box use its size the same way.
+
+The values are far above rounding (≈ 1e-16 per operation) and far below any feature a user can
+mean; the comment on each says why it sits where it does.
+"""
+
+from __future__ import annotations
+
+EPS = 2.220446049250313e-16
+"""Machine epsilon of float64 (unit roundoff × 2)."""
+
+# -- quadric matrices (csgnb.quadric.quadric) ---------------------------------------------------
+
+SYMMETRY = 1e-12
+"""|Q − Qᵀ| above this × max|Q| rejects a matrix: rounding of a symmetric product stays far below."""
+
+SINGULAR_CONDITION = 1e12
+"""Condition number of a transform's linear part (affine maps) or of the matrix (projective ones)
+above which it is refused as singular: Q' = M⁻ᵀQM⁻¹ would amplify rounding by cond² ≈ 1/EPS."""
+
+PLANE = 1e-13
+"""A quadric is a single plane when max|A| ≤ PLANE × |b| (over a unit length the quadratic term
+is rounding next to the linear one). Exact zeros (planes built by csgnb, affine images of them)
+always pass; the sampler asks in its normalised frame, where the unit length is the model size."""
+
+# -- principal frames (csgnb.quadric.frames) ----------------------------------------------------
+
+EIGENVALUE_NOISE = 2.0**-40
+"""An eigenvalue λ of A with unit eigenvector u is zero when |λ| ≤ EIGENVALUE_NOISE · uᵀ|A|u:
+entry-wise rounding of A (from transforms, ≈ a few EPS per entry) moves λ by at most EPS · uᵀ|A|u
+(first order), so smaller eigenvalues are indistinguishable from 0 — a rotated cylinder's third
+eigenvalue. An eigenvalue of an exactly diagonal A is never noise (uᵀ|A|u = |λ|)."""
+
+LINEAR_NOISE = 2.0**-40
+"""The null-space part β of b (paraboloids, single planes) is zero when |β| ≤ LINEAR_NOISE ·
+(|b| + |A| |q|) — the magnitude of the terms of b − Aq. Nonzero β makes the quadric non-central."""
+
+CONSTANT_NOISE = 2.0**-46
+"""γ = c − qᵀb (the constant term at the center) is zero when |γ| ≤ CONSTANT_NOISE · (|c| + |qᵀb|)
+(64 EPS: the two terms carry a few EPS each): cones, planes through the center. Kept tight because
+a sphere of radius 1 at distance 10⁶ has γ = −1 next to terms of 10¹²."""
+
+# -- CSG normal form and bounds (csgnb.csg) -------------------------------------------------------
+
+SURFACE = 1e-12
+"""Two quadrics are one surface when their matrices, each scaled to max|entry| = 1, agree (up to
+sign) within SURFACE. Matched in the normalised frame, where all entries have comparable units."""
+
+SUPPORT_SLACK = 1e-9
+"""Feasibility slack of the bounding-box LP and padding of its boxes, × the size of the data
+(largest |offset| or |coordinate|): a box is never smaller than the true one by rounding."""
+
+PARALLEL = 1e-12
+"""Three unit plane normals with |det| below this span no vertex in the LP enumeration."""
+
+UNBOUNDED = 1e6
+"""The LP searches a box this many model sizes wide; a term reaching it is reported unbounded."""
+
+# -- sampling (csgnb.sampling) --------------------------------------------------------------------
+
+ON_SURFACE = 1e-12
+"""A region corner with |d_Qab| ≤ ON_SURFACE (× model size) is on a feature curve — in the closure
+of the CSG surface — and may carry a sample: rounding puts points of aligned curves at ±1e-16."""
+
+SLIVER = 1e-7
+"""Domain triangles thinner than SLIVER × model size are dropped: they come from clipping at a box
+face within rounding of a plane's axis, and the surface over them is that close to a neighbour's."""
+
+DEGENERATE_AREA = 1e-24
+"""(u, v)-polygons with |area| ≤ DEGENERATE_AREA × (largest (u, v))² are empty (areas in (u, v)
+scale as length⁴: this is a (1e-6 · size)²-wide polygon)."""
+
+MIN_REGION = 2.0**-8
+"""Regions still unclassified below MIN_REGION × splat radius are given up (``stats.unresolved``,
+see ``csgnb.sampling.kernel``): only isolated tangency points are left there."""
+
+CURVED_SIDE = 1e-12
+"""A (u, v)-side whose end tangents are parallel to within CURVED_SIDE (relative) is straight."""
+
+FEATURE_SEARCH = 48
+"""Golden-section steps of the feature-point search along a region edge (``kernel``): 0.618⁴⁸ ≈
+1e-10 of the edge, which is below the ON_SURFACE test for any edge shorter than the model."""
+
+MIN_RADIUS = 1e-9
+"""Splat radii below MIN_RADIUS × model size are refused: samples would be lifted with less
+precision than their own radius (and would need > 1e18 samples)."""
+
+FEATURE_REGION = 1.0 / 16.0
+"""Regions with all corners off the surface but not proven off, once smaller than FEATURE_REGION of a
+sample's reach, are searched for a point of a tangency curve (``csgnb.sampling.kernel``, rule 3):
+late enough that regions near ordinary curves — which a few more splits resolve — are not searched."""
