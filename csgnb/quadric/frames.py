@@ -190,7 +190,7 @@ def frame_kernel(Q, center, axes, lam, beta, form, coef):
                 center[r] += f * axes[r, k]
     qn = math.sqrt(center[0] ** 2 + center[1] ** 2 + center[2] ** 2)
     bn = math.sqrt(b[0] ** 2 + b[1] ** 2 + b[2] ** 2)
-    noise = tol.LINEAR_NOISE * (bn + anorm * qn)
+    noise = tol.LINEAR_NOISE * (bn + anorm * qn + math.sqrt(anorm * abs(c)))
     # b's null-space part: turn a 2- or 3-dimensional null basis so that one vector carries it
     nz = 0
     w0 = 0.0

@@ -44,7 +44,10 @@ eigenvalue. An eigenvalue of an exactly diagonal A is never noise (uᵀ|A|u = |�
 
 LINEAR_NOISE = 2.0**-40
 """The null-space part β of b (paraboloids, single planes) is zero when |β| ≤ LINEAR_NOISE ·
-(|b| + |A| |q|) — the magnitude of the terms of b − Aq. Nonzero β makes the quadric non-central."""
+(|b| + |A| |q| + √(|A| |c|)) — the magnitude of the terms of b − Aq, and of the rounding that a
+transform leaves in b (|A| times a length, here √(|c|/|A|): a cylinder through the origin has
+b ≈ 0 and |q| ≈ 0, yet its b carries noise of order EPS·|A|·radius). Nonzero β makes the
+quadric non-central."""
 
 CONSTANT_NOISE = 2.0**-46
 """γ = c − qᵀb (the constant term at the center) is zero when |γ| ≤ CONSTANT_NOISE · (|c| + |qᵀb|)
@@ -88,15 +91,13 @@ see ``csgnb.sampling.kernel``): only isolated tangency points are left there."""
 CURVED_SIDE = 1e-12
 """A (u, v)-side whose end tangents are parallel to within CURVED_SIDE (relative) is straight."""
 
-FEATURE_SEARCH = 48
-"""Golden-section steps of the feature-point search along a region edge (``kernel``): 0.618⁴⁸ ≈
-1e-10 of the edge, which is below the ON_SURFACE test for any edge shorter than the model."""
-
 MIN_RADIUS = 1e-9
 """Splat radii below MIN_RADIUS × model size are refused: samples would be lifted with less
 precision than their own radius (and would need > 1e18 samples)."""
 
-FEATURE_REGION = 1.0 / 16.0
+FEATURE_REGION = 0.25
 """Regions with all corners off the surface but not proven off, once smaller than FEATURE_REGION of a
-sample's reach, are searched for a point of a tangency curve (``csgnb.sampling.kernel``, rule 3):
-late enough that regions near ordinary curves — which a few more splits resolve — are not searched."""
+sample's reach, are searched for a point of a tangency curve (``csgnb.sampling.kernel``, rule 3)
+and, if none is found, handed to the neighbour rule: small enough that a sample next to them covers
+them, large enough that tangency bands (where d_Qab grows quadratically) are not cut into tiny
+regions first."""

@@ -35,6 +35,8 @@ class SamplingStats:
     terms : int — terms of the normal form.
     seconds : float — wall time of the whole run (normal form, bounds, regions, kernels, output).
     feature_points : int — single samples placed on tangency curves by the edge search (rule 3).
+    covered_by_neighbours : int — regions given up below the size floor but covered by a single
+        sample of the same quadric (the neighbour rule); not counted in ``unresolved``.
     """
 
     samples: int
@@ -47,6 +49,7 @@ class SamplingStats:
     terms: int
     seconds: float
     feature_points: int = 0
+    covered_by_neighbours: int = 0
 
 
 @dataclass(frozen=True)

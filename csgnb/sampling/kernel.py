@@ -17,8 +17,8 @@ the splat radius:
 3. *feature point* (tangency curves): a region whose corners are all off the surface (d > 0) but
    whose discs do not cover it, once smaller than ``tolerances.FEATURE_REGION`` of a sample's
    reach, is searched along its edges for a point with d ≤ ``on_surface`` — a root of either
-   part of eq. 22 (own term, other terms) where that part changes sign between the corners, else
-   the minimum of d by golden section. Such a point is in the closure of the CSG surface on Q_ab
+   part of eq. 22 (own term, other terms) where that part changes sign between the corners (once
+   per lineage of regions). Such a point is in the closure of the CSG surface on Q_ab
    (the criterion corners meet in rule 1), and one sample there covers the region: rule 1 at a
    searched point. This resolves curves where d_Qab is positive on both sides and zero on the
    curve (a capsule's cap inside its sphere, a boss's base on a plate, the tip where a curve
@@ -27,9 +27,11 @@ the splat radius:
    (faster, but can leave holes, as the paper says);
 5. otherwise split the longest edge (at a point of its (U, V)-segment, so that the halves are
    (U, V)-triangles again), evaluate d_Qab at the new corner and recurse. Regions below
-   ``min_region`` are given up and counted as unresolved (``tolerances.MIN_REGION``): left there
-   are isolated points where d_Qab touches 0 without a sign change of either part (a sphere
-   touching a plane at one point), where no edge search finds the point.
+   ``min_region`` are given up (``tolerances.MIN_REGION``) — and then resolved after pass 1 if a
+   single sample of the same quadric covers them (``cover_by_neighbours``: the tips of surface
+   patches, where d_Qab vanishes only at the tip); the rest is counted as unresolved: isolated
+   points where d_Qab touches 0 with no sample of the quadric nearby (a sphere touching a plane
+   from inside at one point).
 
 Kept regions that would need many samples are split further without distance queries while
 their distortion bound varies (``refine``): a lattice is as dense as its region's largest δ
@@ -76,6 +78,7 @@ __all__ = [
     "relative_distance_parts",
     "subdivide_all",
     "emit_all",
+    "cover_by_neighbours",
     "COUNTERS",
     "STATUS",
     "OVERFLOW",
@@ -84,7 +87,7 @@ __all__ = [
 ]
 
 #: Leaf status codes recorded in traces.
-STATUS = {"single": 0, "kept": 1, "discarded": 2, "small": 3, "unresolved": 4}
+STATUS = {"single": 0, "kept": 1, "discarded": 2, "small": 3, "unresolved": 4, "neighbour": 5}
 
 #: Columns of the leaf buffers of pass 1: floats (polygon x₀ y₀ … x₅ y₅, δ, aux, reach) and
 #: integers (job, kind, vertices, samples); see ``subdivide_quadric``.
@@ -94,7 +97,7 @@ LEAF_INT_FIELDS = ("job", "kind", "corners", "count", "clip_start", "clip_len")
 COUNTERS = ("distance_queries", "regions", "unresolved", "jobs", "quadric_distances", "feature_searches",
             "feature_points")
 #: Overflow codes returned by ``subdivide_all``: which buffer to grow before resuming.
-OVERFLOW = {"none": 0, "leaves": 1, "trace_leaves": 2, "trace_points": 3, "clip_lists": 4}
+OVERFLOW = {"none": 0, "leaves": 1, "trace_leaves": 2, "trace_points": 3, "clip_lists": 4, "unresolved": 5}
 
 _SQRT3 = math.sqrt(3.0)
 _MAX_DEPTH = 200
@@ -103,6 +106,8 @@ _MAX_DEPTH = 200
 #: region's largest δ demands, so tighter bounds mean fewer samples.
 _REFINE_SAMPLES = 256
 _REFINE_RATIO = 1.2
+#: Illinois steps of the feature-point search (superlinear: rounding is reached in about 10).
+_ROOT_STEPS = 40
 
 
 @inline_jit
@@ -165,36 +170,33 @@ def relative_distance_parts(C, act, a0, na, own_box, slices, other_idx, x, y, z)
 def _feature_point(C, act, a0, na, own_box, slices, other_idx, plane, uv, sx, sy, v, on_surface):
     """Search the edges of the region ``v`` (6,) for a point with d_Qab ≤ ``on_surface``.
 
-    ``plane`` (20,): origin, frame (row-major), form, (αₓ, bₓ, α_y, b_y, α_c), sheet. Per edge
-    (a (U, V)-segment): where a part of eq. 22 changes sign between the ends, its root by the
-    Illinois method (a tangency: both parts vanish there); otherwise the minimum of d by golden
-    section. Returns (found, x, y, evaluations).
+    ``plane`` (20,): origin, frame (row-major), form, (αₓ, bₓ, α_y, b_y, α_c), sheet. On every edge
+    (a (U, V)-segment) where a part of eq. 22 (own term, other terms) changes sign between the
+    corners, its root by the Illinois method: at a tangency curve both parts vanish there, so d_Qab
+    does. Returns (found, x, y, evaluations).
     """
-    evals = 0
     form = int(plane[12])
+    own_c = np.empty(3)
+    oth_c = np.empty(3)
+    for c in range(3):
+        px, py, pz = lift(plane[0], plane[1], plane[2], plane[3], plane[4], plane[5], plane[6], plane[7], plane[8],
+                          plane[9], plane[10], plane[11], form, plane[13], plane[14], plane[15], plane[16], plane[17],
+                          plane[18], v[2 * c], v[2 * c + 1])
+        own_c[c], oth_c[c] = relative_distance_parts(C, act, a0, na, own_box, slices, other_idx, px, py, pz)
+    evals = 3
     for e in range(3):
         f = (e + 1) % 3
         ax_, ay_ = v[2 * e], v[2 * e + 1]
         bx_, by_ = v[2 * f], v[2 * f + 1]
-        ends_own = np.empty(2)
-        ends_oth = np.empty(2)
-        for side in range(2):
-            x, y = (ax_, ay_) if side == 0 else (bx_, by_)
-            px, py, pz = lift(plane[0], plane[1], plane[2], plane[3], plane[4], plane[5], plane[6], plane[7],
-                              plane[8], plane[9], plane[10], plane[11], form, plane[13], plane[14], plane[15],
-                              plane[16], plane[17], plane[18], x, y)
-            ends_own[side], ends_oth[side] = relative_distance_parts(C, act, a0, na, own_box, slices, other_idx,
-                                                                     px, py, pz)
-            evals += 1
         for part in range(2):
-            fa = ends_own[0] if part == 0 else ends_oth[0]
-            fb = ends_own[1] if part == 0 else ends_oth[1]
+            fa = own_c[e] if part == 0 else oth_c[e]
+            fb = own_c[f] if part == 0 else oth_c[f]
             if not (fa * fb < 0.0):
                 continue
             lo, hi = 0.0, 1.0
             side = 0
-            for _ in range(60):
-                s = (lo * fb - hi * fa) / (fb - fa)  # regula falsi (Illinois)
+            for _ in range(_ROOT_STEPS):
+                s = (lo * fb - hi * fa) / (fb - fa)  # regula falsi, Illinois variant
                 if not (lo < s < hi):
                     s = 0.5 * (lo + hi)
                 x, y = segment_point(ax_, ay_, bx_, by_, sx, sy, uv, s)
@@ -218,42 +220,6 @@ def _feature_point(C, act, a0, na, own_box, slices, other_idx, plane, uv, sx, sy
                     if side == 1:
                         fa *= 0.5
                     side = 1
-        # no sign change (or its root is off the surface): the minimum of d by golden section
-        g = 0.6180339887498949
-        lo, hi = 0.0, 1.0
-        fvals = np.empty(2)
-        pts = np.empty(2)
-        pts[0], pts[1] = hi - g * (hi - lo), lo + g * (hi - lo)
-        for k in range(2):
-            x, y = segment_point(ax_, ay_, bx_, by_, sx, sy, uv, pts[k])
-            px, py, pz = lift(plane[0], plane[1], plane[2], plane[3], plane[4], plane[5], plane[6], plane[7],
-                              plane[8], plane[9], plane[10], plane[11], form, plane[13], plane[14], plane[15],
-                              plane[16], plane[17], plane[18], x, y)
-            po, pt = relative_distance_parts(C, act, a0, na, own_box, slices, other_idx, px, py, pz)
-            evals += 1
-            fvals[k] = max(po, pt)
-            if fvals[k] <= on_surface:
-                return True, x, y, evals
-        for _ in range(tol.FEATURE_SEARCH):
-            if fvals[0] <= fvals[1]:
-                hi = pts[1]
-                pts[1], fvals[1] = pts[0], fvals[0]
-                pts[0] = hi - g * (hi - lo)
-                k = 0
-            else:
-                lo = pts[0]
-                pts[0], fvals[0] = pts[1], fvals[1]
-                pts[1] = lo + g * (hi - lo)
-                k = 1
-            x, y = segment_point(ax_, ay_, bx_, by_, sx, sy, uv, pts[k])
-            px, py, pz = lift(plane[0], plane[1], plane[2], plane[3], plane[4], plane[5], plane[6], plane[7],
-                              plane[8], plane[9], plane[10], plane[11], form, plane[13], plane[14], plane[15],
-                              plane[16], plane[17], plane[18], x, y)
-            po, pt = relative_distance_parts(C, act, a0, na, own_box, slices, other_idx, px, py, pz)
-            evals += 1
-            fvals[k] = max(po, pt)
-            if fvals[k] <= on_surface:
-                return True, x, y, evals
     return False, 0.0, 0.0, evals
 
 
@@ -268,6 +234,7 @@ def subdivide_all(
     sqrt3_mode,
     refine,
     trace,
+    defer,
     LF,
     LI,
     LA,
@@ -275,6 +242,7 @@ def subdivide_all(
     TI,
     TP,
     TJ,
+    UR,
     counters,
     job_start,
     job_end,
@@ -282,6 +250,7 @@ def subdivide_all(
     nla,
     nt,
     npt,
+    nur,
 ):
     """Pass 1: classify and subdivide the jobs ``job_start:job_end`` of the tasks ``ts`` (a ``tasks.TaskSet``).
 
@@ -298,9 +267,13 @@ def subdivide_all(
     * if ``trace``: final regions ``TT`` (tcap, 6) (triangle) and ``TI`` (tcap, 5) = (job, uv,
       status, depth, plane); distance evaluations ``TP`` (pcap, 3) = (x, y, d_Qab), ``TJ`` (pcap,)
       = job;
+    * regions for the neighbour rule ``UR`` (ucap, 14) (``_record_region``): those given up below
+      ``min_region``, and — if ``defer`` — those whose feature search failed (to be re-subdivided
+      by a second call with their triangles as jobs, ``job_flags`` bit 0 set, unless a neighbour
+      sample covers them);
     * ``counters`` (7,) int64 += the ``COUNTERS``.
 
-    Returns ``(nl, nla, nt, npt, next_job, overflow)``: fill levels, the first job not done and an
+    Returns ``(nl, nla, nt, npt, nur, next_job, overflow)``: fill levels, the first job not done and an
     ``OVERFLOW`` code. On overflow the unfinished job's output is rolled back; grow that buffer
     and call again from ``next_job``.
     """
@@ -308,7 +281,7 @@ def subdivide_all(
     t_own_box, t_rcap = ts.own_box, ts.rcap
     origin, frame, coef, pform = ts.origin, ts.frame, ts.coef, ts.form
     job_task, job_plane, job_sheet, job_tri = ts.job_task, ts.job_plane, ts.job_sheet, ts.job_tri
-    job_uv, job_quadrant = ts.job_uv, ts.job_quadrant
+    job_uv, job_quadrant, job_flags = ts.job_uv, ts.job_quadrant, ts.job_flags
     n_jobs = min(job_end, job_task.shape[0])
     cap = LF.shape[0]
     tcap = TT.shape[0]
@@ -323,6 +296,7 @@ def subdivide_all(
     S_a0 = np.empty(smax, dtype=np.int64)
     S_an = np.empty(smax, dtype=np.int64)
     S_clamp = np.empty(smax)
+    S_searched = np.zeros(smax, dtype=np.bool_)  # a feature search ran in this region's lineage
     longest_own = 0
     for t in range(own_ptr.shape[0] - 1):
         longest_own = max(longest_own, own_ptr[t + 1] - own_ptr[t])
@@ -352,7 +326,7 @@ def subdivide_all(
             s0 = slice_ptr[t0]
         slices = slice_ptr[t0 : t1 + 1]
         n_other = slice_ptr[t1] - s0
-        nl0, nla0, nt0, npt0 = nl, nla, nt, npt
+        nl0, nla0, nt0, npt0, nur0 = nl, nla, nt, npt, nur
         queries = 0
         visited = 0
         unresolved = 0
@@ -370,6 +344,14 @@ def subdivide_all(
         sheet = job_sheet[job]
         sx, sy = job_quadrant[job, 0], job_quadrant[job, 1]
         uv = job_uv[job]
+        # the plane as one array, for the rarely called helpers
+        plane[0], plane[1], plane[2] = o0, o1, o2
+        plane[3], plane[4], plane[5] = f00, f01, f02
+        plane[6], plane[7], plane[8] = f10, f11, f12
+        plane[9], plane[10], plane[11] = f20, f21, f22
+        plane[12] = fm
+        plane[13], plane[14], plane[15], plane[16], plane[17] = ax, bx, ay, by, ac
+        plane[18] = sheet
         for c in range(3):
             S_v[0, 2 * c] = job_tri[job, c, 0]
             S_v[0, 2 * c + 1] = job_tri[job, c, 1]
@@ -390,6 +372,7 @@ def subdivide_all(
         S_depth[0] = 0
         S_kept[0] = False
         S_a0[0], S_an[0], S_clamp[0] = 0, n_own, rcap
+        S_searched[0] = (job_flags[job] & 1) != 0
         top = 1 if overflow == 0 else 0
         while top > 0:
             top -= 1
@@ -400,6 +383,7 @@ def subdivide_all(
             kept = S_kept[top]
             slack = S_slack[top]
             a0, an, clamp = S_a0[top], S_an[top], S_clamp[top]
+            searched = S_searched[top]
             a_top = a0 + an  # lists above belong to finished subtrees
             # the region is within ``bulge`` of the straight triangle: shorten radii by it
             bulge = region_bulge(v0x, v0y, v1x, v1y, v2x, v2y, uv, sx, sy)
@@ -451,20 +435,14 @@ def subdivide_all(
                 else:
                     diam = max(_norm2(v1x - v0x, v1y - v0y),
                                max(_norm2(v2x - v1x, v2y - v1y), _norm2(v0x - v2x, v0y - v2y)))
-                    if posi and diam + bulge <= tol.FEATURE_REGION * rho_r and depth < _MAX_DEPTH:
+                    if posi and not searched and diam + bulge <= tol.FEATURE_REGION * rho_r and depth < _MAX_DEPTH:
                         # 3. a point of a tangency curve in the region: one sample there covers it
                         region[0], region[1], region[2], region[3], region[4], region[5] = (
                             v0x, v0y, v1x, v1y, v2x, v2y)
-                        plane[0], plane[1], plane[2] = o0, o1, o2
-                        plane[3], plane[4], plane[5] = f00, f01, f02
-                        plane[6], plane[7], plane[8] = f10, f11, f12
-                        plane[9], plane[10], plane[11] = f20, f21, f22
-                        plane[12] = fm
-                        plane[13], plane[14], plane[15], plane[16], plane[17] = ax, bx, ay, by, ac
-                        plane[18] = sheet
                         found, fx, fy, ev = _feature_point(C, A, a0, an, own_box, slices, other_idx, plane, uv,
                                                            sx, sy, region, on_surface)
                         searches += 1
+                        searched = True
                         queries += ev
                         evaluated += ev * (an + n_other)
                         if found:
@@ -473,12 +451,29 @@ def subdivide_all(
                             best_w = diam + bulge
                             emit_kind = 0
                             status = 0
+                        elif defer:
+                            status = 6  # deferred: the neighbour rule, else pass 1b (not traced here)
+                            if nur >= UR.shape[0]:
+                                overflow = 5
+                                break
+                            region[0], region[1], region[2], region[3], region[4], region[5] = (
+                                v0x, v0y, v1x, v1y, v2x, v2y)
+                            _record_region(UR, nur, plane, region, delta, bulge, task, job, 1.0, -1)
+                            nur += 1
                     if status < 0:
                         if min_size > 0.0 and diam * min(delta, _SQRT3) < min_size:
                             status = 3
                         elif diam < min_region or depth >= _MAX_DEPTH:
                             status = 4
                             unresolved += 1
+                            if nur >= UR.shape[0]:
+                                overflow = 5
+                                break
+                            row = nt if trace else -1
+                            region[0], region[1], region[2], region[3], region[4], region[5] = (
+                                v0x, v0y, v1x, v1y, v2x, v2y)
+                            _record_region(UR, nur, plane, region, delta, bulge, task, job, 0.0, row)
+                            nur += 1
                         else:
                             split = True
             count = 1
@@ -530,6 +525,8 @@ def subdivide_all(
                     LF[nl, 14] = radius
                     LF[nl, 15] = rho_l
                 nl += 1
+            if status == 6:
+                continue
             if status >= 0:
                 if trace:
                     if nt >= tcap:
@@ -623,9 +620,10 @@ def subdivide_all(
                 S_kept[top] = kept
                 S_slack[top] = slack
                 S_a0[top], S_an[top], S_clamp[top] = c_a0, c_an, c_clamp
+                S_searched[top] = searched
                 top += 1
         if overflow != 0:
-            return nl0, nla0, nt0, npt0, job, overflow
+            return nl0, nla0, nt0, npt0, nur0, job, overflow
         counters[0] += queries
         counters[1] += visited
         counters[2] += unresolved
@@ -633,7 +631,153 @@ def subdivide_all(
         counters[4] += evaluated
         counters[5] += searches
         counters[6] += features
-    return nl, nla, nt, npt, n_jobs, 0
+    return nl, nla, nt, npt, nur, n_jobs, 0
+
+
+@ieee_jit
+def _record_region(UR, i, plane, v, delta, bulge, task, job, kind, trace_row):
+    """UR[i] = (world point, radius of a world ball around it holding the region, task, job,
+    triangle (6), kind: 0 given up, 1 deferred, its trace row or -1); ``plane`` as in ``_feature_point``."""
+    v0x, v0y, v1x, v1y, v2x, v2y = v[0], v[1], v[2], v[3], v[4], v[5]
+    ux, uy, uz = lift(plane[0], plane[1], plane[2], plane[3], plane[4], plane[5], plane[6], plane[7], plane[8],
+                      plane[9], plane[10], plane[11], int(plane[12]), plane[13], plane[14], plane[15], plane[16],
+                      plane[17], plane[18], v0x, v0y)
+    UR[i, 0], UR[i, 1], UR[i, 2] = ux, uy, uz
+    UR[i, 3] = delta * (corner_reach(v0x, v0y, v1x, v1y, v2x, v2y, 0) + bulge)
+    UR[i, 4], UR[i, 5] = task, job
+    UR[i, 6], UR[i, 7], UR[i, 8], UR[i, 9], UR[i, 10], UR[i, 11] = v0x, v0y, v1x, v1y, v2x, v2y
+    UR[i, 12] = kind
+    UR[i, 13] = trace_row
+
+
+@ieee_jit
+def cover_by_neighbours(ts, LF, LI, UR, radius, reduce_radius, covered):
+    """Mark the regions ``UR`` (``_record_region``) that a sample of the same quadric covers; return the count.
+
+    The neighbour rule: a region inside the world ball (c, ρ) is covered when a sample s of the
+    same task has |s − c| + ρ ≤ its radius — every point of the region, on the CSG surface or not,
+    then has a sample on its quadric within the radius. It resolves the regions left at the tips of
+    surface patches (where two feature curves meet at a corner: d_Qab > 0 outside, zero only at the
+    tip) and along tangencies without a sign change (a sphere inside a cylinder of its radius),
+    which sit next to the samples of the patch itself. ``covered`` (u,) bool is written.
+    """
+    origin, frame, coef, pform = ts.origin, ts.frame, ts.coef, ts.form
+    job_task, job_plane, job_sheet = ts.job_task, ts.job_plane, ts.job_sheet
+    n_leaves = LI.shape[0]
+    n_tasks = ts.quadric.shape[0]
+    # the leaves of every task (leaves are in job order, jobs in task order — pass 1b's jobs
+    # follow, so collect by task explicitly)
+    count_t = np.zeros(n_tasks + 1, dtype=np.int64)
+    for leaf in range(n_leaves):
+        count_t[job_task[LI[leaf, 0]] + 1] += 1
+    for t in range(n_tasks):
+        count_t[t + 1] += count_t[t]
+    order = np.empty(n_leaves, dtype=np.int64)
+    fill = count_t[:n_tasks].copy()
+    for leaf in range(n_leaves):
+        t = job_task[LI[leaf, 0]]
+        order[fill[t]] = leaf
+        fill[t] += 1
+    # a world ball per leaf: its first vertex and the world reach of the leaf's triangle
+    P = np.empty((n_leaves, 4))
+    for leaf in range(n_leaves):
+        job = LI[leaf, 0]
+        task = job_task[job]
+        k = job_plane[job]
+        P[leaf, 0], P[leaf, 1], P[leaf, 2] = lift(
+            origin[task, k, 0], origin[task, k, 1], origin[task, k, 2],
+            frame[task, k, 0, 0], frame[task, k, 0, 1], frame[task, k, 0, 2],
+            frame[task, k, 1, 0], frame[task, k, 1, 1], frame[task, k, 1, 2],
+            frame[task, k, 2, 0], frame[task, k, 2, 1], frame[task, k, 2, 2],
+            pform[task, k], coef[task, k, 0], coef[task, k, 1], coef[task, k, 2], coef[task, k, 3],
+            coef[task, k, 4], job_sheet[job], LF[leaf, 0], LF[leaf, 1])  # fmt: skip
+        if LI[leaf, 1] == 0:
+            P[leaf, 3] = 0.0
+        else:
+            P[leaf, 3] = LF[leaf, 12] * corner_reach(LF[leaf, 0], LF[leaf, 1], LF[leaf, 2], LF[leaf, 3],
+                                                     LF[leaf, 4], LF[leaf, 5], 0)
+    # per task, its leaves sorted by the x of their ball centers: a window of x ± (radius + the
+    # task's largest lattice reach) holds every leaf that can cover a region
+    key = np.empty(n_leaves)
+    for o in range(n_leaves):
+        key[o] = P[order[o], 0]
+    widest = np.zeros(n_tasks)
+    for t in range(n_tasks):
+        a, b = count_t[t], count_t[t + 1]
+        idx = np.argsort(key[a:b])
+        order[a:b] = order[a:b][idx]
+        key[a:b] = key[a:b][idx]
+        for o in range(a, b):
+            widest[t] = max(widest[t], P[order[o], 3])
+    count = 0
+    for u in range(UR.shape[0]):
+        covered[u] = False
+        t = int(UR[u, 4])
+        cx, cy, cz, rho = UR[u, 0], UR[u, 1], UR[u, 2], UR[u, 3]
+        if not rho < radius:
+            continue
+        half = radius + widest[t]
+        a, b = count_t[t], count_t[t + 1]
+        lo = a + np.searchsorted(key[a:b], cx - half)
+        hi = a + np.searchsorted(key[a:b], cx + half, side="right")
+        for o in range(lo, hi):
+            leaf = order[o]
+            dx, dy, dz = P[leaf, 0] - cx, P[leaf, 1] - cy, P[leaf, 2] - cz
+            dist = math.sqrt(dx * dx + dy * dy + dz * dz)
+            if LI[leaf, 1] == 0:
+                r_s = LF[leaf, 14] if reduce_radius else radius
+                if dist + rho <= r_s * (1.0 - 1e-12):
+                    covered[u] = True
+                    break
+                continue
+            if dist - P[leaf, 3] + rho > radius:
+                continue  # no lattice point of this leaf is near enough
+            if _lattice_covers(ts, LF, LI, leaf, cx, cy, cz, rho, radius, reduce_radius):
+                covered[u] = True
+                break
+        if covered[u]:
+            count += 1
+    return count
+
+
+@ieee_jit
+def _lattice_covers(ts, LF, LI, leaf, cx, cy, cz, rho, radius, reduce_radius):
+    """Whether a lattice point of ``leaf`` covers the ball (c, ρ) (see ``cover_by_neighbours``)."""
+    origin, frame, coef, pform = ts.origin, ts.frame, ts.coef, ts.form
+    job = LI[leaf, 0]
+    task = ts.job_task[job]
+    k = ts.job_plane[job]
+    sheet = ts.job_sheet[job]
+    v0x, v0y, v1x, v1y, v2x, v2y = LF[leaf, 0], LF[leaf, 1], LF[leaf, 2], LF[leaf, 3], LF[leaf, 4], LF[leaf, 5]
+    rho_l = LF[leaf, 15]
+    centers, steps, _, reach, cs, ct = lattice_plan(v0x, v0y, v1x, v1y, v2x, v2y, rho_l)
+    r_s = LF[leaf, 12] * reach + (radius - LF[leaf, 12] * rho_l) if reduce_radius else radius
+    inv = 1.0 / steps
+    e1x, e1y, e2x, e2y = v1x - v0x, v1y - v0y, v2x - v0x, v2y - v0y
+    n_i = steps if centers else steps + 1
+    for i in range(n_i):
+        n_j = steps - i if centers else steps + 1 - i
+        for j in range(n_j):
+            for flip in range(2 if centers else 1):
+                if flip == 1 and i + j > steps - 2:
+                    continue
+                if centers:
+                    uu = (i + cs) * inv if flip == 0 else (i + 1 - cs) * inv
+                    ww = (j + ct) * inv if flip == 0 else (j + 1 - ct) * inv
+                else:
+                    uu, ww = i * inv, j * inv
+                x, y = v0x + uu * e1x + ww * e2x, v0y + uu * e1y + ww * e2y
+                px, py, pz = lift(
+                    origin[task, k, 0], origin[task, k, 1], origin[task, k, 2],
+                    frame[task, k, 0, 0], frame[task, k, 0, 1], frame[task, k, 0, 2],
+                    frame[task, k, 1, 0], frame[task, k, 1, 1], frame[task, k, 1, 2],
+                    frame[task, k, 2, 0], frame[task, k, 2, 1], frame[task, k, 2, 2],
+                    pform[task, k], coef[task, k, 0], coef[task, k, 1], coef[task, k, 2],
+                    coef[task, k, 3], coef[task, k, 4], sheet, x, y)  # fmt: skip
+                ex, ey, ez = px - cx, py - cy, pz - cz
+                if math.sqrt(ex * ex + ey * ey + ez * ez) + rho <= r_s * (1.0 - 1e-12):
+                    return True
+    return False
 
 
 @ieee_jit

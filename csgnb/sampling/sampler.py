@@ -20,7 +20,7 @@ from csgnb.quadric import tolerances as tol
 from csgnb.quadric.arguments import as_count, as_finite_array, as_flag, as_positive, as_real
 from csgnb.quadric.quadric import Quadric
 from csgnb.sampling.cloud import SampleCloud, SamplingStats, SamplingTrace, deduplicate_clip_sets
-from csgnb.sampling.kernel import OVERFLOW, emit_all, subdivide_all
+from csgnb.sampling.kernel import OVERFLOW, cover_by_neighbours, emit_all, subdivide_all
 from csgnb.sampling.tasks import TaskSet, build_task_set
 
 __all__ = ["sample_csg", "DISTORTION_MODES", "MIN_REGION", "ON_SURFACE", "DEFAULT_MAX_SAMPLES",
@@ -240,7 +240,7 @@ def sample_csg(
     ts = build_task_set(nf, surface_boxes(nf, boxes, 1.0), boxes, rn, 1.0)
     _check_estimate(estimate_samples(ts, rn), max_samples, False)
     C = np.ascontiguousarray(nf.coefficients)
-    leaves = _subdivide(C, ts, rn, min_size * rn, distortion == "sqrt3", refine, trace, progress)
+    ts, leaves = _subdivide(C, ts, rn, min_size * rn, distortion == "sqrt3", refine, trace, progress, reduce_radius)
     _check_estimate(leaves.samples, max_samples, True)
     return _emit(nf, C, ts, leaves, rn, reduce_radius, trace, frame, t0)
 
@@ -248,8 +248,9 @@ def sample_csg(
 class _Leaves:
     """Pass-1 output (see ``kernel.subdivide_all``)."""
 
-    def __init__(self, LF, LI, LA, TT, TI, TP, TJ, counters) -> None:
+    def __init__(self, LF, LI, LA, TT, TI, TP, TJ, UR, counters) -> None:
         self.LF, self.LI, self.LA, self.TT, self.TI, self.TP, self.TJ = LF, LI, LA, TT, TI, TP, TJ
+        self.UR = UR
         self.counters = counters
         self.samples = int(LI[:, 3].sum())
 
@@ -260,45 +261,104 @@ def _grown(a: np.ndarray, used: int) -> np.ndarray:
     return b
 
 
-def _subdivide(C, ts: TaskSet, radius, min_size, sqrt3, refine, trace, progress) -> _Leaves:
-    jobs = len(ts.job_task)
-    cap = 64 * jobs + 1024
-    LF, LI = np.empty((cap, 16)), np.empty((cap, 6), dtype=np.int64)
-    LA = np.empty(4 * cap, dtype=np.int64)
-    tcap = 16 * jobs + 64 if trace else 1
-    TT, TI = np.empty((tcap, 6)), np.empty((tcap, 5), dtype=np.int64)
-    TP, TJ = np.empty((tcap, 3)), np.empty(tcap, dtype=np.int64)
-    counters = np.zeros(7, dtype=np.int64)
-    nl = nla = nt = npt = 0
-    # chunks: one call for everything, or one per task behind a progress bar
-    ends = ts.job_ptr[1:] if progress else np.array([jobs])
-    bar = None
-    if progress:
-        from tqdm.auto import tqdm
-
-        bar = tqdm(total=len(ends), desc="subdividing", unit="quadric")
-    job = 0
-    for end in ends:
+def _pass(C, ts: TaskSet, radius, min_size, sqrt3, refine, trace, defer, job_range, bar, bufs):
+    """Run ``kernel.subdivide_all`` over ``job_range`` (chunked for the progress bar), growing buffers."""
+    for start, end in job_range:
+        job = start
         while True:
-            nl, nla, nt, npt, job, overflow = subdivide_all(
-                C, ts, radius, min_size, tol.MIN_REGION * radius, tol.ON_SURFACE, sqrt3, refine, trace,
-                LF, LI, LA, TT, TI, TP, TJ, counters, job, int(end), nl, nla, nt, npt,
+            LF, LI, LA, TT, TI, TP, TJ, UR, counters, fill = bufs
+            nl, nla, nt, npt, nur = fill
+            nl, nla, nt, npt, nur, job, overflow = subdivide_all(
+                C, ts, radius, min_size, tol.MIN_REGION * radius, tol.ON_SURFACE, sqrt3, refine, trace, defer,
+                LF, LI, LA, TT, TI, TP, TJ, UR, counters, job, int(end), nl, nla, nt, npt, nur,
             )  # fmt: skip
-            if overflow == OVERFLOW["none"]:
-                break
+            fill = [nl, nla, nt, npt, nur]
             if overflow == OVERFLOW["leaves"]:
                 LF, LI = _grown(LF, nl), _grown(LI, nl)
             elif overflow == OVERFLOW["clip_lists"]:
                 LA = _grown(LA, nla)
             elif overflow == OVERFLOW["trace_leaves"]:
                 TT, TI = _grown(TT, nt), _grown(TI, nt)
-            else:
+            elif overflow == OVERFLOW["trace_points"]:
                 TP, TJ = _grown(TP, npt), _grown(TJ, npt)
+            elif overflow == OVERFLOW["unresolved"]:
+                UR = _grown(UR, nur)
+            bufs[:] = [LF, LI, LA, TT, TI, TP, TJ, UR, counters, fill]
+            if overflow == OVERFLOW["none"]:
+                break
         if bar is not None:
             bar.update(1)
+
+
+def _subdivide(C, ts: TaskSet, radius, min_size, sqrt3, refine, trace, progress, reduce_radius):
+    """Pass 1 (with deferral of failed feature searches), the neighbour rule, pass 1b on the rest."""
+    jobs = len(ts.job_task)
+    cap = 64 * jobs + 1024
+    tcap = 16 * jobs + 64 if trace else 1
+    bufs = [np.empty((cap, 16)), np.empty((cap, 6), dtype=np.int64), np.empty(4 * cap, dtype=np.int64),
+            np.empty((tcap, 6)), np.empty((tcap, 5), dtype=np.int64), np.empty((tcap, 3)),
+            np.empty(tcap, dtype=np.int64), np.empty((256, 14)), np.zeros(7, dtype=np.int64), [0, 0, 0, 0, 0]]
+    bar = None
+    ranges = [(0, jobs)]
+    if progress:
+        from tqdm.auto import tqdm
+
+        ends = ts.job_ptr[1:]
+        ranges = list(zip(ts.job_ptr[:-1], ends, strict=True))
+        bar = tqdm(total=len(ranges) + 1, desc="subdividing", unit="quadric")
+    _pass(C, ts, radius, min_size, sqrt3, refine, trace, True, ranges, bar, bufs)
+    fill = bufs[9]
+    nl, nur = fill[0], fill[4]
+    UR = bufs[7][:nur].copy()
+    LF, LI = bufs[0][:nl], bufs[1][:nl]
+    covered = np.zeros(len(UR), dtype=np.bool_)
+    if len(UR):
+        cover_by_neighbours(ts, LF, LI, UR, radius, reduce_radius, covered)
+    deferred = UR[:, 12] == 1.0
+    redo = UR[deferred & ~covered]
+    done = UR[covered]
+    ts_all = ts
+    if len(redo):  # pass 1b: the deferred regions not covered by a neighbour, searched no more
+        ts_all = ts.with_regions(redo)
+        bufs[9][4] = 0
+        _pass(C, ts_all, radius, min_size, sqrt3, refine, trace, False, [(jobs, len(ts_all.job_task))], None, bufs)
+        fill = bufs[9]
+        nl, nur = fill[0], fill[4]
+        UR2 = bufs[7][:nur].copy()
+        covered2 = np.zeros(len(UR2), dtype=np.bool_)
+        if len(UR2):
+            cover_by_neighbours(ts_all, bufs[0][:nl], bufs[1][:nl], UR2, radius, reduce_radius, covered2)
+        UR = np.concatenate([UR[~deferred], UR2])
+        covered = np.concatenate([covered[~deferred], covered2])
+        done = np.concatenate([done, UR2[covered2]])
     if bar is not None:
+        bar.update(1)
         bar.close()
-    return _Leaves(LF[:nl], LI[:nl], LA[:nla], TT[:nt], TI[:nt], TP[:npt], TJ[:npt], counters)
+    LF, LI, LA, TT, TI, TP, TJ, _, counters, fill = bufs
+    nl, nla, nt, npt, _ = fill
+    lv = _Leaves(LF[:nl], LI[:nl], LA[:nla], TT[:nt], TI[:nt], TP[:npt], TJ[:npt], UR, counters)
+    lv.unresolved = int(np.sum(~covered & (UR[:, 12] == 0.0))) if len(UR) else 0
+    lv.by_neighbours = len(done)
+    if trace:
+        _trace_neighbours(lv, done)
+    return ts_all, lv
+
+
+def _trace_neighbours(lv: _Leaves, done: np.ndarray) -> None:
+    """Trace the regions the neighbour rule covered with status ``neighbour``."""
+    from csgnb.sampling.kernel import STATUS
+
+    rows = done[:, 13].astype(np.int64)
+    old = rows[rows >= 0]
+    lv.TI[old, 2] = STATUS["neighbour"]
+    new = done[rows < 0]
+    if len(new):
+        ti = np.zeros((len(new), 5), dtype=np.int64)
+        ti[:, 0] = new[:, 5].astype(np.int64)
+        ti[:, 2] = STATUS["neighbour"]
+        ti[:, 3] = -1  # depth not recorded for deferred regions
+        lv.TT = np.concatenate([lv.TT, new[:, 6:12]])
+        lv.TI = np.concatenate([lv.TI, ti])
 
 
 def _emit(nf: NormalForm, C, ts: TaskSet, lv: _Leaves, radius: float, reduce_radius: bool, trace: bool,
@@ -340,12 +400,13 @@ def _emit(nf: NormalForm, C, ts: TaskSet, lv: _Leaves, radius: float, reduce_rad
         distance_queries=int(counters[0]),
         clip_indices=len(buf),
         regions=int(counters[1]),
-        unresolved=int(counters[2]),
+        unresolved=lv.unresolved,
         quadrics=len(nf),
         sampled_quadrics=len(ts.quadric),
         terms=nf.n_terms,
         seconds=time.perf_counter() - t0,
         feature_points=int(counters[6]),
+        covered_by_neighbours=lv.by_neighbours,
     )
     return SampleCloud(positions, normals, ids, radii, start, count, buf, radius * frame.scale, world, stats, tr,
                        frame)
@@ -389,8 +450,8 @@ def _trace(ts: TaskSet, lv: _Leaves, frame: ModelFrame) -> SamplingTrace:
         for kk in range(3):
             planes[(int(ts.quadric[t]), kk)] = _world_plane(ts, t, kk, frame)
     return SamplingTrace(
-        ts.quadric[t_of[job]].astype(np.int64), lv.TI[:, 4].astype(np.int64), ts.job_sheet[job],
-        lv.TT.reshape(-1, 3, 2) * s, lv.TI[:, 1].astype(np.int64), ts.job_quadrant[job],
+        ts.quadric[t_of[job]].astype(np.int64), ts.job_plane[job].astype(np.int64), ts.job_sheet[job],
+        lv.TT.reshape(-1, 3, 2) * s, ts.job_uv[job].astype(np.int64), ts.job_quadrant[job],
         lv.TI[:, 2].astype(np.int64), lv.TI[:, 3].astype(np.int64), ts.quadric[task].astype(np.int64),
         k.astype(np.int64), sheet, pts[:, :2] * s, frame.to_world(world), pts[:, 2] * s, planes,
     )  # fmt: skip

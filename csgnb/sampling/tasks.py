@@ -49,7 +49,8 @@ class TaskSet(NamedTuple):
     origin : (t, 3, 3), frame : (t, 3, 3, 3), coef : (t, 3, 5), form : (t, 3) int64 — per sampling
         plane its origin, columns (x axis, y axis, normal), heightfield and form code.
     job_ptr : (t + 1,) int64 — task i's jobs; job_task, job_plane : (J,) int64, job_sheet : (J,),
-        job_tri : (J, 3, 2), job_uv : (J,) int64 (squared-coordinate flags), job_quadrant : (J, 2).
+        job_tri : (J, 3, 2), job_uv : (J,) int64 (squared-coordinate flags), job_quadrant : (J, 2),
+        job_flags : (J,) int64 (bit 0: a feature search already failed in this region).
     """
 
     quadric: np.ndarray
@@ -73,6 +74,21 @@ class TaskSet(NamedTuple):
     job_tri: np.ndarray
     job_uv: np.ndarray
     job_quadrant: np.ndarray
+    job_flags: np.ndarray
+
+    def with_regions(self, UR: np.ndarray) -> TaskSet:
+        """Return this task set with the regions ``UR`` (rows of ``kernel._record_region``) appended as jobs."""
+        src = UR[:, 5].astype(np.int64)
+        tri = UR[:, 6:12].reshape(-1, 3, 2)
+        return self._replace(
+            job_task=np.concatenate([self.job_task, self.job_task[src]]),
+            job_plane=np.concatenate([self.job_plane, self.job_plane[src]]),
+            job_sheet=np.concatenate([self.job_sheet, self.job_sheet[src]]),
+            job_tri=np.ascontiguousarray(np.concatenate([self.job_tri, tri])),
+            job_uv=np.concatenate([self.job_uv, self.job_uv[src]]),
+            job_quadrant=np.ascontiguousarray(np.concatenate([self.job_quadrant, self.job_quadrant[src]])),
+            job_flags=np.concatenate([self.job_flags, np.ones(len(src), dtype=np.int64)]),
+        )
 
 
 @jit
@@ -261,7 +277,7 @@ def build_task_set(nf, boxes: np.ndarray, term_box: np.ndarray, radius: float, u
     return TaskSet(
         t_quadric[:nt], t_term[:nt], box, own_box, rc, own_ptr[: nt + 1], own[:no], other_ptr[: nt + 1],
         slice_ptr[: ns + 1], other[:nx], origin[:nt], frame[:nt], coef[:nt], form[:nt], job_ptr[: nt + 1],
-        job_task[:nj], jp[:nj], js[:nj], jt[:nj], ju[:nj], jq[:nj],
+        job_task[:nj], jp[:nj], js[:nj], jt[:nj], ju[:nj], jq[:nj], np.zeros(nj, dtype=np.int64),
     )  # fmt: skip
 
 
