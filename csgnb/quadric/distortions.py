@@ -88,7 +88,8 @@ def _distortion_kernel(form, coef, x, y, out):
             out[i] = math.sqrt(1.0 + gx * gx + gy * gy)
         else:
             H = (ax * xi + bx) * xi + (ay * yi + by) * yi + ac
-            out[i] = math.sqrt(1.0 + 0.25 * (gx * gx + gy * gy) / H)
+            # off the domain (H < 0) there is no surface point: NaN, as eq. 13's root of a negative
+            out[i] = math.sqrt(1.0 + 0.25 * (gx * gx + gy * gy) / H) if H >= 0.0 else math.nan
 
 
 @ieee_jit

@@ -117,7 +117,7 @@ def _normalised(shape, bounds, max_terms):
     return _flatten_planes(nf), F, boxes
 
 
-def estimate_samples(ts: TaskSet, radius: float) -> float:
+def _estimate_from_tasks(ts: TaskSet, radius: float) -> float:
     """Return an upper estimate of the samples of a task set at splat radius ``radius`` (its units).
 
     From the area of the domains' jobs (plane area × δ², δ ≤ √3 in low-distortion regions): the
@@ -131,13 +131,34 @@ def estimate_samples(ts: TaskSet, radius: float) -> float:
     return float(_SAMPLES_PER_AREA * 3.0 * 0.5 * area2.sum() / (radius * radius))
 
 
-def _check_estimate(count: float, max_samples: int | None, exact: bool) -> None:
+def estimate_samples(shape, radius: float, *, bounds=None, max_terms: int = 4096) -> float:
+    """Return the sampler's upper estimate of the number of samples of ``shape`` at ``radius``.
+
+    It runs only the set-up (normal form, boxes, domains; milliseconds) and counts every quadric's
+    surface inside its box, on the CSG surface or not; :func:`sample_csg` refuses to start when
+    this is above its ``max_samples``. Multiply by ``BYTES_PER_SAMPLE`` for the memory.
+    """
+    r = as_positive(radius, "radius")
+    max_terms = as_count(max_terms, "max_terms", 1)
+    if not isinstance(shape, NormalForm):
+        from csgnb.csg.graph import as_node
+
+        shape = as_node(shape)
+    nf, frame, boxes = _normalised(shape, bounds, max_terms)
+    rn = r / frame.scale
+    if rn < tol.MIN_RADIUS:
+        return math.inf
+    ts = build_task_set(nf, surface_boxes(nf, boxes, 1.0), boxes, rn, 1.0)
+    return _estimate_from_tasks(ts, rn)
+
+
+def _check_estimate(count: float, max_samples: int | None, exact: bool, bound: str = "") -> None:
     if max_samples is None or count <= max_samples:
         return
     gib = count * BYTES_PER_SAMPLE / 2**30
-    what = "needs" if exact else "would need about"
+    what = f"needs {bound + ' ' if bound else ''}{int(count)}" if exact else f"would need about {count:.3g}"
     raise CsgnbError(
-        f"sampling {what} {count:.3g} samples (≈ {gib:.3g} GiB), above max_samples={max_samples:_}; "
+        f"sampling {what} samples (≈ {gib:.3g} GiB), above max_samples={max_samples:_}; "
         "pass a larger radius, a bounding sphere around the part of interest, or a larger max_samples "
         "(None: no limit)"
     )
@@ -238,9 +259,10 @@ def sample_csg(
             "could not be placed that precisely (and would be far too many); pass a larger radius"
         )
     ts = build_task_set(nf, surface_boxes(nf, boxes, 1.0), boxes, rn, 1.0)
-    _check_estimate(estimate_samples(ts, rn), max_samples, False)
+    _check_estimate(_estimate_from_tasks(ts, rn), max_samples, False)
     C = np.ascontiguousarray(nf.coefficients)
-    ts, leaves = _subdivide(C, ts, rn, min_size * rn, distortion == "sqrt3", refine, trace, progress, reduce_radius)
+    ts, leaves = _subdivide(C, ts, rn, min_size * rn, distortion == "sqrt3", refine, trace, progress, reduce_radius,
+                            max_samples)
     _check_estimate(leaves.samples, max_samples, True)
     return _emit(nf, C, ts, leaves, rn, reduce_radius, trace, frame, t0)
 
@@ -261,7 +283,7 @@ def _grown(a: np.ndarray, used: int) -> np.ndarray:
     return b
 
 
-def _pass(C, ts: TaskSet, radius, min_size, sqrt3, refine, trace, defer, job_range, bar, bufs):
+def _pass(C, ts: TaskSet, radius, min_size, sqrt3, refine, trace, defer, job_range, bar, bufs, max_samples):
     """Run ``kernel.subdivide_all`` over ``job_range`` (chunked for the progress bar), growing buffers."""
     for start, end in job_range:
         job = start
@@ -269,11 +291,13 @@ def _pass(C, ts: TaskSet, radius, min_size, sqrt3, refine, trace, defer, job_ran
             LF, LI, LA, TT, TI, TP, TJ, UR, counters, fill = bufs
             nl, nla, nt, npt, nur = fill
             nl, nla, nt, npt, nur, job, overflow = subdivide_all(
-                C, ts, radius, min_size, tol.MIN_REGION * radius, tol.ON_SURFACE, sqrt3, refine, trace, defer,
+                C, ts, radius, min_size, tol.MIN_REGION * min(radius, 1.0), tol.ON_SURFACE, sqrt3, refine, trace, defer,
                 LF, LI, LA, TT, TI, TP, TJ, UR, counters, job, int(end), nl, nla, nt, npt, nur,
             )  # fmt: skip
             fill = [nl, nla, nt, npt, nur]
             if overflow == OVERFLOW["leaves"]:
+                if max_samples is not None and nl > max_samples:  # every leaf has ≥ 1 sample
+                    _check_estimate(nl + 1, max_samples, True, "at least")
                 LF, LI = _grown(LF, nl), _grown(LI, nl)
             elif overflow == OVERFLOW["clip_lists"]:
                 LA = _grown(LA, nla)
@@ -290,7 +314,7 @@ def _pass(C, ts: TaskSet, radius, min_size, sqrt3, refine, trace, defer, job_ran
             bar.update(1)
 
 
-def _subdivide(C, ts: TaskSet, radius, min_size, sqrt3, refine, trace, progress, reduce_radius):
+def _subdivide(C, ts: TaskSet, radius, min_size, sqrt3, refine, trace, progress, reduce_radius, max_samples=None):
     """Pass 1 (with deferral of failed feature searches), the neighbour rule, pass 1b on the rest."""
     jobs = len(ts.job_task)
     cap = 64 * jobs + 1024
@@ -306,7 +330,7 @@ def _subdivide(C, ts: TaskSet, radius, min_size, sqrt3, refine, trace, progress,
         ends = ts.job_ptr[1:]
         ranges = list(zip(ts.job_ptr[:-1], ends, strict=True))
         bar = tqdm(total=len(ranges) + 1, desc="subdividing", unit="quadric")
-    _pass(C, ts, radius, min_size, sqrt3, refine, trace, True, ranges, bar, bufs)
+    _pass(C, ts, radius, min_size, sqrt3, refine, trace, True, ranges, bar, bufs, max_samples)
     fill = bufs[9]
     nl, nur = fill[0], fill[4]
     UR = bufs[7][:nur].copy()
@@ -321,7 +345,8 @@ def _subdivide(C, ts: TaskSet, radius, min_size, sqrt3, refine, trace, progress,
     if len(redo):  # pass 1b: the deferred regions not covered by a neighbour, searched no more
         ts_all = ts.with_regions(redo)
         bufs[9][4] = 0
-        _pass(C, ts_all, radius, min_size, sqrt3, refine, trace, False, [(jobs, len(ts_all.job_task))], None, bufs)
+        _pass(C, ts_all, radius, min_size, sqrt3, refine, trace, False, [(jobs, len(ts_all.job_task))], None, bufs,
+              max_samples)
         fill = bufs[9]
         nl, nur = fill[0], fill[4]
         UR2 = bufs[7][:nur].copy()

@@ -76,6 +76,12 @@ class TaskSet(NamedTuple):
     job_quadrant: np.ndarray
     job_flags: np.ndarray
 
+    def lists(self, i: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Return task ``i``'s own-term list, its term slices (into the third) and the other-term list."""
+        own = self.own[self.own_ptr[i] : self.own_ptr[i + 1]]
+        slices = self.slice_ptr[self.other_ptr[i] : self.other_ptr[i + 1] + 1]
+        return np.ascontiguousarray(own), np.ascontiguousarray(slices), self.other
+
     def with_regions(self, UR: np.ndarray) -> TaskSet:
         """Return this task set with the regions ``UR`` (rows of ``kernel._record_region``) appended as jobs."""
         src = UR[:, 5].astype(np.int64)
