@@ -111,7 +111,8 @@ def test_projective_transform_commutes_up_to_w_squared(seed, name):
     q = QUADRIC_CONSTRUCTORS[name]()
     M = _random_affine(rng)
     M[3, :3] = 0.2 * rng.normal(size=3)  # a projective row
-    if np.linalg.cond(M) > 1e6:
+    cond = np.linalg.cond(M)
+    if cond > 1e6:
         return
     qt = q.transformed(M)
     pts = rng.normal(size=(50, 3))
@@ -119,10 +120,9 @@ def test_projective_transform_commutes_up_to_w_squared(seed, name):
     keep = np.abs(h[:, 3]) > 0.1
     w = h[keep, 3]
     image = h[keep, :3] / w[:, None]
-    # Q'(dehomogenised Mx) · w² = Q(x)
-    np.testing.assert_allclose(
-        qt.value(image) * w**2, q.value(pts[keep]), rtol=1e-8, atol=1e-8
-    )
+    # Q'(dehomogenised Mx) · w² = Q(x), up to rounding amplified by the conditioning of M
+    tol = max(1e-8, 1e-15 * cond**2)
+    np.testing.assert_allclose(qt.value(image) * w**2, q.value(pts[keep]), rtol=tol, atol=tol)
 
 
 def test_transform_accepts_3x4_and_translation_composes():

@@ -24,7 +24,7 @@ from csgnb.quadric.arguments import as_points
 from csgnb.quadric.evaluate import ieee_jit, inline_jit
 from csgnb.quadric.frames import FORM_GRAPH, as_coordinates, as_heightfield
 
-__all__ = ["distortion", "distortion_bounds", "delta_range"]
+__all__ = ["distortion", "distortion_bounds", "delta_range", "delta_at_points"]
 
 
 @inline_jit
@@ -72,6 +72,31 @@ def delta_range(form, ax, bx, ay, by, ac, x0, y0, x1, y1):
     if lo == math.inf:
         return 1.0, math.inf
     return math.sqrt(1.0 + lo), (math.inf if bad else math.sqrt(1.0 + hi))
+
+
+@inline_jit
+def delta_at_points(form, ax, bx, ay, by, ac, x0, y0, x1, y1, x2, y2):
+    """Return max δ at three points, skipping points where N = T = 0 (inf if one is off the domain).
+
+    Over a region that is a triangle in (U, V) with these corners, δ² is linear-fractional, so
+    this is its maximum over the region (not over the region's bounding box, as ``delta_range``).
+    """
+    hi = 0.0
+    for c in range(3):
+        x = x0 if c == 0 else (x1 if c == 1 else x2)
+        y = y0 if c == 0 else (y1 if c == 1 else y2)
+        gx = 2.0 * ax * x + bx
+        gy = 2.0 * ay * y + by
+        N = gx * gx + gy * gy
+        if form == FORM_GRAPH:
+            hi = max(hi, N)
+            continue
+        T = 4.0 * ((ax * x + bx) * x + (ay * y + by) * y + ac)
+        if T > 0.0:
+            hi = max(hi, N / T)
+        elif not (T == 0.0 and N == 0.0):
+            return math.inf
+    return math.sqrt(1.0 + hi)
 
 
 @ieee_jit

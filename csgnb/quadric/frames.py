@@ -159,8 +159,10 @@ def frame_kernel(Q, center, axes, lam, beta, form, coef):
         for s in range(3):
             A[r, s] = Q[r, s]
     c = Q[3, 3]
-    w, U = np.linalg.eigh(A)
+    w, U0 = np.linalg.eigh(A)
+    U = np.ascontiguousarray(U0)
     lam_min, lam_max = w[0], w[2]
+    _canonical_eigenvectors(w, U)
     anorm = 0.0
     for r in range(3):
         for s in range(3):
@@ -271,6 +273,68 @@ def frame_kernel(Q, center, axes, lam, beta, form, coef):
         else:
             form[k] = FORM_NONE
     return central, gamma, lam_min, lam_max
+
+
+@ieee_jit
+def _canonical_eigenvectors(w, U):
+    """Make the eigenvectors ``U`` (columns) of A independent of rounding where A leaves them free.
+
+    Within a repeated eigenvalue (a circular cylinder's pair, a sphere's triple: eigenvalues within
+    ``tolerances.EIGENVECTOR_GAP`` of each other) any orthonormal basis is one; eigh returns one
+    that depends on the last bits of A. Take the world axes instead (a pair: the axis with the
+    largest part in the plane, then its normal in the plane; a triple: x, y, z), and give every
+    vector the sign that makes its largest component positive. So a model and its scaled or
+    translated copy get the same frames, and the same samples.
+    """
+    top = max(abs(w[0]), abs(w[2]))
+    gap = tol.EIGENVECTOR_GAP * top
+    same01 = abs(w[1] - w[0]) <= gap
+    same12 = abs(w[2] - w[1]) <= gap
+    if same01 and same12:
+        for r in range(3):
+            for c in range(3):
+                U[r, c] = 1.0 if r == c else 0.0
+        return
+    if same01 or same12:
+        m = 2 if same01 else 0  # the well-defined eigenvector
+        k0, k1 = (0, 1) if same01 else (1, 2)
+        n0, n1, n2 = U[0, m], U[1, m], U[2, m]
+        big = 0
+        for e in range(3):
+            if abs(U[e, m]) > abs(U[big, m]):
+                big = e
+        if U[big, m] < 0.0:
+            n0, n1, n2 = -n0, -n1, -n2
+        U[0, m], U[1, m], U[2, m] = n0, n1, n2
+        best = 0
+        best_p = -1.0
+        for e in range(3):  # the world axis with the largest part in the eigenplane
+            ne = n0 if e == 0 else (n1 if e == 1 else n2)
+            p = 1.0 - ne * ne
+            if p > best_p + 1e-12:
+                best, best_p = e, p
+        ne = n0 if best == 0 else (n1 if best == 1 else n2)
+        u0, u1, u2 = -ne * n0, -ne * n1, -ne * n2
+        if best == 0:
+            u0 += 1.0
+        elif best == 1:
+            u1 += 1.0
+        else:
+            u2 += 1.0
+        un = math.sqrt(u0 * u0 + u1 * u1 + u2 * u2)
+        u0, u1, u2 = u0 / un, u1 / un, u2 / un
+        U[0, k0], U[1, k0], U[2, k0] = u0, u1, u2
+        U[0, k1] = n1 * u2 - n2 * u1
+        U[1, k1] = n2 * u0 - n0 * u2
+        U[2, k1] = n0 * u1 - n1 * u0
+    for c in range(3):
+        big = 0
+        for e in range(3):
+            if abs(U[e, c]) > abs(U[big, c]) + 1e-12:
+                big = e
+        if U[big, c] < 0.0:
+            for e in range(3):
+                U[e, c] = -U[e, c]
 
 
 @inline_jit

@@ -42,6 +42,11 @@ entry-wise rounding of A (from transforms, ≈ a few EPS per entry) moves λ by 
 (first order), so smaller eigenvalues are indistinguishable from 0 — a rotated cylinder's third
 eigenvalue. An eigenvalue of an exactly diagonal A is never noise (uᵀ|A|u = |λ|)."""
 
+EIGENVECTOR_GAP = 1e-8
+"""Eigenvalues of A within EIGENVECTOR_GAP × max|λ| of each other are one repeated eigenvalue: their
+eigenvectors are determined only to EPS / gap ≥ 1e-8, so the frame takes canonical ones (world
+axes) — the same for a model and its scaled or translated copy (``frames._canonical_eigenvectors``)."""
+
 LINEAR_NOISE = 2.0**-40
 """The null-space part β of b (paraboloids, single planes) is zero when |β| ≤ LINEAR_NOISE ·
 (|b| + |A| |q| + √(|A| |c|)) — the magnitude of the terms of b − Aq, and of the rounding that a

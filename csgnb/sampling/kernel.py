@@ -27,7 +27,8 @@ the splat radius:
    (faster, but can leave holes, as the paper says);
 5. otherwise split the longest edge (at a point of its (U, V)-segment, so that the halves are
    (U, V)-triangles again), evaluate d_Qab at the new corner and recurse. Regions below
-   ``min_region`` are given up (``tolerances.MIN_REGION``) — and then resolved after pass 1 if a
+   ``tolerances.MIN_REGION`` of the radius (and of the quadric's radius of curvature, ``tasks``) are
+   given up — and then resolved after pass 1 if a
    single sample of the same quadric covers them (``cover_by_neighbours``: the tips of surface
    patches, where d_Qab vanishes only at the tip); the rest is counted as unresolved: isolated
    points where d_Qab touches 0 with no sample of the quadric nearby (a sphere touching a plane
@@ -61,6 +62,8 @@ import numpy as np
 from csgnb.csg.distance import box_distance, quadric_distance
 from csgnb.quadric import tolerances as tol
 from csgnb.quadric.evaluate import ieee_jit, inline_jit
+from csgnb.quadric.distortions import delta_at_points
+from csgnb.quadric.frames import FORM_SHEETS
 from csgnb.sampling.geometry import (
     _norm2,
     arc_midpoint,
@@ -229,7 +232,7 @@ def subdivide_all(
     ts,
     radius,
     min_size,
-    min_region,
+    min_region_factor,
     on_surface,
     sqrt3_mode,
     refine,
@@ -278,7 +281,7 @@ def subdivide_all(
     and call again from ``next_job``.
     """
     own_ptr, own_all, other_ptr, slice_ptr, other_idx = ts.own_ptr, ts.own, ts.other_ptr, ts.slice_ptr, ts.other
-    t_own_box, t_rcap = ts.own_box, ts.rcap
+    t_own_box, t_rcap, t_length = ts.own_box, ts.rcap, ts.length
     origin, frame, coef, pform = ts.origin, ts.frame, ts.coef, ts.form
     job_task, job_plane, job_sheet, job_tri = ts.job_task, ts.job_plane, ts.job_sheet, ts.job_tri
     job_uv, job_quadrant, job_flags = ts.job_uv, ts.job_quadrant, ts.job_flags
@@ -310,6 +313,7 @@ def subdivide_all(
     t0 = 0
     t1 = 0
     s0 = 0
+    min_region = 0.0
     b0, b1, b2, b3, b4, b5 = 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
 
     for job in range(job_start, n_jobs):
@@ -322,6 +326,8 @@ def subdivide_all(
                 own_box[e] = t_own_box[task, e]
             b0, b1, b2, b3, b4, b5 = own_box[0], own_box[1], own_box[2], own_box[3], own_box[4], own_box[5]
             rcap = t_rcap[task]
+            # give up regions far below the splat and far below the quadric's own curvature
+            min_region = min_region_factor * min(radius, min(1.0, t_length[task]))
             t0, t1 = other_ptr[task], other_ptr[task + 1]  # this task's slices: slice_ptr[t0:t1 + 1]
             s0 = slice_ptr[t0]
         slices = slice_ptr[t0 : t1 + 1]
@@ -344,6 +350,7 @@ def subdivide_all(
         sheet = job_sheet[job]
         sx, sy = job_quadrant[job, 0], job_quadrant[job, 1]
         uv = job_uv[job]
+        apex_plane = fm == FORM_SHEETS and ac == 0.0 and bx == 0.0 and by == 0.0 and uv == 3
         # the plane as one array, for the rarely called helpers
         plane[0], plane[1], plane[2] = o0, o1, o2
         plane[3], plane[4], plane[5] = f00, f01, f02
@@ -409,6 +416,23 @@ def subdivide_all(
                     w = corner_reach(v0x, v0y, v1x, v1y, v2x, v2y, c) + bulge
                     if w <= rho_r and (best < 0 or w < best_w):
                         best, best_w = c, w
+            if best < 0 and apex_plane and delta == math.inf:
+                # A cone's apex: t is homogeneous of degree 1, so the radial line from the apex to
+                # any point of the region stays in it (a (U, V)-segment from 0) and lifts to a
+                # straight ray of slope ≤ δ; δ over the region is its maximum at the (U, V) corners
+                # (finite even where the region's box leaves the domain). A sample at the apex then
+                # covers the region if δ_R · (distance to the farthest corner) ≤ r.
+                for c in range(3):
+                    cx_ = v0x if c == 0 else (v1x if c == 1 else v2x)
+                    cy_ = v0y if c == 0 else (v1y if c == 1 else v2y)
+                    dc = d0 if c == 0 else (d1 if c == 1 else d2)
+                    if cx_ == 0.0 and cy_ == 0.0 and (kept or dc <= on_surface):
+                        d_r = delta_at_points(fm, ax, bx, ay, by, ac, v0x, v0y, v1x, v1y, v2x, v2y)
+                        w = corner_reach(v0x, v0y, v1x, v1y, v2x, v2y, c)
+                        if d_r < math.inf and w * d_r <= radius:
+                            best, best_w = c, w
+                            delta = d_r
+                            rho_r = radius / delta
             if best >= 0:
                 emit_kind = 0
                 status = 0

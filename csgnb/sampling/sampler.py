@@ -291,7 +291,7 @@ def _pass(C, ts: TaskSet, radius, min_size, sqrt3, refine, trace, defer, job_ran
             LF, LI, LA, TT, TI, TP, TJ, UR, counters, fill = bufs
             nl, nla, nt, npt, nur = fill
             nl, nla, nt, npt, nur, job, overflow = subdivide_all(
-                C, ts, radius, min_size, tol.MIN_REGION * min(radius, 1.0), tol.ON_SURFACE, sqrt3, refine, trace, defer,
+                C, ts, radius, min_size, tol.MIN_REGION, tol.ON_SURFACE, sqrt3, refine, trace, defer,
                 LF, LI, LA, TT, TI, TP, TJ, UR, counters, job, int(end), nl, nla, nt, npt, nur,
             )  # fmt: skip
             fill = [nl, nla, nt, npt, nur]

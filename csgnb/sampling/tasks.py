@@ -42,6 +42,9 @@ class TaskSet(NamedTuple):
     quadric : (t,) int64 — normal-form index of each task's quadric; term : (t,) int64.
     box, own_box : (t, 6) float64 — where its samples can lie, and that box grown by ``rcap``.
     rcap : (t,) float64 — largest |d_Qab| used (distances are clamped to it).
+    length : (t,) float64 — the smallest length of the quadric's heightfields (a radius of curvature:
+        1/(2|α|) of a graph, |b|/2 of a parabolic sheet, √|α_c| of a central one): regions are not
+        given up before they are far smaller than it (``tolerances.MIN_REGION``).
     own_ptr : (t + 1,) int64, own : int64 — other quadrics of its term that matter.
     other_ptr : (t + 1,) int64 — task i's other terms are slices ``slice_ptr[e]:slice_ptr[e + 1]``
         of ``other`` for e in ``other_ptr[i]:other_ptr[i + 1]`` (a slice may be empty: the term
@@ -58,6 +61,7 @@ class TaskSet(NamedTuple):
     box: np.ndarray
     own_box: np.ndarray
     rcap: np.ndarray
+    length: np.ndarray
     own_ptr: np.ndarray
     own: np.ndarray
     other_ptr: np.ndarray
@@ -108,7 +112,7 @@ def _box_gap(a, b):
 
 @jit
 def _tasks_kernel(Ms, C, term_start, surface, orient, boxes, term_box, radius, unit,
-                  t_quadric, t_term, t_box, t_rcap, own_ptr, own, other_ptr, slice_ptr, other,
+                  t_quadric, t_term, t_box, t_rcap, t_length, own_ptr, own, other_ptr, slice_ptr, other,
                   origin, frame, coef, form, job_ptr, jt, jp, js, ju, jq, job_task):
     """Fill the task arrays (capacity n tasks); returns (tasks, own entries, slices, other entries, jobs)."""
     n = Ms.shape[0]
@@ -215,6 +219,22 @@ def _tasks_kernel(Ms, C, term_start, surface, orient, boxes, term_box, radius, u
         for e in range(6):
             t_box[nt, e] = bx[e]
         t_rcap[nt] = rcap
+        length = math.inf
+        for k in range(3):
+            if fm[k] == 0:
+                continue
+            ax, bx, ay, by, ac = cf[k, 0], cf[k, 1], cf[k, 2], cf[k, 3], cf[k, 4]
+            if fm[k] == 2:  # a graph t = αx² + ...: radius of curvature 1/(2|α|) at its vertex
+                for a_ in (ax, ay):
+                    if a_ != 0.0:
+                        length = min(length, 0.5 / abs(a_))
+            else:
+                for b_ in (bx, by):
+                    if b_ != 0.0:
+                        length = min(length, 0.5 * abs(b_))
+                if ac != 0.0:
+                    length = min(length, math.sqrt(abs(ac)))
+        t_length[nt] = length
         for k in range(3):
             for e in range(3):
                 origin[nt, k, e] = center[e]
@@ -254,6 +274,7 @@ def build_task_set(nf, boxes: np.ndarray, term_box: np.ndarray, radius: float, u
     t_term = np.empty(n, dtype=np.int64)
     t_box = np.empty((n, 6))
     t_rcap = np.empty(n)
+    t_length = np.empty(n)
     own_ptr = np.empty(n + 1, dtype=np.int64)
     own = np.empty(max(n * n, 1), dtype=np.int64)
     other_ptr = np.empty(n + 1, dtype=np.int64)
@@ -274,14 +295,14 @@ def build_task_set(nf, boxes: np.ndarray, term_box: np.ndarray, radius: float, u
     nt, no, ns, nx, nj = _tasks_kernel(
         Ms, C, np.ascontiguousarray(nf.term_start), np.ascontiguousarray(nf.surface),
         np.ascontiguousarray(nf.orientation), np.ascontiguousarray(boxes), np.ascontiguousarray(term_box),
-        float(radius), float(unit), t_quadric, t_term, t_box, t_rcap, own_ptr, own, other_ptr, slice_ptr,
+        float(radius), float(unit), t_quadric, t_term, t_box, t_rcap, t_length, own_ptr, own, other_ptr, slice_ptr,
         other, origin, frame, coef, form, job_ptr, jt, jp, js, ju, jq, job_task,
     )  # fmt: skip
     box = t_box[:nt]
     rc = t_rcap[:nt]
     own_box = np.concatenate([box[:, :3] - rc[:, None], box[:, 3:] + rc[:, None]], axis=1)
     return TaskSet(
-        t_quadric[:nt], t_term[:nt], box, own_box, rc, own_ptr[: nt + 1], own[:no], other_ptr[: nt + 1],
+        t_quadric[:nt], t_term[:nt], box, own_box, rc, t_length[:nt], own_ptr[: nt + 1], own[:no], other_ptr[: nt + 1],
         slice_ptr[: ns + 1], other[:nx], origin[:nt], frame[:nt], coef[:nt], form[:nt], job_ptr[: nt + 1],
         job_task[:nj], jp[:nj], js[:nj], jt[:nj], ju[:nj], jq[:nj], np.zeros(nj, dtype=np.int64),
     )  # fmt: skip
