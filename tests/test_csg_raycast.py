@@ -8,7 +8,6 @@ import pytest
 from csgnb.csg import box, sphere
 from tests.raycast_reference import graph_first_order_distance, random_rays, ray_surface_points
 
-
 # -- checks of the reference itself ----------------------------------------------------------------
 
 

@@ -17,13 +17,13 @@ from csgnb.quadric import (
 from csgnb.sampling.domains import quadric_jobs
 from csgnb.sampling.geometry import (
     arc_midpoint,
-    segment_point,
     corner_reach,
     delta_range,
     discs_cover,
     enclosing_circle,
     lattice_plan,
     region_bulge,
+    segment_point,
 )
 
 SQRT3 = np.sqrt(3.0)
@@ -197,7 +197,8 @@ def test_domains_partition_the_surface_with_low_distortion(name):
             on_sheet = (np.sign(loc[:, 2]) == sheet[j]) | (np.abs(loc[:, 2]) <= 1e-12)
         sx, sy = quad[j]
         flags = int(uv[j])
-        in_quad = ((np.sign(loc[:, 0]) * sx >= 0) | (flags & 1 == 0)) & ((np.sign(loc[:, 1]) * sy >= 0) | (flags & 2 == 0))
+        in_quad = (((np.sign(loc[:, 0]) * sx >= 0) | (flags & 1 == 0))
+                   & ((np.sign(loc[:, 1]) * sy >= 0) | (flags & 2 == 0)))
         inside = _inside_convex(_to_uv(tri[j], flags), _to_uv(loc[:, :2], flags), tol=1e-10) & in_quad & on_sheet
         counts += inside
         if inside.any():

@@ -103,8 +103,9 @@ def _sharp_paraboloids():
     up = csg.leaf(elliptic_paraboloid((0.5, 0.5)).translated((0, 0, -0.02)), "lens up")
     down = csg.leaf(elliptic_paraboloid((0.5, 0.5)).transformed(np.diag([1.0, 1.0, -1.0, 1.0])).translated(
         (0, 0, 0.02)), "lens down")
-    fin = csg.leaf(hyperbolic_paraboloid((0.6, 0.6)).translated((1.2, 0, 0)), "fin saddle") & csg.leaf(
-        parallel_planes((1.0, 0.0, 0.0), 1.19, 1.21), "fin slab") & csg.box((0.7, -0.5, -0.5), (1.7, 0.5, 0.5), "fin box")
+    fin = (csg.leaf(hyperbolic_paraboloid((0.6, 0.6)).translated((1.2, 0, 0)), "fin saddle")
+           & csg.leaf(parallel_planes((1.0, 0.0, 0.0), 1.19, 1.21), "fin slab")
+           & csg.box((0.7, -0.5, -0.5), (1.7, 0.5, 0.5), "fin box"))
     spike = csg.leaf(elliptic_paraboloid((0.02, 0.02)).translated((0.5, 0.9, 0.0)), "spike") & csg.sphere(
         (0.5, 0.9, 0.2), 0.22, "spike ball")
     return csg.union(up & down, fin, spike), ((0.6, 0.3, 0.0), 1.4)

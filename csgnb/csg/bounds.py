@@ -101,7 +101,7 @@ def _cylinder_rows(center, axes, lam, rhs, N, h, at):
                 v1 += axes[1, k] * axes[e, k]
                 v2 += axes[2, k] * axes[e, k]
         nv = math.sqrt(v0 * v0 + v1 * v1 + v2 * v2)
-        if nv <= 1e-9:
+        if nv <= tol.SPAN:
             continue  # the world axis is normal to the span: the solid is unbounded along it
         for sgn in (1.0, -1.0):
             n0, n1, n2 = sgn * v0 / nv, sgn * v1 / nv, sgn * v2 / nv

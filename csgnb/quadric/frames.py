@@ -311,7 +311,7 @@ def _canonical_eigenvectors(w, U):
         for e in range(3):  # the world axis with the largest part in the eigenplane
             ne = n0 if e == 0 else (n1 if e == 1 else n2)
             p = 1.0 - ne * ne
-            if p > best_p + 1e-12:
+            if p > best_p + tol.TIE:
                 best, best_p = e, p
         ne = n0 if best == 0 else (n1 if best == 1 else n2)
         u0, u1, u2 = -ne * n0, -ne * n1, -ne * n2
@@ -330,7 +330,7 @@ def _canonical_eigenvectors(w, U):
     for c in range(3):
         big = 0
         for e in range(3):
-            if abs(U[e, c]) > abs(U[big, c]) + 1e-12:
+            if abs(U[e, c]) > abs(U[big, c]) + tol.TIE:
                 big = e
         if U[big, c] < 0.0:
             for e in range(3):

@@ -283,7 +283,7 @@ class _Builder:
         if len(poly_uv) < 3 or abs(_area(poly_uv)) <= self.eps * self.eps:
             return
         pts = self.xy(poly_uv)
-        same = 1e-12 * float(np.max(np.abs(pts)))
+        same = tol.SAME_POINT * float(np.max(np.abs(pts)))
         keep = [0]
         for k in range(1, len(pts)):
             if np.max(np.abs(pts[k] - pts[keep[-1]])) > same:
@@ -302,7 +302,7 @@ class _Builder:
         scale = float(np.max(np.abs(pts)))
         for k in range(1, len(pts) - 1):
             tri = pts[[0, k, k + 1]]
-            if abs(_area(tri)) > 1e-14 * scale * scale:
+            if abs(_area(tri)) > 1e2 * tol.SAME_POINT * scale * scale:
                 self.emit("triangle", tri)
 
     def curved(self, poly_uv: np.ndarray, tags: list[bool], depth: int = 0) -> None:
@@ -392,7 +392,7 @@ def plane_regions(q: Quadric, plane: SamplingPlane, box_lo, box_hi) -> list[Basi
                 continue
             u0, u1 = (xr[0] ** 2, xr[1] ** 2) if squared[0] else xr
             v0, v1 = (yr[0] ** 2, yr[1] ** 2) if squared[1] else yr
-            eps = 1e-12 * max(abs(u0), abs(u1), abs(v0), abs(v1))
+            eps = tol.SAME_POINT * max(abs(u0), abs(u1), abs(v0), abs(v1))
             box = np.array([[u0, v0], [u1, v0], [u1, v1], [u0, v1]])
             for octant in ("x", "y"):
                 if same_octants and octant == "y":

@@ -106,3 +106,28 @@ sample's reach, are searched for a point of a tangency curve (``csgnb.sampling.k
 and, if none is found, handed to the neighbour rule: small enough that a sample next to them covers
 them, large enough that tangency bands (where d_Qab grows quadratically) are not cut into tiny
 regions first."""
+
+# -- small relative margins (dimensionless) -----------------------------------------------------
+
+TIE = 1e-12
+"""Ties between unit-vector components (which world axis a canonical eigenvector follows, which
+component sets its sign) are broken towards the first axis unless one is larger by TIE: rounding
+must not flip the choice between a model and its scaled copy."""
+
+SAME_POINT = 1e-12
+"""Region polygon vertices closer than SAME_POINT × the largest |coordinate| are one vertex
+(``csgnb.quadric.regions``); fan triangles with |area| ≤ (1e2 · SAME_POINT)·scale² are dropped."""
+
+SPAN = 1e-9
+"""A world axis whose projection on the span of a quadric's positive eigen-directions is shorter
+than SPAN is normal to it (``csgnb.csg.bounds``: no support row along it)."""
+
+ROOT_INTERVAL = 1e-15
+"""The feature-point root search stops when its bracket on the edge parameter is this short."""
+
+NEIGHBOUR_MARGIN = 1e-12
+"""The neighbour rule covers a region by a sample only with this relative margin on the radius."""
+
+LATTICE_FLOOR = 1e-3
+"""A lattice's plane covering radius r/δ − bulge is never below LATTICE_FLOOR · r/δ (the bulge
+reaches r/δ only at the depth limit, so this only keeps the arithmetic finite)."""

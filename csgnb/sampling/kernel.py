@@ -61,8 +61,8 @@ import numpy as np
 
 from csgnb.csg.distance import box_distance, quadric_distance
 from csgnb.quadric import tolerances as tol
-from csgnb.quadric.evaluate import ieee_jit, inline_jit
 from csgnb.quadric.distortions import delta_at_points
+from csgnb.quadric.evaluate import ieee_jit, inline_jit
 from csgnb.quadric.frames import FORM_SHEETS
 from csgnb.sampling.geometry import (
     _norm2,
@@ -211,7 +211,7 @@ def _feature_point(C, act, a0, na, own_box, slices, other_idx, plane, uv, sx, sy
                 if max(po, pt) <= on_surface:
                     return True, x, y, evals
                 fs = po if part == 0 else pt
-                if fs == 0.0 or hi - lo <= 1e-15:
+                if fs == 0.0 or hi - lo <= tol.ROOT_INTERVAL:
                     break
                 if (fs < 0.0) == (fa < 0.0):
                     lo, fa = s, fs
@@ -501,7 +501,7 @@ def subdivide_all(
                         else:
                             split = True
             count = 1
-            rho_l = max(rho_r - bulge, 1e-3 * rho_r)  # (bulge ≥ rho_r only at _MAX_DEPTH: never)
+            rho_l = max(rho_r - bulge, tol.LATTICE_FLOOR * rho_r)  # (bulge ≥ rho_r only at _MAX_DEPTH: never)
             if emit_kind == 1:
                 # a strongly curved region would get a needlessly dense lattice: split it (no
                 # distance query), as one whose distortion bound is loose (``refine``)
@@ -750,7 +750,7 @@ def cover_by_neighbours(ts, LF, LI, UR, radius, reduce_radius, covered):
             dist = math.sqrt(dx * dx + dy * dy + dz * dz)
             if LI[leaf, 1] == 0:
                 r_s = LF[leaf, 14] if reduce_radius else radius
-                if dist + rho <= r_s * (1.0 - 1e-12):
+                if dist + rho <= r_s * (1.0 - tol.NEIGHBOUR_MARGIN):
                     covered[u] = True
                     break
                 continue
@@ -799,7 +799,7 @@ def _lattice_covers(ts, LF, LI, leaf, cx, cy, cz, rho, radius, reduce_radius):
                     pform[task, k], coef[task, k, 0], coef[task, k, 1], coef[task, k, 2],
                     coef[task, k, 3], coef[task, k, 4], sheet, x, y)  # fmt: skip
                 ex, ey, ez = px - cx, py - cy, pz - cz
-                if math.sqrt(ex * ex + ey * ey + ez * ez) + rho <= r_s * (1.0 - 1e-12):
+                if math.sqrt(ex * ex + ey * ey + ez * ez) + rho <= r_s * (1.0 - tol.NEIGHBOUR_MARGIN):
                     return True
     return False
 
