@@ -219,9 +219,9 @@ def deduplicate_clip_sets(ptr: np.ndarray, idx: np.ndarray) -> tuple[np.ndarray,
     Returns start, count : (n,) int32 and buffer : (k,) int32.
     """
     n = len(ptr) - 1
-    start = np.empty(n, dtype=np.int64)
-    count = np.empty(n, dtype=np.int64)
-    buf = np.empty(max(len(idx), 1), dtype=np.int64)
+    start = np.empty(n, dtype=np.int32)
+    count = np.empty(n, dtype=np.int32)
+    buf = np.empty(max(len(idx), 1), dtype=np.int32)
     nb = _dedup_kernel(np.ascontiguousarray(ptr, dtype=np.int64), np.ascontiguousarray(idx, dtype=np.int64),
                        start, count, buf)
-    return start.astype(np.int32), count.astype(np.int32), buf[:nb].astype(np.int32)
+    return start, count, buf[:nb].copy()

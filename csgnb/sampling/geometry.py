@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import math
 
-from csgnb.quadric import tolerances as tol
 from csgnb.quadric.distortions import delta_range
 from csgnb.quadric.evaluate import inline_jit
 from csgnb.quadric.frames import plane_height
@@ -114,44 +113,70 @@ def _segment_distance(px, py, ax, ay, bx, by):
 
 
 @inline_jit
+def _arc_deviation(x0, y0, x1, y1, sx, sy, xs, ys):
+    """Return the largest distance of the (U, V)-segment's arc x0 y0 → x1 y1 from its chord.
+
+    The arc P(s) = (x(U(s)), y(V(s))), U and V linear in s, is convex and turns by at most 90°
+    within a quadrant, so it is a graph over its chord and its distance n·(P(s) − P(0)) from the
+    chord is extremal where n·P'(s) = 0 — a closed form: with a = nₓ·dx/dU-part, b = n_y·(…),
+    a²V = b²U (both coordinates squared) or √U = −a/(2 b) (one squared).
+    """
+    cx, cy = x1 - x0, y1 - y0
+    c = math.sqrt(cx * cx + cy * cy)
+    if c == 0.0:
+        return 0.0
+    nx, ny = -cy / c, cx / c
+    u0 = x0 * x0 if xs else x0
+    u1 = x1 * x1 if xs else x1
+    v0 = y0 * y0 if ys else y0
+    v1 = y1 * y1 if ys else y1
+    du, dv = u1 - u0, v1 - v0
+    s = -1.0
+    if xs and ys:
+        a = nx * sx * du
+        b = ny * sy * dv
+        den = a * a * dv - b * b * du
+        if a * b < 0.0 and den != 0.0:
+            s = (b * b * u0 - a * a * v0) / den
+    elif xs:
+        a = nx * sx * du
+        b = ny * dv
+        if a * b < 0.0:
+            r = -a / (2.0 * b)
+            s = (r * r - u0) / du
+    elif ys:
+        a = ny * sy * dv
+        b = nx * du
+        if a * b < 0.0:
+            r = -a / (2.0 * b)
+            s = (r * r - v0) / dv
+    if not (0.0 < s < 1.0):
+        return 0.0
+    u = u0 + s * du
+    v = v0 + s * dv
+    px = sx * math.sqrt(max(u, 0.0)) if xs else u
+    py = sy * math.sqrt(max(v, 0.0)) if ys else v
+    return abs(nx * (px - x0) + ny * (py - y0))
+
+
+@inline_jit
 def region_bulge(v0x, v0y, v1x, v1y, v2x, v2y, uv, sx, sy):
     """Return how far the region over the triangle v0 v1 v2 reaches beyond the straight triangle.
 
     ``uv``: the squared-coordinate flags of its (U, V)-sides in the quadrant of signs ``sx, sy``
-    (0: the region is the triangle, bulge 0). Each arc lies in the triangle of its chord and the intersection T
-    of its end tangents, so the lens between arc and chord is within dist(T, chord) of the chord;
-    the region differs from the straight triangle only by such lenses (a winding-number argument
-    that holds even when strongly curved sides flip the straight triangle's orientation). The
-    sampler works on the straight triangle with every radius shortened by this bound.
+    (0: the region is the triangle, bulge 0). The region differs from the straight triangle only by
+    the lenses between each side's arc and its chord (a winding-number argument that holds even
+    when strongly curved sides flip the straight triangle's orientation), and each lens is within
+    the arc's largest distance from its chord (``_arc_deviation``, exact). The sampler works on the
+    straight triangle with every radius shortened by this bound.
     """
     if uv == 0:
         return 0.0
     xs = (uv & 1) != 0
     ys = (uv & 2) != 0
-    bulge = 0.0
-    vx = (v0x, v1x, v2x)
-    vy = (v0y, v1y, v2y)
-    for e in range(3):
-        f = (e + 1) % 3
-        x0, y0 = vx[e], vy[e]
-        x1, y1 = vx[f], vy[f]
-        du = _to_uv(x1, xs) - _to_uv(x0, xs)
-        dv = _to_uv(y1, ys) - _to_uv(y0, ys)
-        # tangent of s ↦ (x(U(s)), y(V(s))), dx/ds = sx dU / 2|x| for a squared x (else dU):
-        # scaled by (2|x| if squared)(2|y| if squared) to stay finite on the axes
-        gx0 = sx if xs else 1.0
-        gy0 = sy if ys else 1.0
-        t0x = gx0 * du * (2.0 * abs(y0) if ys else 1.0)
-        t0y = gy0 * dv * (2.0 * abs(x0) if xs else 1.0)
-        t1x = gx0 * du * (2.0 * abs(y1) if ys else 1.0)
-        t1y = gy0 * dv * (2.0 * abs(x1) if xs else 1.0)
-        det = t1x * t0y - t0x * t1y
-        tn = math.sqrt(t0x * t0x + t0y * t0y) * math.sqrt(t1x * t1x + t1y * t1y)
-        if not abs(det) > tol.CURVED_SIDE * tn:
-            continue  # a straight side (axis-parallel or radial), or too short to bulge
-        w = ((x1 - x0) * (-t1y) + t1x * (y1 - y0)) / det
-        bulge = max(bulge, _segment_distance(x0 + w * t0x, y0 + w * t0y, x0, y0, x1, y1))
-    return bulge
+    return max(_arc_deviation(v0x, v0y, v1x, v1y, sx, sy, xs, ys),
+               max(_arc_deviation(v1x, v1y, v2x, v2y, sx, sy, xs, ys),
+                   _arc_deviation(v2x, v2y, v0x, v0y, sx, sy, xs, ys)))
 
 
 @inline_jit

@@ -65,6 +65,7 @@ from csgnb.quadric.distortions import delta_at_points
 from csgnb.quadric.evaluate import ieee_jit, inline_jit
 from csgnb.quadric.frames import FORM_SHEETS
 from csgnb.sampling.geometry import (
+    _arc_deviation,
     _norm2,
     arc_midpoint,
     corner_reach,
@@ -72,7 +73,6 @@ from csgnb.sampling.geometry import (
     discs_cover,
     lattice_plan,
     lift,
-    region_bulge,
     segment_point,
 )
 
@@ -92,9 +92,11 @@ __all__ = [
 #: Leaf status codes recorded in traces.
 STATUS = {"single": 0, "kept": 1, "discarded": 2, "small": 3, "unresolved": 4, "neighbour": 5}
 
-#: Columns of the leaf buffers of pass 1: floats (polygon x₀ y₀ … x₅ y₅, δ, aux, reach) and
+#: Columns of the leaf buffers of pass 1: floats (triangle x₀ y₀ … x₂ y₂, the world point of its first
+#: vertex, δ, aux, reach, rho) and
 #: integers (job, kind, vertices, samples); see ``subdivide_quadric``.
-LEAF_FLOAT_FIELDS = tuple(f"{a}{k}" for k in range(6) for a in "xy") + ("delta", "aux", "reach", "rho")
+LEAF_FLOAT_FIELDS = tuple(f"{a}{k}" for k in range(3) for a in "xy") + ("wx", "wy", "wz", "_9", "_10", "_11") + (
+    "delta", "aux", "reach", "rho")
 LEAF_INT_FIELDS = ("job", "kind", "corners", "count", "clip_start", "clip_len")
 #: Counters of ``subdivide_all`` (``counters[k]``).
 COUNTERS = ("distance_queries", "regions", "unresolved", "jobs", "quadric_distances", "feature_searches",
@@ -260,7 +262,8 @@ def subdivide_all(
     Writes, from the given fill levels on:
 
     * leaves that emit samples: ``LF`` (cap, 16) float64 (``LEAF_FLOAT_FIELDS``: the triangle —
-      its sample point alone for a single sample —, the distortion bound δ used, ``aux`` the
+      its sample point alone for a single sample —, the world point of that first vertex, the
+      distortion bound δ used, ``aux`` the
       distance from the samples below which no quadric of the term can come (single: |d_Qab| at
       the point; lattice: the slack of the keep discs), ``reach`` the world radius covering a
       single sample's region, ``rho`` the plane covering radius of a lattice), ``LI`` (cap, 6)
@@ -292,6 +295,7 @@ def subdivide_all(
     smax = 2 * _MAX_DEPTH + 8
     S_v = np.empty((smax, 6))
     S_d = np.empty((smax, 3))
+    S_b = np.empty((smax, 3))  # arc deviations of the sides v0→v1, v1→v2, v2→v0 (the bulge is their max)
     S_depth = np.empty(smax, dtype=np.int64)
     S_kept = np.zeros(smax, dtype=np.bool_)
     S_slack = np.empty(smax)
@@ -327,7 +331,9 @@ def subdivide_all(
             b0, b1, b2, b3, b4, b5 = own_box[0], own_box[1], own_box[2], own_box[3], own_box[4], own_box[5]
             rcap = t_rcap[task]
             # give up regions far below the splat and far below the quadric's own curvature
-            min_region = min_region_factor * min(radius, min(1.0, t_length[task]))
+            # (but never below MIN_REGION² of the radius: a needle 1e-11 thin would split forever)
+            floor = min(radius, 1.0)
+            min_region = min_region_factor * max(min(floor, t_length[task]), min_region_factor * floor)
             t0, t1 = other_ptr[task], other_ptr[task + 1]  # this task's slices: slice_ptr[t0:t1 + 1]
             s0 = slice_ptr[t0]
         slices = slice_ptr[t0 : t1 + 1]
@@ -376,6 +382,12 @@ def subdivide_all(
                 TP[npt, 0], TP[npt, 1], TP[npt, 2] = S_v[0, 2 * c], S_v[0, 2 * c + 1], dd
                 TJ[npt] = job
                 npt += 1
+        xs_ = (uv & 1) != 0
+        ys_ = (uv & 2) != 0
+        for c in range(3):
+            cn = (c + 1) % 3
+            S_b[0, c] = _arc_deviation(S_v[0, 2 * c], S_v[0, 2 * c + 1], S_v[0, 2 * cn], S_v[0, 2 * cn + 1], sx, sy,
+                                       xs_, ys_) if uv != 0 else 0.0
         S_depth[0] = 0
         S_kept[0] = False
         S_a0[0], S_an[0], S_clamp[0] = 0, n_own, rcap
@@ -392,8 +404,10 @@ def subdivide_all(
             a0, an, clamp = S_a0[top], S_an[top], S_clamp[top]
             searched = S_searched[top]
             a_top = a0 + an  # lists above belong to finished subtrees
-            # the region is within ``bulge`` of the straight triangle: shorten radii by it
-            bulge = region_bulge(v0x, v0y, v1x, v1y, v2x, v2y, uv, sx, sy)
+            # the region is within ``bulge`` of the straight triangle (``geometry.region_bulge``, its
+            # sides' deviations kept on the stack: a split computes three for two children)
+            sb0, sb1, sb2 = S_b[top, 0], S_b[top, 1], S_b[top, 2]
+            bulge = max(sb0, max(sb1, sb2))
             x0 = min(v0x, min(v1x, v2x)) - bulge
             y0 = min(v0y, min(v1y, v2y)) - bulge
             x1 = max(v0x, max(v1x, v2x)) + bulge
@@ -539,6 +553,7 @@ def subdivide_all(
                 if emit_kind == 0:
                     LF[nl, 0] = v0x if best == 0 else (v1x if best == 1 else (v2x if best == 2 else fx))
                     LF[nl, 1] = v0y if best == 0 else (v1y if best == 1 else (v2y if best == 2 else fy))
+                    LF[nl, 2] = 0.0  # (unused: a single sample has one vertex)
                     LI[nl, 2] = 1
                     LF[nl, 13] = slack if kept else max(-dbest, 0.0)
                     LF[nl, 14] = delta * best_w
@@ -548,6 +563,9 @@ def subdivide_all(
                     LF[nl, 13] = slack
                     LF[nl, 14] = radius
                     LF[nl, 15] = rho_l
+                # the world point of the leaf's first vertex (for the neighbour rule)
+                LF[nl, 6], LF[nl, 7], LF[nl, 8] = lift(o0, o1, o2, f00, f01, f02, f10, f11, f12, f20, f21, f22, fm, ax,
+                                                       bx, ay, by, ac, sheet, LF[nl, 0], LF[nl, 1])
                 nl += 1
             if status == 6:
                 continue
@@ -569,14 +587,21 @@ def subdivide_all(
             l2 = _norm2(v0x - v2x, v0y - v2y)
             if l0 >= l1 and l0 >= l2:  # edge v0 v1, opposite v2
                 ex0, ey0, ex1, ey1, ox, oy, de0, de1, do = v0x, v0y, v1x, v1y, v2x, v2y, d0, d1, d2
+                b_e1o, b_oe0 = sb1, sb2
             elif l1 >= l2:  # edge v1 v2, opposite v0
                 ex0, ey0, ex1, ey1, ox, oy, de0, de1, do = v1x, v1y, v2x, v2y, v0x, v0y, d1, d2, d0
+                b_e1o, b_oe0 = sb2, sb0
             else:  # edge v2 v0, opposite v1
                 ex0, ey0, ex1, ey1, ox, oy, de0, de1, do = v2x, v2y, v0x, v0y, v1x, v1y, d2, d0, d1
+                b_e1o, b_oe0 = sb0, sb1
             if uv != 0:
                 mx, my = arc_midpoint(ex0, ey0, ex1, ey1, sx, sy, uv)
+                b_e0m = _arc_deviation(ex0, ey0, mx, my, sx, sy, xs_, ys_)
+                b_me1 = _arc_deviation(mx, my, ex1, ey1, sx, sy, xs_, ys_)
+                b_mo = _arc_deviation(mx, my, ox, oy, sx, sy, xs_, ys_)
             else:
                 mx, my = 0.5 * (ex0 + ex1), 0.5 * (ey0 + ey1)
+                b_e0m, b_me1, b_mo = 0.0, 0.0, 0.0
             dm = -rcap
             c_a0, c_an, c_clamp = a0, an, clamp
             if not kept:
@@ -635,9 +660,11 @@ def subdivide_all(
                 if child == 0:
                     S_v[top, 0], S_v[top, 1], S_v[top, 2], S_v[top, 3] = ex0, ey0, mx, my
                     S_d[top, 0], S_d[top, 1] = de0, dm
+                    S_b[top, 0], S_b[top, 1], S_b[top, 2] = b_e0m, b_mo, b_oe0
                 else:
                     S_v[top, 0], S_v[top, 1], S_v[top, 2], S_v[top, 3] = mx, my, ex1, ey1
                     S_d[top, 0], S_d[top, 1] = dm, de1
+                    S_b[top, 0], S_b[top, 1], S_b[top, 2] = b_me1, b_e1o, b_mo
                 S_v[top, 4], S_v[top, 5] = ox, oy
                 S_d[top, 2] = do
                 S_depth[top] = depth + 1
@@ -685,8 +712,7 @@ def cover_by_neighbours(ts, LF, LI, UR, radius, reduce_radius, covered):
     tip) and along tangencies without a sign change (a sphere inside a cylinder of its radius),
     which sit next to the samples of the patch itself. ``covered`` (u,) bool is written.
     """
-    origin, frame, coef, pform = ts.origin, ts.frame, ts.coef, ts.form
-    job_task, job_plane, job_sheet = ts.job_task, ts.job_plane, ts.job_sheet
+    job_task = ts.job_task
     n_leaves = LI.shape[0]
     n_tasks = ts.quadric.shape[0]
     # the leaves of every task (leaves are in job order, jobs in task order — pass 1b's jobs
@@ -702,37 +728,59 @@ def cover_by_neighbours(ts, LF, LI, UR, radius, reduce_radius, covered):
         t = job_task[LI[leaf, 0]]
         order[fill[t]] = leaf
         fill[t] += 1
-    # a world ball per leaf: its first vertex and the world reach of the leaf's triangle
+    # only the tasks with regions to check matter
+    needed = np.zeros(n_tasks, dtype=np.bool_)
+    for u in range(UR.shape[0]):
+        needed[int(UR[u, 4])] = True
+    # a world ball per leaf: its first vertex (recorded by pass 1) and the world reach of its triangle
     P = np.empty((n_leaves, 4))
     for leaf in range(n_leaves):
-        job = LI[leaf, 0]
-        task = job_task[job]
-        k = job_plane[job]
-        P[leaf, 0], P[leaf, 1], P[leaf, 2] = lift(
-            origin[task, k, 0], origin[task, k, 1], origin[task, k, 2],
-            frame[task, k, 0, 0], frame[task, k, 0, 1], frame[task, k, 0, 2],
-            frame[task, k, 1, 0], frame[task, k, 1, 1], frame[task, k, 1, 2],
-            frame[task, k, 2, 0], frame[task, k, 2, 1], frame[task, k, 2, 2],
-            pform[task, k], coef[task, k, 0], coef[task, k, 1], coef[task, k, 2], coef[task, k, 3],
-            coef[task, k, 4], job_sheet[job], LF[leaf, 0], LF[leaf, 1])  # fmt: skip
+        if not needed[job_task[LI[leaf, 0]]]:
+            continue
+        P[leaf, 0], P[leaf, 1], P[leaf, 2] = LF[leaf, 6], LF[leaf, 7], LF[leaf, 8]
         if LI[leaf, 1] == 0:
             P[leaf, 3] = 0.0
         else:
             P[leaf, 3] = LF[leaf, 12] * corner_reach(LF[leaf, 0], LF[leaf, 1], LF[leaf, 2], LF[leaf, 3],
                                                      LF[leaf, 4], LF[leaf, 5], 0)
-    # per task, its leaves sorted by the x of their ball centers: a window of x ± (radius + the
-    # task's largest lattice reach) holds every leaf that can cover a region
+    # per task and group (singles, small lattices with reach ≤ 4 radii, large lattices), its leaves
+    # sorted by the x of their ball centers: a window of x ± (radius + the group's largest reach)
+    # holds every leaf that can cover a region (the few large lattices are one wide window)
+    kind_first = np.empty(3 * n_tasks + 1, dtype=np.int64)
+    sorted_leaf = np.empty(n_leaves, dtype=np.int64)
     key = np.empty(n_leaves)
-    for o in range(n_leaves):
-        key[o] = P[order[o], 0]
-    widest = np.zeros(n_tasks)
+    widest = np.zeros(3 * n_tasks)
+    at = 0
     for t in range(n_tasks):
-        a, b = count_t[t], count_t[t + 1]
-        idx = np.argsort(key[a:b])
-        order[a:b] = order[a:b][idx]
-        key[a:b] = key[a:b][idx]
-        for o in range(a, b):
-            widest[t] = max(widest[t], P[order[o], 3])
+        for kind in range(3):
+            g = 3 * t + kind
+            kind_first[g] = at
+            if not needed[t]:
+                continue
+            for o in range(count_t[t], count_t[t + 1]):
+                leaf = order[o]
+                group = 0 if LI[leaf, 1] == 0 else (1 if P[leaf, 3] <= 4.0 * radius else 2)
+                if group == kind:
+                    sorted_leaf[at] = leaf
+                    key[at] = P[leaf, 0]
+                    widest[g] = max(widest[g], P[leaf, 3])
+                    at += 1
+            a0 = kind_first[g]
+            idx = np.argsort(key[a0:at])
+            sorted_leaf[a0:at] = sorted_leaf[a0:at][idx]
+            key[a0:at] = key[a0:at][idx]
+    kind_first[3 * n_tasks] = at
+    # singles also by grid cell (cells of one radius; feature curves often lie in planes x = const)
+    cell = np.empty(n_leaves, dtype=np.int64)
+    h = radius
+    for t in range(n_tasks):
+        a0, b0 = kind_first[3 * t], kind_first[3 * t + 1]
+        for o in range(a0, b0):
+            leaf = sorted_leaf[o]
+            cell[o] = _cell_key(P[leaf, 0], P[leaf, 1], P[leaf, 2], h)
+        idx = np.argsort(cell[a0:b0])
+        sorted_leaf[a0:b0] = sorted_leaf[a0:b0][idx]
+        cell[a0:b0] = cell[a0:b0][idx]
     count = 0
     for u in range(UR.shape[0]):
         covered[u] = False
@@ -740,31 +788,67 @@ def cover_by_neighbours(ts, LF, LI, UR, radius, reduce_radius, covered):
         cx, cy, cz, rho = UR[u, 0], UR[u, 1], UR[u, 2], UR[u, 3]
         if not rho < radius:
             continue
-        half = radius + widest[t]
-        a, b = count_t[t], count_t[t + 1]
-        lo = a + np.searchsorted(key[a:b], cx - half)
-        hi = a + np.searchsorted(key[a:b], cx + half, side="right")
-        for o in range(lo, hi):
-            leaf = order[o]
-            dx, dy, dz = P[leaf, 0] - cx, P[leaf, 1] - cy, P[leaf, 2] - cz
-            dist = math.sqrt(dx * dx + dy * dy + dz * dz)
-            if LI[leaf, 1] == 0:
-                r_s = LF[leaf, 14] if reduce_radius else radius
-                if dist + rho <= r_s * (1.0 - tol.NEIGHBOUR_MARGIN):
+        # singles: a covering one is within one radius of the center, so in the ≤ 8 cells of the
+        # box center ± radius
+        a0, b0 = kind_first[3 * t], kind_first[3 * t + 1]
+        ix0, ix1 = int(math.floor((cx - h) / h)), int(math.floor((cx + h) / h))
+        iy0, iy1 = int(math.floor((cy - h) / h)), int(math.floor((cy + h) / h))
+        iz0, iz1 = int(math.floor((cz - h) / h)), int(math.floor((cz + h) / h))
+        for ix in range(ix0, ix1 + 1):
+            for iy in range(iy0, iy1 + 1):
+                for iz in range(iz0, iz1 + 1):
+                    if covered[u]:
+                        break
+                    kc = ((ix + (1 << 20)) << 42) | ((iy + (1 << 20)) << 21) | (iz + (1 << 20))
+                    lo, hi = a0, b0
+                    while lo < hi:  # first entry ≥ kc
+                        mid = (lo + hi) >> 1
+                        if cell[mid] < kc:
+                            lo = mid + 1
+                        else:
+                            hi = mid
+                    o = lo
+                    while o < b0 and cell[o] == kc:
+                        leaf = sorted_leaf[o]
+                        dx, dy, dz = P[leaf, 0] - cx, P[leaf, 1] - cy, P[leaf, 2] - cz
+                        r_s = LF[leaf, 14] if reduce_radius else radius
+                        if math.sqrt(dx * dx + dy * dy + dz * dz) + rho <= r_s * (1.0 - tol.NEIGHBOUR_MARGIN):
+                            covered[u] = True
+                            break
+                        o += 1
+        for kind in range(1, 3):  # then the nearest points of lattices
+            if covered[u]:
+                break
+            g = 3 * t + kind
+            a0, b0 = kind_first[g], kind_first[g + 1]
+            half = radius + widest[g]
+            lo = a0 + np.searchsorted(key[a0:b0], cx - half)
+            hi = a0 + np.searchsorted(key[a0:b0], cx + half, side="right")
+            for o in range(lo, hi):
+                leaf = sorted_leaf[o]
+                dx, dy, dz = P[leaf, 0] - cx, P[leaf, 1] - cy, P[leaf, 2] - cz
+                if abs(dy) > half or abs(dz) > half:
+                    continue
+                dist = math.sqrt(dx * dx + dy * dy + dz * dz)
+                if dist - P[leaf, 3] + rho <= radius and _lattice_covers(ts, LF, LI, leaf, cx, cy, cz, rho, radius,
+                                                                         reduce_radius):
                     covered[u] = True
                     break
-                continue
-            if dist - P[leaf, 3] + rho > radius:
-                continue  # no lattice point of this leaf is near enough
-            if _lattice_covers(ts, LF, LI, leaf, cx, cy, cz, rho, radius, reduce_radius):
-                covered[u] = True
-                break
         if covered[u]:
             count += 1
     return count
 
 
-@ieee_jit
+@inline_jit
+def _cell_key(x, y, z, h):
+    """A grid cell id of (x, y, z) for cells of size h (coordinates within 2²⁰ cells of 0)."""
+    ix = int(math.floor(x / h)) + (1 << 20)
+    iy = int(math.floor(y / h)) + (1 << 20)
+    iz = int(math.floor(z / h)) + (1 << 20)
+    return (ix << 42) | (iy << 21) | iz
+
+
+@inline_jit
 def _lattice_covers(ts, LF, LI, leaf, cx, cy, cz, rho, radius, reduce_radius):
     """Whether a lattice point of ``leaf`` covers the ball (c, ρ) (see ``cover_by_neighbours``)."""
     origin, frame, coef, pform = ts.origin, ts.frame, ts.coef, ts.form
@@ -778,17 +862,36 @@ def _lattice_covers(ts, LF, LI, leaf, cx, cy, cz, rho, radius, reduce_radius):
     r_s = LF[leaf, 12] * reach + (radius - LF[leaf, 12] * rho_l) if reduce_radius else radius
     inv = 1.0 / steps
     e1x, e1y, e2x, e2y = v1x - v0x, v1y - v0y, v2x - v0x, v2y - v0y
-    n_i = steps if centers else steps + 1
-    for i in range(n_i):
-        n_j = steps - i if centers else steps + 1 - i
-        for j in range(n_j):
-            for flip in range(2 if centers else 1):
-                if flip == 1 and i + j > steps - 2:
+    # the ball's center in the leaf's plane, in lattice coordinates: only the lattice points around
+    # it are candidates (any candidate that passes the exact world test covers the ball)
+    dx, dy, dz = cx - origin[task, k, 0], cy - origin[task, k, 1], cz - origin[task, k, 2]
+    lx = dx * frame[task, k, 0, 0] + dy * frame[task, k, 1, 0] + dz * frame[task, k, 2, 0] - v0x
+    ly = dx * frame[task, k, 0, 1] + dy * frame[task, k, 1, 1] + dz * frame[task, k, 2, 1] - v0y
+    det = e1x * e2y - e1y * e2x
+    if det == 0.0:
+        return False
+    a_ = (lx * e2y - ly * e2x) / det * steps
+    b_ = (e1x * ly - e1y * lx) / det * steps
+    for flip in range(2 if centers else 1):
+        if centers:
+            ia = a_ - cs if flip == 0 else a_ - 1.0 + cs
+            ib = b_ - ct if flip == 0 else b_ - 1.0 + ct
+        else:
+            ia, ib = a_, b_
+        i0 = int(math.floor(ia))
+        j0 = int(math.floor(ib))
+        for i in range(i0 - 1, i0 + 3):
+            for j in range(j0 - 1, j0 + 3):
+                if i < 0 or j < 0:
                     continue
                 if centers:
+                    if (flip == 0 and i + j > steps - 1) or (flip == 1 and i + j > steps - 2):
+                        continue
                     uu = (i + cs) * inv if flip == 0 else (i + 1 - cs) * inv
                     ww = (j + ct) * inv if flip == 0 else (j + 1 - ct) * inv
                 else:
+                    if i + j > steps:
+                        continue
                     uu, ww = i * inv, j * inv
                 x, y = v0x + uu * e1x + ww * e2x, v0y + uu * e1y + ww * e2y
                 px, py, pz = lift(
@@ -805,12 +908,14 @@ def _lattice_covers(ts, LF, LI, leaf, cx, cy, cz, rho, radius, reduce_radius):
 
 
 @ieee_jit
-def emit_all(C, ts, LF, LI, LA, radius, reduce_radius, pos, nrm, rad, ccount, ids, cidx, leaf_start, n, nc):
+def emit_all(C, ts, LF, LI, LA, radius, reduce_radius, center, scale, pos, nrm, rad, cptr, ids, cidx, leaf_start, n,
+             nc):
     """Pass 2: write the samples of the leaves ``LF``, ``LI``, ``LA`` (of all tasks) from ``leaf_start`` on.
 
-    ``pos``, ``nrm`` (N, 3), ``rad`` (N,) float64, ``ccount`` (N,) int32 and ``ids`` (N,) int32 (the
-    normal-form index of the sample's quadric) are the caller's output arrays, written from index
-    ``n`` on; clip indices go to ``cidx`` from ``nc`` on, in sample order. Returns ``(next_leaf,
+    ``pos``, ``nrm`` (N, 3), ``rad`` (N,) float64 and ``ids`` (N,) int32 (the normal-form index of
+    the sample's quadric) are the caller's output arrays, written from index ``n`` on, positions
+    and radii mapped to the world by ``center + scale · p``; clip indices go to ``cidx`` from
+    ``nc`` on, in sample order, and ``cptr`` (N + 1,) int64 gets their offsets (``cptr[n + 1]``). Returns ``(next_leaf,
     n, nc)``; ``next_leaf`` < number of leaves means ``cidx`` may be too small for that leaf: grow
     it and call again with the returned values. Each sample gets its position, the unit normal
     of its quadric (the sampling plane's, towards the sheet, at a cone's apex where there is
@@ -820,6 +925,7 @@ def emit_all(C, ts, LF, LI, LA, radius, reduce_radius, pos, nrm, rad, ccount, id
     origin, frame, coef, pform = ts.origin, ts.frame, ts.coef, ts.form
     job_task, job_plane, job_sheet, t_quadric = ts.job_task, ts.job_plane, ts.job_sheet, ts.quadric
     ccap = cidx.shape[0]
+    cw0, cw1, cw2 = center[0], center[1], center[2]
     longest = 0
     for leaf in range(LI.shape[0]):
         longest = max(longest, LI[leaf, 5])
@@ -867,6 +973,7 @@ def emit_all(C, ts, LF, LI, LA, radius, reduce_radius, pos, nrm, rad, ccount, id
                         local[n_loc] = LA[i]
                         n_loc += 1
         inv = 1.0 / steps if steps > 0 else 0.0
+        r_w = r_s * scale
         e1x, e1y, e2x, e2y = v1x - v0x, v1y - v0y, v2x - v0x, v2y - v0y
         # one loop for the three patterns: a single point, lattice vertices, copy centers
         n_i = 1 if single else (steps if centers else steps + 1)
@@ -886,7 +993,7 @@ def emit_all(C, ts, LF, LI, LA, radius, reduce_radius, pos, nrm, rad, ccount, id
                         x, y = v0x + (i * inv) * e1x + (j * inv) * e2x, v0y + (i * inv) * e1y + (j * inv) * e2y
                     px, py, pz = lift(o0, o1, o2, f00, f01, f02, f10, f11, f12, f20, f21, f22, fm, ax, bx, ay, by, ac,
                                       sheet, x, y)
-                    pos[n, 0], pos[n, 1], pos[n, 2] = px, py, pz
+                    pos[n, 0], pos[n, 1], pos[n, 2] = cw0 + scale * px, cw1 + scale * py, cw2 + scale * pz
                     g0 = q00 * px + q01 * py + q02 * pz + m0
                     g1 = q01 * px + q11 * py + q12 * pz + m1
                     g2 = q02 * px + q12 * py + q22 * pz + m2
@@ -895,13 +1002,12 @@ def emit_all(C, ts, LF, LI, LA, radius, reduce_radius, pos, nrm, rad, ccount, id
                         nrm[n, 0], nrm[n, 1], nrm[n, 2] = g0 / gn, g1 / gn, g2 / gn
                     else:  # a cone's apex: no normal; take the sampling plane's towards the sheet
                         nrm[n, 0], nrm[n, 1], nrm[n, 2] = sheet * f02, sheet * f12, sheet * f22
-                    rad[n] = r_s
+                    rad[n] = r_w
                     ids[n] = qid
-                    c0 = nc
                     for t in range(n_loc):
                         if abs(quadric_distance(C, local[t], px, py, pz)) < r_s:
                             cidx[nc] = local[t]
                             nc += 1
-                    ccount[n] = nc - c0
+                    cptr[n + 1] = nc
                     n += 1
     return LI.shape[0], n, nc

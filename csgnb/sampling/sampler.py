@@ -38,10 +38,11 @@ DEFAULT_MAX_SAMPLES = 50_000_000
 #: Memory per sample while sampling: position, normal, radius (56 B), id, clip count and slice
 #: (20 B), the clip pointers (8 B) and pass-1 leaves and clip indices (≈ 16 B amortised).
 BYTES_PER_SAMPLE = 100
-#: Samples per (world area / r²) in the estimate: lattices of covering radius r/δ over regions
-#: whose δ is bounded at their corners, measured on the benchmark models (0.6–2.4 / r² per unit
-#: area, 3.6 for regions with many small pieces); the estimate is an upper bound for those.
-_SAMPLES_PER_AREA = 4.0
+#: The estimate is _SAMPLES_PER_AREA · (area of the domains, δ ≤ √3) / r² + _SAMPLES_PER_JOB · jobs:
+#: measured on the benchmark models the samples are 0.5–1.9 × area/r² once r is small against the
+#: features (the memory that matters), and a few per job when it is not (up to 7 × area/r²).
+_SAMPLES_PER_AREA = 2.0
+_SAMPLES_PER_JOB = 4.0
 
 
 def _bounds_frame(bounds) -> tuple[ModelFrame, np.ndarray]:
@@ -118,7 +119,7 @@ def _normalised(shape, bounds, max_terms):
 
 
 def _estimate_from_tasks(ts: TaskSet, radius: float) -> float:
-    """Return an upper estimate of the samples of a task set at splat radius ``radius`` (its units).
+    """Return an estimate of the samples of a task set at splat radius ``radius`` (its units).
 
     From the area of the domains' jobs (plane area × δ², δ ≤ √3 in low-distortion regions): the
     area of every quadric's surface inside its box, whether or not it is on the CSG surface.
@@ -128,15 +129,17 @@ def _estimate_from_tasks(ts: TaskSet, radius: float) -> float:
     t = ts.job_tri
     area2 = np.abs((t[:, 1, 0] - t[:, 0, 0]) * (t[:, 2, 1] - t[:, 0, 1]) - (t[:, 1, 1] - t[:, 0, 1]) *
                    (t[:, 2, 0] - t[:, 0, 0]))
-    return float(_SAMPLES_PER_AREA * 3.0 * 0.5 * area2.sum() / (radius * radius))
+    return float(_SAMPLES_PER_AREA * 3.0 * 0.5 * area2.sum() / (radius * radius) + _SAMPLES_PER_JOB * len(t))
 
 
 def estimate_samples(shape, radius: float, *, bounds=None, max_terms: int = 4096) -> float:
-    """Return the sampler's upper estimate of the number of samples of ``shape`` at ``radius``.
+    """Return the sampler's estimate of the number of samples of ``shape`` at ``radius``.
 
     It runs only the set-up (normal form, boxes, domains; milliseconds) and counts every quadric's
-    surface inside its box, on the CSG surface or not; :func:`sample_csg` refuses to start when
-    this is above its ``max_samples``. Multiply by ``BYTES_PER_SAMPLE`` for the memory.
+    surface inside its box, on the CSG surface or not: on the benchmark models it is 1–4× the
+    count at small radii. :func:`sample_csg` refuses to start when it is above ``max_samples`` —
+    and checks the exact count again after its first pass, before allocating the samples.
+    Multiply by ``BYTES_PER_SAMPLE`` for the memory.
     """
     r = as_positive(radius, "radius")
     max_terms = as_count(max_terms, "max_terms", 1)
@@ -277,8 +280,9 @@ class _Leaves:
         self.samples = int(LI[:, 3].sum())
 
 
-def _grown(a: np.ndarray, used: int) -> np.ndarray:
-    b = np.empty((4 * a.shape[0],) + a.shape[1:], dtype=a.dtype)
+def _grown(a: np.ndarray, used: int, limit: int | None = None) -> np.ndarray:
+    size = 4 * a.shape[0] if limit is None else max(min(4 * a.shape[0], limit), used + 1)
+    b = np.empty((size,) + a.shape[1:], dtype=a.dtype)
     b[:used] = a[:used]
     return b
 
@@ -296,9 +300,10 @@ def _pass(C, ts: TaskSet, radius, min_size, sqrt3, refine, trace, defer, job_ran
             )  # fmt: skip
             fill = [nl, nla, nt, npt, nur]
             if overflow == OVERFLOW["leaves"]:
-                if max_samples is not None and nl > max_samples:  # every leaf has ≥ 1 sample
+                if max_samples is not None and nl >= max_samples:  # every leaf has ≥ 1 sample
                     _check_estimate(nl + 1, max_samples, True, "at least")
-                LF, LI = _grown(LF, nl), _grown(LI, nl)
+                limit = None if max_samples is None else max_samples + 1024
+                LF, LI = _grown(LF, nl, limit), _grown(LI, nl, limit)
             elif overflow == OVERFLOW["clip_lists"]:
                 LA = _grown(LA, nla)
             elif overflow == OVERFLOW["trace_leaves"]:
@@ -397,26 +402,21 @@ def _emit(nf: NormalForm, C, ts: TaskSet, lv: _Leaves, radius: float, reduce_rad
     positions = np.empty((n, 3))
     normals = np.empty((n, 3))
     radii = np.empty(n)
-    clip_count = np.empty(n, dtype=np.int32)
+    ptr = np.empty(n + 1, dtype=np.int64)
+    ptr[0] = 0
     ids = np.empty(n, dtype=np.int32)
     cidx = np.empty(1 << 16, dtype=np.int64)
     leaf = at = nc = 0
-    while True:
-        leaf, at, nc = emit_all(C, ts, lv.LF, lv.LI, lv.LA, radius, reduce_radius, positions, normals, radii,
-                                clip_count, ids, cidx, leaf, at, nc)
+    while True:  # samples straight into world coordinates
+        leaf, at, nc = emit_all(C, ts, lv.LF, lv.LI, lv.LA, radius, reduce_radius, frame.center, frame.scale,
+                                positions, normals, radii, ptr, ids, cidx, leaf, at, nc)
         if leaf >= len(lv.LI):
             break
         need = nc + int(lv.LI[leaf, 3] * lv.LI[leaf, 5])
         grown = np.empty(max(4 * len(cidx), need), dtype=np.int64)
         grown[:nc] = cidx[:nc]
         cidx = grown
-    ptr = np.zeros(n + 1, dtype=np.int64)
-    np.cumsum(clip_count, out=ptr[1:])
     start, count, buf = deduplicate_clip_sets(ptr, cidx[:nc])
-    # back to world coordinates
-    positions *= frame.scale
-    positions += frame.center
-    radii *= frame.scale
     world = nf.mapped(frame.inverse)
     counters = lv.counters
     tr = _trace(ts, lv, frame) if trace else None
