@@ -34,6 +34,7 @@ from csgnb.quadric.quadric import Quadric, _apply_inverse, transform_inverse
 __all__ = ["NormalForm", "to_normal_form", "quadric_coefficients"]
 
 _UPPER = (np.array([0, 0, 0, 1, 1, 2]), np.array([0, 1, 2, 1, 2, 2]))
+_TRIU_FLAT = np.flatnonzero(np.triu(np.ones((4, 4), dtype=bool)))
 
 
 def quadric_coefficients(quadrics) -> np.ndarray:
@@ -136,7 +137,23 @@ class NormalForm:
         Terms, names and surface ids are kept (a map keeps surfaces distinct).
         """
         Minv = transform_inverse(as_matrix(matrix, "matrix"))
-        qs = tuple(Quadric._trusted(_apply_inverse(q.matrix, Minv)) for q in self.quadrics)
+        if not self.quadrics:
+            return self
+        M = np.array([q.matrix for q in self.quadrics])
+        if Minv[3, 0] == 0.0 and Minv[3, 1] == 0.0 and Minv[3, 2] == 0.0 and Minv[3, 3] == 1.0:
+            # affine: blockwise, as ``quadric._apply_inverse``, for all quadrics at once
+            Li, sv = Minv[:3, :3], Minv[:3, 3]
+            A, m, c = M[:, :3, :3], M[:, :3, 3], M[:, 3, 3]
+            As_m = A @ sv + m
+            out = np.empty_like(M)
+            out[:, :3, :3] = Li.T @ A @ Li
+            out[:, :3, 3] = As_m @ Li
+            out[:, 3, :3] = out[:, :3, 3]
+            out[:, 3, 3] = np.einsum("i,ni->n", sv, A @ sv) + 2.0 * (m @ sv) + c
+        else:
+            out = np.einsum("ji,njk,kl->nil", Minv, M, Minv)
+        out = 0.5 * (out + out.transpose(0, 2, 1))
+        qs = tuple(Quadric._trusted(q, symmetric=True) for q in out)
         return NormalForm(qs, self.term_start, self.names, self.surface, self.orientation)
 
     def __repr__(self) -> str:
@@ -154,15 +171,16 @@ class _Registry:
         self.name: dict[tuple[int, int], str | None] = {}
 
     def key(self, q: Quadric, name: str | None) -> tuple[int, int]:
-        w = q.matrix[np.triu_indices(4)]
-        w = w / np.max(np.abs(w))
+        w = q.matrix.ravel()[_TRIU_FLAT]
+        w = w / np.abs(w).max()
         V = self.vectors[: self.count]
         k = None
-        for orient in (1, -1):
-            hit = np.flatnonzero(np.max(np.abs(orient * w - V), axis=1) <= tol.SURFACE)
-            if len(hit):
-                k = (int(hit[0]), orient)
-                break
+        if self.count:
+            for orient in (1, -1):
+                close = (np.abs(V - orient * w).max(axis=1) <= tol.SURFACE).nonzero()[0]
+                if len(close):
+                    k = (int(close[0]), orient)
+                    break
         if k is None:
             if self.count == len(self.vectors):
                 self.vectors = np.vstack([self.vectors, np.empty_like(self.vectors)])

@@ -124,10 +124,10 @@ class Quadric:
         self._matrix = q
 
     @classmethod
-    def _trusted(cls, matrix: np.ndarray) -> Quadric:
-        """Wrap a finite symmetric matrix computed by csgnb itself (no re-validation)."""
+    def _trusted(cls, matrix: np.ndarray, symmetric: bool = False) -> Quadric:
+        """Wrap a finite matrix computed by csgnb itself (no re-validation; symmetrised unless it is)."""
         out = cls.__new__(cls)
-        m = 0.5 * (matrix + matrix.T)
+        m = np.array(matrix) if symmetric else 0.5 * (matrix + matrix.T)
         m.setflags(write=False)
         out._matrix = m
         return out

@@ -67,15 +67,19 @@ def _bounds_frame(bounds) -> tuple[ModelFrame, np.ndarray]:
 
 def _flatten_planes(nf: NormalForm) -> NormalForm:
     """Replace quadrics that are planes up to rounding at the model scale by exact planes."""
+    if not len(nf):
+        return nf
+    M = np.array([q.matrix for q in nf.quadrics])
+    a = np.abs(M[:, :3, :3]).max(axis=(1, 2))
+    near = (a > 0.0) & (a <= tol.PLANE * np.linalg.norm(M[:, :3, 3], axis=1))  # Quadric.is_plane, vectorised
+    if not near.any():
+        return nf
     qs = list(nf.quadrics)
-    changed = False
-    for k, q in enumerate(qs):
-        if q.is_plane and np.any(q.A):
-            m = q.matrix.copy()
-            m[:3, :3] = 0.0
-            qs[k] = Quadric._trusted(m)
-            changed = True
-    return NormalForm(tuple(qs), nf.term_start, nf.names, nf.surface, nf.orientation) if changed else nf
+    for k in np.flatnonzero(near):
+        m = M[k].copy()
+        m[:3, :3] = 0.0
+        qs[k] = Quadric._trusted(m)
+    return NormalForm(tuple(qs), nf.term_start, nf.names, nf.surface, nf.orientation)
 
 
 def _normalised(shape, bounds, max_terms):
