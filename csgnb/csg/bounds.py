@@ -30,7 +30,7 @@ import numpy as np
 
 from csgnb._jit import jit
 from csgnb.quadric import tolerances as tol
-from csgnb.quadric.arguments import as_finite_array
+from csgnb.quadric.arguments import as_finite_array, as_instance, as_positive
 from csgnb.quadric.frames import frame_kernel
 from csgnb.quadric.quadric import Quadric
 
@@ -384,6 +384,9 @@ def term_boxes(nf, limit: np.ndarray | None = None) -> tuple[np.ndarray, np.ndar
     unbounded : (T,) bool — the convex members do not bound the term (only possible without
         ``limit``; the row then reaches the search box).
     """
+    from csgnb.csg.normal_form import NormalForm
+
+    as_instance(nf, NormalForm, "nf", "a NormalForm (csgnb.csg.to_normal_form)")
     Ms = np.ascontiguousarray(np.array([q.matrix for q in nf.quadrics]).reshape(-1, 4, 4))
     return term_boxes_of_matrices(Ms, np.ascontiguousarray(nf.term_start), limit)
 
@@ -440,6 +443,10 @@ def surface_boxes(nf, term_box: np.ndarray, scale: float) -> np.ndarray:
     the box of that side within the term box (the surface bounds it); others the term box.
     ``scale`` : the model size, for the rounding slack.
     """
+    from csgnb.csg.normal_form import NormalForm
+
+    as_instance(nf, NormalForm, "nf", "a NormalForm (csgnb.csg.to_normal_form)")
+    term_box = as_finite_array(term_box, (nf.n_terms, 6), "term_box", finite=False)
     Ms = np.ascontiguousarray(np.array([q.matrix for q in nf.quadrics]).reshape(-1, 4, 4))
     out = np.empty((len(Ms), 6))
     _surface_boxes_kernel(Ms, np.ascontiguousarray(nf.term_of), np.ascontiguousarray(term_box, dtype=np.float64),
@@ -452,8 +459,7 @@ def surface_box(q: Quadric, box: np.ndarray, scale: float | None = None) -> np.n
     if not isinstance(q, Quadric):
         raise TypeError(f"expected a csgnb.quadric.Quadric, got {type(q).__name__}")
     box = as_finite_array(box, (6,), "box")
-    if scale is None:
-        scale = float(np.max(np.abs(box)))
+    scale = float(np.max(np.abs(box))) if scale is None else as_positive(scale, "scale")
     out = np.empty((1, 6))
     _surface_boxes_kernel(np.ascontiguousarray(q.matrix)[None], np.zeros(1, dtype=np.int64), box[None],
                           float(scale), out)

@@ -97,7 +97,7 @@ class Node:
         """Return this node scaled by ``factors`` (scalar or (3,)) about ``center``."""
         f = _finite(factors, None, "factors")
         if f.shape not in ((), (1,), (3,)):
-            raise ValueError(f"factors must be a number or 3 numbers, got shape {f.shape}")
+            raise CsgnbError(f"factors must be a number or 3 numbers, got shape {f.shape}")
         f = np.broadcast_to(f, (3,)).astype(np.float64)
         c = _finite(center, (3,), "center")
         m = np.diag([*f, 1.0])

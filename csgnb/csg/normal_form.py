@@ -44,7 +44,12 @@ def quadric_coefficients(quadrics) -> np.ndarray:
     (= -b) and λ the extreme eigenvalues of A: the 10 distinct matrix entries of §6's quadric
     buffer plus what the conservative distance (eq. 12) needs.
     """
+    if isinstance(quadrics, Quadric) or not hasattr(quadrics, "__iter__") or isinstance(quadrics, str | bytes):
+        raise TypeError(f"quadrics must be an iterable of csgnb.quadric.Quadric, got {type(quadrics).__name__}")
     qs = list(quadrics)
+    for q in qs:
+        if not isinstance(q, Quadric):
+            raise TypeError(f"quadrics must hold csgnb.quadric.Quadric objects, got a {type(q).__name__}")
     if not qs:
         return np.empty((0, 12))
     M = np.array([q.matrix for q in qs])

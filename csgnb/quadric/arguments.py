@@ -2,8 +2,9 @@
 
 Each check names the argument and says what was expected. Wrong *types* (a string, ``None``, a
 complex number, a bool where a number is meant) raise ``TypeError``; right types with unusable
-values (NaN, wrong shape, out of range) raise ``ValueError`` subclasses (:class:`GeometryError`
-for geometry). numpy would otherwise turn ``"1.5"`` into 1.5 and drop imaginary parts silently.
+values raise csgnb errors (``ValueError`` subclasses): :class:`GeometryError` for NaN, inf and
+non-positive sizes, :class:`CsgnbError` for wrong shapes and ranges. (numpy would otherwise turn
+``"1.5"`` into 1.5 and drop imaginary parts silently.)
 """
 
 from __future__ import annotations
@@ -12,9 +13,16 @@ import numbers
 
 import numpy as np
 
-from csgnb.errors import GeometryError
+from csgnb.errors import CsgnbError, GeometryError
 
-__all__ = ["as_real", "as_positive", "as_finite_array", "as_points", "as_flag", "as_count", "as_matrix"]
+__all__ = ["as_real", "as_positive", "as_finite_array", "as_points", "as_flag", "as_count", "as_matrix", "as_instance"]
+
+
+def as_instance(value, cls, name: str, what: str | None = None):
+    """Return ``value`` if it is a ``cls``, else raise TypeError naming the argument and the type."""
+    if not isinstance(value, cls):
+        raise TypeError(f"{name} must be {what or 'a ' + cls.__name__}, got {_type_name(value)}")
+    return value
 
 
 def _type_name(value) -> str:
@@ -64,7 +72,7 @@ def as_finite_array(values, shape: tuple[int, ...] | None, name: str, *, finite:
             raise TypeError(f"{name} must be an array of real numbers, got {what}")
     arr = arr.astype(np.float64)
     if shape is not None and arr.shape != shape:
-        raise ValueError(f"{name} must have shape {shape}, got {arr.shape}")
+        raise CsgnbError(f"{name} must have shape {shape}, got {arr.shape}")
     if finite and not np.all(np.isfinite(arr)):
         raise GeometryError(f"{name} contains NaN or inf; pass finite numbers")
     return arr
@@ -76,7 +84,7 @@ def as_matrix(values, name: str) -> np.ndarray:
     if m.shape == (3, 4):
         m = np.vstack([m, [0.0, 0.0, 0.0, 1.0]])
     if m.shape != (4, 4):
-        raise ValueError(f"{name} must be a 4×4 (or 3×4 affine) matrix, got shape {m.shape}")
+        raise CsgnbError(f"{name} must be a 4×4 (or 3×4 affine) matrix, got shape {m.shape}")
     return m
 
 
@@ -103,7 +111,7 @@ def as_points(points, name: str = "points", dim: int = 3) -> np.ndarray:
     if arr.ndim == 1 and arr.shape[0] == dim:
         arr = arr[None, :]
     if arr.ndim != 2 or arr.shape[1] != dim:
-        raise ValueError(f"{name} must have shape (n, {dim}), got {arr.shape}")
+        raise CsgnbError(f"{name} must have shape (n, {dim}), got {arr.shape}")
     return np.ascontiguousarray(arr)
 
 
@@ -120,5 +128,5 @@ def as_count(value, name: str, minimum: int = 0) -> int:
         raise TypeError(f"{name} must be an integer, got {_type_name(value)} {value!r:.60}")
     v = int(value)
     if v < minimum:
-        raise ValueError(f"{name} must be ≥ {minimum}, got {v}")
+        raise CsgnbError(f"{name} must be ≥ {minimum}, got {v}")
     return v

@@ -20,6 +20,7 @@ import math
 
 import numpy as np
 
+from csgnb.errors import CsgnbError
 from csgnb.quadric.arguments import as_points
 from csgnb.quadric.evaluate import ieee_jit, inline_jit
 from csgnb.quadric.frames import FORM_GRAPH, as_coordinates, as_heightfield
@@ -157,7 +158,7 @@ def distortion_bounds(plane, rects) -> np.ndarray:
     form, coef = as_heightfield(plane)
     r = as_points(rects, "rects", dim=4)
     if np.any(r[:, 0] > r[:, 2]) or np.any(r[:, 1] > r[:, 3]):
-        raise ValueError("rects rows must be (x_lo, y_lo, x_hi, y_hi) with lo ≤ hi")
+        raise CsgnbError("rects rows must be (x_lo, y_lo, x_hi, y_hi) with lo ≤ hi")
     cols = [np.ascontiguousarray(r[:, k]) for k in range(4)]
     lo, hi = np.empty(r.shape[0]), np.empty(r.shape[0])
     _distortion_bounds_kernel(form, coef, *cols, lo, hi)

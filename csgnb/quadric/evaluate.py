@@ -12,6 +12,7 @@ import math
 import numpy as np
 
 from csgnb._jit import jit
+from csgnb.errors import CsgnbError
 from csgnb.quadric import tolerances as tol
 from csgnb.quadric.arguments import as_points
 from csgnb.quadric.quadric import Quadric
@@ -213,9 +214,9 @@ def intersect_lines(q: Quadric, origins, directions) -> np.ndarray:
     p = as_points(origins, "origins")
     v = as_points(directions, "directions")
     if p.shape != v.shape:
-        raise ValueError(f"origins {p.shape} and directions {v.shape} must have the same shape")
+        raise CsgnbError(f"origins {p.shape} and directions {v.shape} must have the same shape")
     if np.any(~np.any(v != 0.0, axis=1)):
-        raise ValueError("directions contains a zero vector; a line needs a non-zero direction")
+        raise CsgnbError("directions contains a zero vector; a line needs a non-zero direction")
     out = np.empty((p.shape[0], 2))
     _line_intersection_kernel(Q, p, v, out)
     return out

@@ -28,9 +28,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from csgnb.errors import GeometryError
+from csgnb.errors import CsgnbError, GeometryError
 from csgnb.quadric import tolerances as tol
-from csgnb.quadric.arguments import as_finite_array, as_points
+from csgnb.quadric.arguments import as_finite_array, as_instance, as_points
 from csgnb.quadric.evaluate import ieee_jit, inline_jit
 from csgnb.quadric.quadric import Quadric
 
@@ -400,7 +400,7 @@ def heightfield_type(alpha) -> str:
     """Return the type (a key of :data:`HEIGHTFIELD_TYPES`) of the eq. 7 heightfield (αₓ, α_y, α_c)."""
     a = as_finite_array(alpha, None, "alpha", finite=False).reshape(-1)
     if a.shape != (3,):
-        raise ValueError(f"alpha must be (αₓ, α_y, α_c), got shape {a.shape}")
+        raise CsgnbError(f"alpha must be (αₓ, α_y, α_c), got shape {a.shape}")
     ax, ay, ac = (float(v) for v in a)
     if not (math.isfinite(ax) and math.isfinite(ay) and math.isfinite(ac)):
         return "none"
@@ -463,14 +463,18 @@ def sampling_planes(q: Quadric) -> tuple[SamplingPlane, SamplingPlane, SamplingP
 
 def to_plane_coordinates(plane: SamplingPlane, points) -> np.ndarray:
     """Return local coordinates (x, y, t) : (n, 3) of world ``points`` : (n, 3)."""
+    as_instance(plane, SamplingPlane, "plane")
     pts = as_points(points)
-    return (pts - plane.origin) @ plane.frame
+    with np.errstate(invalid="ignore"):  # NaN/inf points give NaN coordinates
+        return (pts - plane.origin) @ plane.frame
 
 
 def from_plane_coordinates(plane: SamplingPlane, xyt) -> np.ndarray:
     """Return world points : (n, 3) of local coordinates ``xyt`` : (n, 3) (x, y, t)."""
+    as_instance(plane, SamplingPlane, "plane")
     loc = as_points(xyt, "xyt")
-    return plane.origin + loc @ plane.frame.T
+    with np.errstate(invalid="ignore"):
+        return plane.origin + loc @ plane.frame.T
 
 
 def as_coordinates(x, y) -> tuple[np.ndarray, np.ndarray]:
@@ -480,7 +484,7 @@ def as_coordinates(x, y) -> tuple[np.ndarray, np.ndarray]:
     try:
         xa, ya = np.broadcast_arrays(xa, ya)
     except ValueError as exc:
-        raise ValueError(f"x {np.shape(x)} and y {np.shape(y)} do not broadcast together") from exc
+        raise CsgnbError(f"x {np.shape(x)} and y {np.shape(y)} do not broadcast together") from exc
     return np.ascontiguousarray(xa.reshape(-1)), np.ascontiguousarray(ya.reshape(-1))
 
 
@@ -492,12 +496,9 @@ def as_heightfield(plane_or_alpha) -> tuple[int, np.ndarray]:
         return plane_or_alpha.form_code, plane_or_alpha.coefficients
     if plane_or_alpha is None or isinstance(plane_or_alpha, str | bytes):
         raise TypeError(f"expected a SamplingPlane or alpha (3,), got {type(plane_or_alpha).__name__}")
-    a = np.asarray(plane_or_alpha)
-    if a.dtype.kind not in "iuf":
-        raise TypeError(f"alpha must be 3 real numbers (αₓ, α_y, α_c), got dtype {a.dtype}")
-    a = a.astype(np.float64).reshape(-1)
+    a = as_finite_array(plane_or_alpha, None, "alpha", finite=False).reshape(-1)
     if a.shape != (3,):
-        raise ValueError(f"alpha must be (αₓ, α_y, α_c), got shape {a.shape}")
+        raise CsgnbError(f"alpha must be (αₓ, α_y, α_c), got shape {a.shape}")
     if not np.all(np.isfinite(a)):
         raise GeometryError("alpha is NaN: this sampling plane has no eq. 7 heightfield")
     return FORM_SHEETS, np.array([a[0], 0.0, a[1], 0.0, a[2]])

@@ -17,7 +17,7 @@ from functools import cached_property
 
 import numpy as np
 
-from csgnb.errors import GeometryError
+from csgnb.errors import CsgnbError, GeometryError
 from csgnb.quadric import tolerances as tol
 from csgnb.quadric.arguments import as_finite_array, as_matrix, as_real
 
@@ -250,7 +250,7 @@ class Quadric:
 def _positive(values, n: int, name: str) -> np.ndarray:
     arr = as_finite_array(values, None, name)
     if arr.shape not in ((), (1,), (n,)):
-        raise ValueError(f"{name} must be a number or {n} numbers, got shape {arr.shape}")
+        raise CsgnbError(f"{name} must be a number or {n} numbers, got shape {arr.shape}")
     arr = np.broadcast_to(arr, (n,)).copy()
     if np.any(arr <= 0.0):
         raise GeometryError(f"{name} must be positive, got {arr.tolist()}")

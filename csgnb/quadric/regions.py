@@ -28,9 +28,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from csgnb.errors import GeometryError
+from csgnb.errors import CsgnbError, GeometryError
 from csgnb.quadric import tolerances as tol
-from csgnb.quadric.arguments import as_finite_array, as_points
+from csgnb.quadric.arguments import as_count, as_finite_array, as_instance, as_points, as_real
 from csgnb.quadric.evaluate import normal
 from csgnb.quadric.frames import (
     FORM_GRAPH,
@@ -203,8 +203,8 @@ def octant_case(alpha, octant: str) -> str:
     octant line only), ``hyperbola-axis+line`` and side ``inside`` (the region contains the
     origin) or ``outside``. ``"empty"`` and ``"degenerate"`` (the conic is a line) complete it.
     """
-    if octant not in ("x", "y"):
-        raise ValueError(f"octant must be 'x' or 'y', got {octant!r}")
+    if not isinstance(octant, str) or octant not in ("x", "y"):
+        raise CsgnbError(f"octant must be 'x' or 'y', got {octant!r:.40}")
     alpha = as_finite_array(alpha, (3,), "alpha")
     a, b, c = _octant_lines(alpha, octant)[1]
     ax2, ay2 = alpha[0] ** 2, alpha[1] ** 2
@@ -236,7 +236,7 @@ def _local_box(plane: SamplingPlane, box_lo, box_hi):
     lo = as_finite_array(box_lo, (3,), "box_lo")
     hi = as_finite_array(box_hi, (3,), "box_hi")
     if np.any(lo >= hi):
-        raise ValueError(f"empty bounding box: box_lo {lo} must be below box_hi {hi}")
+        raise GeometryError(f"empty bounding box: box_lo {lo} must be below box_hi {hi}")
     corners = np.array([[hi[0] if k & 1 else lo[0], hi[1] if k & 2 else lo[1],
                          hi[2] if k & 4 else lo[2]] for k in range(8)])
     loc = to_plane_coordinates(plane, corners)
@@ -364,6 +364,8 @@ def _straight_in_xy(line, squared: tuple[bool, bool]) -> bool:
 
 def plane_regions(q: Quadric, plane: SamplingPlane, box_lo, box_hi) -> list[BasicRegion]:
     """Return the basic regions of one sampling plane, cut to a world box (see module doc)."""
+    as_instance(q, Quadric, "q", "a csgnb.quadric.Quadric")
+    as_instance(plane, SamplingPlane, "plane", "a SamplingPlane (from sampling_planes)")
     if plane.kind in ("none", "empty"):
         return []
     alpha = np.asarray(plane.alpha, dtype=np.float64)
@@ -437,6 +439,8 @@ def region_contains(region: BasicRegion, xy, tol: float = 0.0) -> np.ndarray:
 
     ``tol`` widens the region by that much (in the units of each test) to absorb rounding.
     """
+    as_instance(region, BasicRegion, "region", "a BasicRegion (from low_distortion_regions)")
+    tol = as_real(tol, "tol")
     pts = as_points(xy, "xy", dim=2)
     v = region.vertices
     x, y = pts[:, 0], pts[:, 1]
@@ -493,11 +497,10 @@ def region_mesh(
     points : (m, 3) float64 — world coordinates.
     triangles : (k, 3) int64 — vertex indices.
     """
-    from csgnb.quadric.arguments import as_count
-
+    as_instance(plane, SamplingPlane, "plane", "a SamplingPlane (from sampling_planes)")
+    as_instance(region, BasicRegion, "region", "a BasicRegion (from low_distortion_regions)")
+    sheet = as_real(sheet, "sheet")
     n = as_count(resolution, "resolution", 1)
-    if n < 1:
-        raise ValueError(f"resolution must be ≥ 1, got {resolution}")
     v = region.vertices
     ij = [(i, j) for i in range(n + 1) for j in range(n + 1 - i)]
     index = {p: k for k, p in enumerate(ij)}

@@ -17,6 +17,8 @@ from numba.typed import Dict
 from csgnb._jit import jit
 from csgnb.csg.normal_form import NormalForm
 from csgnb.csg.normalisation import ModelFrame
+from csgnb.errors import CsgnbError
+from csgnb.quadric.arguments import as_finite_array
 
 __all__ = ["SampleCloud", "SamplingStats", "SamplingTrace", "deduplicate_clip_sets"]
 
@@ -212,12 +214,24 @@ def _dedup_kernel(ptr, idx, start, count, buf):
     return nb
 
 
+def _as_index_array(values, name: str) -> np.ndarray:
+    arr = as_finite_array(values, None, name).reshape(-1) if not (
+        isinstance(values, np.ndarray) and values.dtype.kind in "iu") else values.reshape(-1)
+    if np.any(arr != np.round(arr)):
+        raise CsgnbError(f"{name} must hold integers")
+    return arr.astype(np.int64)
+
+
 def deduplicate_clip_sets(ptr: np.ndarray, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Return (start, count, buffer) with every distinct clip set stored once (§6).
 
     ptr : (n + 1,) int64 and idx : (m,) int64 — sample i's set is ``idx[ptr[i]:ptr[i + 1]]``.
     Returns start, count : (n,) int32 and buffer : (k,) int32.
     """
+    ptr = _as_index_array(ptr, "ptr")
+    idx = _as_index_array(idx, "idx")
+    if len(ptr) == 0 or ptr[0] != 0 or np.any(np.diff(ptr) < 0) or ptr[-1] != len(idx):
+        raise CsgnbError("ptr must start at 0, be non-decreasing and end at len(idx)")
     n = len(ptr) - 1
     start = np.empty(n, dtype=np.int32)
     count = np.empty(n, dtype=np.int32)

@@ -25,7 +25,7 @@ import numpy as np
 
 from csgnb._jit import jit
 from csgnb.quadric import tolerances as tol
-from csgnb.quadric.arguments import as_finite_array
+from csgnb.quadric.arguments import as_finite_array, as_positive
 from csgnb.quadric.frames import FORM_GRAPH, FORM_NONE, FORM_SHEETS, frame_kernel, region_lines
 from csgnb.quadric.quadric import Quadric
 
@@ -213,8 +213,7 @@ def quadric_jobs(q: Quadric, box, unit: float | None = None):
     if not isinstance(q, Quadric):
         raise TypeError(f"expected a csgnb.quadric.Quadric, got {type(q).__name__}")
     box = as_finite_array(box, (6,), "box")
-    if unit is None:
-        unit = 0.5 * float(np.linalg.norm(box[3:] - box[:3]))
+    unit = 0.5 * float(np.linalg.norm(box[3:] - box[:3])) if unit is None else as_positive(unit, "unit")
     center, axes, lam, beta = np.empty(3), np.empty((3, 3)), np.empty(3), np.empty(3)
     form, coef = np.empty(3, dtype=np.int64), np.empty((3, 5))
     frame_kernel(np.ascontiguousarray(q.matrix), center, axes, lam, beta, form, coef)

@@ -30,6 +30,7 @@ import numpy as np
 
 from csgnb._jit import jit
 from csgnb.csg.distance import quadric_distance
+from csgnb.quadric.arguments import as_finite_array, as_instance, as_positive
 from csgnb.quadric.frames import frame_kernel
 from csgnb.sampling.domains import JOBS_PER_QUADRIC, jobs_kernel
 
@@ -266,8 +267,15 @@ def build_task_set(nf, boxes: np.ndarray, term_box: np.ndarray, radius: float, u
         which look a radius around a sample, never miss a pruned quadric).
     unit : float — the model size (the sliver test of the domains).
     """
+    from csgnb.csg.normal_form import NormalForm
+
+    as_instance(nf, NormalForm, "nf", "a NormalForm (csgnb.csg.to_normal_form)")
     n = len(nf)
     T = nf.n_terms
+    boxes = as_finite_array(boxes, (n, 6), "boxes", finite=False)
+    term_box = as_finite_array(term_box, (T, 6), "term_box", finite=False)
+    radius = as_positive(radius, "radius")
+    unit = as_positive(unit, "unit")
     Ms = np.ascontiguousarray(np.array([q.matrix for q in nf.quadrics]).reshape(-1, 4, 4))
     C = np.ascontiguousarray(nf.coefficients)
     t_quadric = np.empty(n, dtype=np.int64)
@@ -311,8 +319,10 @@ def build_task_set(nf, boxes: np.ndarray, term_box: np.ndarray, radius: float, u
 def build_tasks(nf, term_box: np.ndarray, radius: float) -> TaskSet:
     """Return the :class:`TaskSet` of a normal form with finite term boxes (surface boxes derived here)."""
     from csgnb.csg.bounds import surface_boxes
+    from csgnb.csg.normal_form import NormalForm
 
-    term_box = np.ascontiguousarray(term_box, dtype=np.float64)
+    as_instance(nf, NormalForm, "nf", "a NormalForm (csgnb.csg.to_normal_form)")
+    term_box = np.ascontiguousarray(as_finite_array(term_box, (nf.n_terms, 6), "term_box", finite=False))
     finite = term_box[np.all(np.isfinite(term_box), axis=1)]
     unit = float(np.max(np.abs(finite))) if len(finite) else 1.0
     return build_task_set(nf, surface_boxes(nf, term_box, unit), term_box, radius, unit or 1.0)
