@@ -481,8 +481,7 @@ def subdivide_all(
                                                            sx, sy, region, on_surface)
                         searches += 1
                         searched = True
-                        queries += ev
-                        evaluated += ev * (an + n_other)
+                        evaluated += ev * (an + n_other)  # (not corner queries: counted apart)
                         if found:
                             features += 1
                             best = 3
