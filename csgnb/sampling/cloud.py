@@ -232,10 +232,14 @@ def deduplicate_clip_sets(ptr: np.ndarray, idx: np.ndarray) -> tuple[np.ndarray,
     idx = _as_index_array(idx, "idx")
     if len(ptr) == 0 or ptr[0] != 0 or np.any(np.diff(ptr) < 0) or ptr[-1] != len(idx):
         raise CsgnbError("ptr must start at 0, be non-decreasing and end at len(idx)")
+    return _deduplicate(ptr, idx)
+
+
+def _deduplicate(ptr: np.ndarray, idx: np.ndarray):
+    """``deduplicate_clip_sets`` for the sampler's own (valid, int64) arrays."""
     n = len(ptr) - 1
     start = np.empty(n, dtype=np.int32)
     count = np.empty(n, dtype=np.int32)
     buf = np.empty(max(len(idx), 1), dtype=np.int32)
-    nb = _dedup_kernel(np.ascontiguousarray(ptr, dtype=np.int64), np.ascontiguousarray(idx, dtype=np.int64),
-                       start, count, buf)
+    nb = _dedup_kernel(ptr, idx, start, count, buf)
     return start, count, buf[:nb].copy()

@@ -929,6 +929,11 @@ def emit_all(C, ts, LF, LI, LA, radius, reduce_radius, center, scale, pos, nrm, 
     for leaf in range(LI.shape[0]):
         longest = max(longest, LI[leaf, 5])
     local = np.empty(longest + 1, dtype=np.int64)
+    most = 1
+    for leaf in range(LI.shape[0]):
+        most = max(most, LI[leaf, 3])
+    X = np.empty(most)
+    Y = np.empty(most)
     for leaf in range(leaf_start, LI.shape[0]):
         la0, lan = LI[leaf, 4], LI[leaf, 5]
         if nc + LI[leaf, 3] * lan > ccap:
@@ -974,39 +979,48 @@ def emit_all(C, ts, LF, LI, LA, radius, reduce_radius, center, scale, pos, nrm, 
         inv = 1.0 / steps if steps > 0 else 0.0
         r_w = r_s * scale
         e1x, e1y, e2x, e2y = v1x - v0x, v1y - v0y, v2x - v0x, v2y - v0y
-        # one loop for the three patterns: a single point, lattice vertices, copy centers
-        n_i = 1 if single else (steps if centers else steps + 1)
-        for i in range(n_i):
-            n_j = 1 if single else (steps - i if centers else steps + 1 - i)
-            for j in range(n_j):
-                for flip in range(2 if centers else 1):
-                    if flip == 1 and i + j > steps - 2:
-                        continue
-                    if single:
-                        x, y = v0x, v0y
-                    elif centers:
-                        u = (i + cs) * inv if flip == 0 else (i + 1 - cs) * inv
-                        w = (j + ct) * inv if flip == 0 else (j + 1 - ct) * inv
-                        x, y = v0x + u * e1x + w * e2x, v0y + u * e1y + w * e2y
-                    else:
-                        x, y = v0x + (i * inv) * e1x + (j * inv) * e2x, v0y + (i * inv) * e1y + (j * inv) * e2y
-                    px, py, pz = lift(o0, o1, o2, f00, f01, f02, f10, f11, f12, f20, f21, f22, fm, ax, bx, ay, by, ac,
-                                      sheet, x, y)
-                    pos[n, 0], pos[n, 1], pos[n, 2] = cw0 + scale * px, cw1 + scale * py, cw2 + scale * pz
-                    g0 = q00 * px + q01 * py + q02 * pz + m0
-                    g1 = q01 * px + q11 * py + q12 * pz + m1
-                    g2 = q02 * px + q12 * py + q22 * pz + m2
-                    gn = math.sqrt(g0 * g0 + g1 * g1 + g2 * g2)
-                    if gn > 0.0:
-                        nrm[n, 0], nrm[n, 1], nrm[n, 2] = g0 / gn, g1 / gn, g2 / gn
-                    else:  # a cone's apex: no normal; take the sampling plane's towards the sheet
-                        nrm[n, 0], nrm[n, 1], nrm[n, 2] = sheet * f02, sheet * f12, sheet * f22
-                    rad[n] = r_w
-                    ids[n] = qid
-                    for t in range(n_loc):
-                        if abs(quadric_distance(C, local[t], px, py, pz)) < r_s:
-                            cidx[nc] = local[t]
-                            nc += 1
-                    cptr[n + 1] = nc
-                    n += 1
+        # the leaf's plane points first (a single point, lattice vertices or copy centers), then
+        # one straight loop over them: lift, normal, output
+        m = 0
+        if single:
+            X[0], Y[0] = v0x, v0y
+            m = 1
+        elif centers:
+            for i in range(steps):
+                for j in range(steps - i):
+                    u = (i + cs) * inv
+                    w = (j + ct) * inv
+                    X[m], Y[m] = v0x + u * e1x + w * e2x, v0y + u * e1y + w * e2y
+                    m += 1
+                    if i + j <= steps - 2:
+                        u = (i + 1 - cs) * inv
+                        w = (j + 1 - ct) * inv
+                        X[m], Y[m] = v0x + u * e1x + w * e2x, v0y + u * e1y + w * e2y
+                        m += 1
+        else:
+            for i in range(steps + 1):
+                for j in range(steps + 1 - i):
+                    X[m], Y[m] = v0x + (i * inv) * e1x + (j * inv) * e2x, v0y + (i * inv) * e1y + (j * inv) * e2y
+                    m += 1
+        for t0 in range(m):
+            px, py, pz = lift(o0, o1, o2, f00, f01, f02, f10, f11, f12, f20, f21, f22, fm, ax, bx, ay, by, ac, sheet,
+                              X[t0], Y[t0])
+            pos[n, 0], pos[n, 1], pos[n, 2] = cw0 + scale * px, cw1 + scale * py, cw2 + scale * pz
+            g0 = q00 * px + q01 * py + q02 * pz + m0
+            g1 = q01 * px + q11 * py + q12 * pz + m1
+            g2 = q02 * px + q12 * py + q22 * pz + m2
+            gn = math.sqrt(g0 * g0 + g1 * g1 + g2 * g2)
+            if gn > 0.0:
+                ig = 1.0 / gn
+                nrm[n, 0], nrm[n, 1], nrm[n, 2] = g0 * ig, g1 * ig, g2 * ig
+            else:  # a cone's apex: no normal; take the sampling plane's towards the sheet
+                nrm[n, 0], nrm[n, 1], nrm[n, 2] = sheet * f02, sheet * f12, sheet * f22
+            rad[n] = r_w
+            ids[n] = qid
+            for t in range(n_loc):
+                if abs(quadric_distance(C, local[t], px, py, pz)) < r_s:
+                    cidx[nc] = local[t]
+                    nc += 1
+            cptr[n + 1] = nc
+            n += 1
     return LI.shape[0], n, nc

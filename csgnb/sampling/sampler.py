@@ -19,7 +19,7 @@ from csgnb.errors import CsgnbError, GeometryError
 from csgnb.quadric import tolerances as tol
 from csgnb.quadric.arguments import as_count, as_finite_array, as_flag, as_positive, as_real
 from csgnb.quadric.quadric import Quadric
-from csgnb.sampling.cloud import SampleCloud, SamplingStats, SamplingTrace, deduplicate_clip_sets
+from csgnb.sampling.cloud import SampleCloud, SamplingStats, SamplingTrace, _deduplicate
 from csgnb.sampling.kernel import OVERFLOW, cover_by_neighbours, emit_all, subdivide_all
 from csgnb.sampling.tasks import TaskSet, build_task_set
 
@@ -420,7 +420,7 @@ def _emit(nf: NormalForm, C, ts: TaskSet, lv: _Leaves, radius: float, reduce_rad
         grown = np.empty(max(4 * len(cidx), need), dtype=np.int64)
         grown[:nc] = cidx[:nc]
         cidx = grown
-    start, count, buf = deduplicate_clip_sets(ptr, cidx[:nc])
+    start, count, buf = _deduplicate(ptr, cidx[:nc])
     world = nf.mapped(frame.inverse)
     counters = lv.counters
     tr = _trace(ts, lv, frame) if trace else None
