@@ -79,6 +79,13 @@ def transform_inverse(M: np.ndarray, name: str = "transform") -> np.ndarray:
     return np.linalg.inv(M)
 
 
+def planes_mask(matrices: np.ndarray) -> np.ndarray:
+    """Return which quadric matrices ``(..., 4, 4)`` are single planes (``Quadric.is_plane``, vectorised)."""
+    M = np.asarray(matrices, dtype=np.float64)
+    a = np.abs(M[..., :3, :3]).max(axis=(-2, -1))
+    return (a == 0.0) | (a <= tol.PLANE * np.linalg.norm(M[..., :3, 3], axis=-1))
+
+
 def _apply_inverse(Q: np.ndarray, Minv: np.ndarray) -> np.ndarray:
     """Return ``Minv.T @ Q @ Minv`` (eq. 17), blockwise for affine ``Minv`` (exact zeros stay)."""
     if Minv[3, 0] == 0.0 and Minv[3, 1] == 0.0 and Minv[3, 2] == 0.0 and Minv[3, 3] == 1.0:
@@ -176,12 +183,11 @@ class Quadric:
     def is_plane(self) -> bool:
         """Whether this is a single plane: A = 0, or negligible next to b over a unit length.
 
-        ``max|A| ≤ tolerances.PLANE · |b|``. Planes built by csgnb and their affine images have
-        A exactly 0. The test assumes lengths of order 1; the sampler asks it in its normalised
-        frame, where that is the model's size.
+        ``max|A| ≤ tolerances.PLANE · |b|`` (:func:`planes_mask`). Planes built by csgnb and their
+        affine images have A exactly 0. The test assumes lengths of order 1; the sampler asks it
+        in its normalised frame, where that is the model's size.
         """
-        a = float(np.max(np.abs(self._matrix[:3, :3])))
-        return a == 0.0 or a <= tol.PLANE * float(np.linalg.norm(self._matrix[:3, 3]))
+        return bool(planes_mask(self._matrix))
 
     # -- transforms ----------------------------------------------------------------------
     def transformed(self, M) -> Quadric:

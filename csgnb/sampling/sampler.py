@@ -18,7 +18,7 @@ from csgnb.csg.normalisation import ModelFrame, box_frame, graph_frame, quadrics
 from csgnb.errors import CsgnbError, GeometryError
 from csgnb.quadric import tolerances as tol
 from csgnb.quadric.arguments import as_count, as_finite_array, as_flag, as_positive, as_real
-from csgnb.quadric.quadric import Quadric
+from csgnb.quadric.quadric import Quadric, planes_mask
 from csgnb.sampling.cloud import SampleCloud, SamplingStats, SamplingTrace, _deduplicate
 from csgnb.sampling.kernel import OVERFLOW, cover_by_neighbours, emit_all, subdivide_all
 from csgnb.sampling.tasks import TaskSet, build_task_set
@@ -70,8 +70,7 @@ def _flatten_planes(nf: NormalForm) -> NormalForm:
     if not len(nf):
         return nf
     M = np.array([q.matrix for q in nf.quadrics])
-    a = np.abs(M[:, :3, :3]).max(axis=(1, 2))
-    near = (a > 0.0) & (a <= tol.PLANE * np.linalg.norm(M[:, :3, 3], axis=1))  # Quadric.is_plane, vectorised
+    near = planes_mask(M) & np.any(M[:, :3, :3] != 0.0, axis=(1, 2))
     if not near.any():
         return nf
     qs = list(nf.quadrics)
