@@ -421,13 +421,18 @@ def subdivide_all(
             emit_kind = -1
             split = False
             fx, fy = 0.0, 0.0
+            # side lengths (v0v1, v1v2, v2v0), once: a corner's reach is the longer of its two sides
+            l0 = _norm2(v1x - v0x, v1y - v0y)
+            l1 = _norm2(v2x - v1x, v2y - v1y)
+            l2 = _norm2(v0x - v2x, v0y - v2y)
+            reach0, reach1, reach2 = max(l0, l2), max(l0, l1), max(l1, l2)
             # 1. the single-sample rule
             best = -1
             best_w = 0.0
             for c in range(3):
                 dc = d0 if c == 0 else (d1 if c == 1 else d2)
                 if kept or dc <= on_surface:
-                    w = corner_reach(v0x, v0y, v1x, v1y, v2x, v2y, c) + bulge
+                    w = (reach0 if c == 0 else (reach1 if c == 1 else reach2)) + bulge
                     if w <= rho_r and (best < 0 or w < best_w):
                         best, best_w = c, w
             if best < 0 and apex_plane and delta == math.inf:
@@ -464,15 +469,13 @@ def subdivide_all(
                     status = 2
                 elif covered:
                     # 2. kept: every sample of the region stays this far from the term's other quadrics
-                    slack = min(-d0 - delta * (corner_reach(v0x, v0y, v1x, v1y, v2x, v2y, 0) + bulge),
-                                min(-d1 - delta * (corner_reach(v0x, v0y, v1x, v1y, v2x, v2y, 1) + bulge),
-                                    -d2 - delta * (corner_reach(v0x, v0y, v1x, v1y, v2x, v2y, 2) + bulge)))
+                    slack = min(-d0 - delta * (reach0 + bulge),
+                                min(-d1 - delta * (reach1 + bulge), -d2 - delta * (reach2 + bulge)))
                     kept = True
                     emit_kind = 1
                     status = 1
                 else:
-                    diam = max(_norm2(v1x - v0x, v1y - v0y),
-                               max(_norm2(v2x - v1x, v2y - v1y), _norm2(v0x - v2x, v0y - v2y)))
+                    diam = max(l0, max(l1, l2))
                     if posi and not searched and diam + bulge <= tol.FEATURE_REGION * rho_r and depth < _MAX_DEPTH:
                         # 3. a point of a tangency curve in the region: one sample there covers it
                         region[0], region[1], region[2], region[3], region[4], region[5] = (
@@ -581,9 +584,6 @@ def subdivide_all(
             if not split:
                 continue
             # 5. split the longest edge (at a point of its (U, V)-segment)
-            l0 = _norm2(v1x - v0x, v1y - v0y)
-            l1 = _norm2(v2x - v1x, v2y - v1y)
-            l2 = _norm2(v0x - v2x, v0y - v2y)
             if l0 >= l1 and l0 >= l2:  # edge v0 v1, opposite v2
                 ex0, ey0, ex1, ey1, ox, oy, de0, de1, do = v0x, v0y, v1x, v1y, v2x, v2y, d0, d1, d2
                 b_e1o, b_oe0 = sb1, sb2
@@ -764,11 +764,8 @@ def cover_by_neighbours(ts, LF, LI, UR, radius, reduce_radius, covered):
                     key[at] = P[leaf, 0]
                     widest[g] = max(widest[g], P[leaf, 3])
                     at += 1
-            a0 = kind_first[g]
-            idx = np.argsort(key[a0:at])
-            sorted_leaf[a0:at] = sorted_leaf[a0:at][idx]
-            key[a0:at] = key[a0:at][idx]
     kind_first[3 * n_tasks] = at
+    sorted_lattices = False  # (sorted by x only if some region is left to them)
     # singles also by grid cell (cells of one radius; feature curves often lie in planes x = const)
     cell = np.empty(n_leaves, dtype=np.int64)
     h = radius
@@ -815,6 +812,14 @@ def cover_by_neighbours(ts, LF, LI, UR, radius, reduce_radius, covered):
                             covered[u] = True
                             break
                         o += 1
+        if not covered[u] and not sorted_lattices:
+            for g in range(3 * n_tasks):
+                if g % 3 != 0:
+                    a0, b0 = kind_first[g], kind_first[g + 1]
+                    idx = np.argsort(key[a0:b0])
+                    sorted_leaf[a0:b0] = sorted_leaf[a0:b0][idx]
+                    key[a0:b0] = key[a0:b0][idx]
+            sorted_lattices = True
         for kind in range(1, 3):  # then the nearest points of lattices
             if covered[u]:
                 break
