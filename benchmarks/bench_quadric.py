@@ -25,13 +25,13 @@ from csgnb.quadric import (  # noqa: E402
     sampling_planes,
 )
 from csgnb.quadric.distance import _distance_kernel  # noqa: E402
-from csgnb.quadric.distortion import _distortion_bounds_kernel, _distortion_kernel  # noqa: E402
+from csgnb.quadric.distortions import _distortion_bounds_kernel, _distortion_kernel  # noqa: E402
 from csgnb.quadric.evaluate import (  # noqa: E402
     _line_intersection_kernel,
     _normal_kernel,
     _value_kernel,
 )
-from csgnb.quadric.heightfield import _heightfield_kernel  # noqa: E402
+from csgnb.quadric.frames import _heightfield_kernel  # noqa: E402
 
 #: Table 1 of the paper, operations per second on one 4.8 GHz core.
 PAPER_OPS_PER_SECOND = {
@@ -95,7 +95,8 @@ def run(n: int, repeat: int) -> dict[str, float]:
     points = rng.uniform(-2.0, 2.0, (n, 3))
     directions = rng.normal(size=(n, 3))
     directions /= np.linalg.norm(directions, axis=1, keepdims=True)
-    alpha = np.array(sampling_planes(hyperboloid_one_sheet())[1].alpha)
+    plane = sampling_planes(hyperboloid_one_sheet())[1]
+    form, coef = plane.form_code, np.ascontiguousarray(plane.coefficients)
     x, y = rng.uniform(-0.8, 0.8, n), rng.uniform(-0.8, 0.8, n)
     lo = rng.uniform(-0.8, 0.7, (2, n))
     hi = lo + rng.uniform(0.0, 0.1, (2, n))
@@ -108,9 +109,9 @@ def run(n: int, repeat: int) -> dict[str, float]:
     cases = {
         "value": lambda p: _value_kernel(Q, p[0], p[1]),
         "normal": lambda p: _normal_kernel(Q, p[0], p[2]),
-        "heightfield": lambda p: _heightfield_kernel(alpha, p[3], p[4], p[1]),
-        "distortion": lambda p: _distortion_kernel(alpha, p[3], p[4], p[1]),
-        "min_distortion": lambda p: _distortion_bounds_kernel(alpha, *p[7:11], p[1], p[11]),
+        "heightfield": lambda p: _heightfield_kernel(form, coef, p[3], p[4], p[1]),
+        "distortion": lambda p: _distortion_kernel(form, coef, p[3], p[4], p[1]),
+        "min_distortion": lambda p: _distortion_bounds_kernel(form, coef, *p[7:11], p[1], p[11]),
         "line_intersection": lambda p: _line_intersection_kernel(Q, p[0], p[6], p[5]),
         "distance": lambda p: _distance_kernel(Q, lam[0], lam[-1], p[0], p[1]),
     }

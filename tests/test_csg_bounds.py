@@ -6,7 +6,7 @@ import pytest
 import csgnb.csg as csg
 from csgnb.csg.bounds import box_is_empty, polytope_box, support_halfspaces, surface_box, term_boxes
 from csgnb.quadric import QUADRIC_CONSTRUCTORS, elliptic_cylinder, plane
-from tests.test_csg_raycast import graph_value
+from tests.raycast_reference import graph_value
 
 
 def _random_rigid(rng):

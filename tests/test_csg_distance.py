@@ -8,7 +8,7 @@ from csgnb.csg.bounds import term_boxes
 from csgnb.quadric import plane
 from csgnb.sampling.kernel import relative_distance_pruned
 from csgnb.sampling.tasks import build_tasks
-from tests.test_csg_raycast import graph_first_order_distance, graph_value, ray_surface_points
+from tests.raycast_reference import graph_first_order_distance, graph_value, ray_surface_points
 
 
 def _model():
@@ -108,16 +108,19 @@ def test_pruned_relative_distance_of_the_sampler_classifies_too(k):
     nf = S.normal_form()
     index = _unique_surfaces(nf)[k]
     boxes, _ = term_boxes(nf)
-    task = {t.index: t for t in build_tasks(nf, boxes, 0.05)}.get(index)
-    if task is None:
+    ts = build_tasks(nf, boxes, 0.05)
+    hit = np.flatnonzero(ts.quadric == index)
+    if not len(hit):
         assert nf.names[index] == "C cap 1"  # cut away by the lid: no task
         return
+    i = int(hit[0])
+    own, slices, other = ts.lists(i)
     C = np.ascontiguousarray(nf.coefficients)
-    scratch = np.empty(len(task.own) + 1, dtype=np.int64)
+    scratch = np.empty(len(own) + 1, dtype=np.int64)
 
     def dist(_, pts):
-        return np.array([relative_distance_pruned(C, task.own, 0, len(task.own), task.own_box, task.other_ptr,
-                                                  task.other_idx, task.rcap, *p, 0.0, scratch, 0)[0] for p in pts])
+        return np.array([relative_distance_pruned(C, own, 0, len(own), ts.own_box[i], slices, other, ts.rcap[i], *p,
+                                                  0.0, scratch, 0)[0] for p in pts])
 
     _check_neighbourhoods(S, dist, index, nf.quadrics[index].matrix, np.random.default_rng(10 + index))
 

@@ -6,7 +6,7 @@ import pytest
 import csgnb.csg as csg
 from csgnb.errors import CsgnbError, GeometryError
 from csgnb.quadric import sphere as qsphere
-from tests.test_csg_raycast import graph_value
+from tests.raycast_reference import graph_value
 
 
 def test_operators_build_the_expected_nodes():

@@ -8,7 +8,7 @@ from hypothesis import strategies as st
 import csgnb.csg as csg
 from csgnb.errors import CsgnbError
 from csgnb.quadric import QUADRIC_CONSTRUCTORS, Quadric
-from tests.test_csg_raycast import graph_value
+from tests.raycast_reference import graph_value
 
 NAMES = sorted(QUADRIC_CONSTRUCTORS)
 

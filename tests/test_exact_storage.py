@@ -22,8 +22,7 @@ from csgnb import GeometryError, PrecisionError, exact
 from csgnb.exact import budget, integer_root
 from csgnb.exact import budgets as B
 from csgnb.exact.planes import narrow_field_bits, narrow_fields_hold_the_mesh_budget
-
-from .exact_reference import side, solve_3_planes
+from tests.exact_reference import side, solve_3_planes
 
 WIDTHS = exact.WIDTHS
 widths = st.sampled_from(WIDTHS)

@@ -3,7 +3,6 @@
 import numpy as np
 import pytest
 
-from csgnb.errors import GeometryError
 from csgnb.quadric import (
     QUADRIC_CONSTRUCTORS,
     REGION_KINDS,
@@ -19,6 +18,7 @@ from csgnb.quadric import (
 )
 
 CENTRAL = [n for n in sorted(QUADRIC_CONSTRUCTORS) if "paraboloid" not in n and n != "plane"]
+ALL = sorted(QUADRIC_CONSTRUCTORS)
 SQRT3 = np.sqrt(3.0)
 
 
@@ -38,10 +38,12 @@ def _surface_points_in_box(q, lo, hi, rng, n=3000):
     out = []
     for pk, vk in zip(p, v, strict=True):
         coeffs = [vk @ A @ vk, 2 * vk @ (A @ pk + m), pk @ A @ pk + 2 * m @ pk + c]
-        for r in np.roots(coeffs) if abs(coeffs[0]) > 1e-12 else []:
+        if abs(coeffs[0]) <= 1e-12:  # a plane: the line's one root
+            coeffs = coeffs[1:]
+        for r in np.roots(coeffs):
             if abs(r.imag) < 1e-12:
                 out.append(pk + r.real * vk)
-    pts = np.array(out)
+    pts = np.array(out).reshape(-1, 3)
     return pts[np.all((pts >= lo) & (pts <= hi), axis=1)]
 
 
@@ -59,7 +61,7 @@ def _check_cover(q, lo, hi, rng):
         inside = region_contains(r, loc[:, :2], tol=1e-9)
         counts += inside
         if inside.any():
-            d = distortion(planes[r.plane].alpha, loc[inside, 0], loc[inside, 1])
+            d = distortion(planes[r.plane], loc[inside, 0], loc[inside, 1])
             assert np.all(d <= SQRT3 * (1 + 1e-6)), d.max()
             # the claiming plane is the least-distorted one (up to ties)
             n = np.abs(q.normal(pts[inside]) @ np.column_stack([p.normal for p in planes]))
@@ -74,13 +76,21 @@ def _check_cover(q, lo, hi, rng):
     return regions, owner
 
 
-@pytest.mark.parametrize("name", CENTRAL)
+def _anchor(q):
+    f = principal_frame(q)
+    k = int(np.argmax(np.abs(f.linear)))
+    if f.linear[k] == 0.0:
+        return f.center
+    return f.center + f.axes[:, k] * f.constant / (2 * f.linear[k])
+
+
+@pytest.mark.parametrize("name", ALL)
 def test_regions_cover_the_surface_exactly_once(name):
     rng = np.random.default_rng(17)
     q = _random_quadric(rng, name)
     checked = 0
     for _ in range(2):
-        c = principal_frame(q).center + rng.normal(size=3)
+        c = _anchor(q) + rng.normal(size=3)
         lo, hi = c - rng.uniform(0.5, 3, 3), c + rng.uniform(0.5, 3, 3)
         checked += _check_cover(q, lo, hi, rng) is not None
     assert checked >= 1
@@ -96,6 +106,11 @@ def test_canonical_shapes_give_the_expected_region_kinds():
     assert {"hyperbolic-triangle", "triangle"} <= {r.kind for r in hyp}
     slab, _ = _check_cover(QUADRIC_CONSTRUCTORS["parallel planes"](), lo, hi, rng)
     assert {r.kind for r in slab} == {"rectangle"}
+    flat, _ = _check_cover(QUADRIC_CONSTRUCTORS["plane"](), lo, hi, rng)
+    assert [r.kind for r in flat] == ["rectangle"]
+    for name in ("elliptic paraboloid", "hyperbolic paraboloid"):
+        par, _ = _check_cover(QUADRIC_CONSTRUCTORS[name](), lo, hi, rng)
+        assert "parabolic-triangle" in {r.kind for r in par}
 
 
 def test_all_nine_cases_of_figure_7_occur():
@@ -137,8 +152,9 @@ def test_octant_case_matches_dense_classification():
 
 
 def test_region_errors():
-    with pytest.raises(GeometryError, match="central"):
-        low_distortion_regions(elliptic_paraboloid(), [-1, -1, -1], [1, 1, 1])
+    with pytest.raises(TypeError, match="Quadric"):
+        low_distortion_regions("sphere", [-1, -1, -1], [1, 1, 1])
+    assert low_distortion_regions(elliptic_paraboloid(), [-1, -1, -1], [1, 1, 1])  # supported now
     with pytest.raises(ValueError, match="empty bounding box"):
         low_distortion_regions(QUADRIC_CONSTRUCTORS["sphere"](), [1, 1, 1], [0, 2, 2])
     with pytest.raises(ValueError, match="octant"):
@@ -150,9 +166,9 @@ def test_region_errors():
 def test_cover_many_random_quadrics_and_boxes(seed):
     rng = np.random.default_rng(100 + seed)
     checked = 0
-    for name in CENTRAL:
+    for name in ALL:
         q = _random_quadric(rng, name)
-        c = principal_frame(q).center + rng.normal(size=3) * 1.5
+        c = _anchor(q) + rng.normal(size=3) * 1.5
         box = (c - rng.uniform(0.3, 3, 3), c + rng.uniform(0.3, 3, 3))
         checked += _check_cover(q, *box, rng) is not None
     assert checked >= 3

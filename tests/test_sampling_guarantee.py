@@ -16,9 +16,22 @@ import pytest
 from scipy.spatial import cKDTree
 
 import csgnb.csg as csg
-from csgnb.quadric import elliptic_cone, elliptic_cylinder, signed_distance
+from csgnb.quadric import (
+    elliptic_cone,
+    elliptic_cylinder,
+    elliptic_paraboloid,
+    hyperbolic_paraboloid,
+    parallel_planes,
+    signed_distance,
+)
 from csgnb.sampling import sample_csg
-from tests.test_csg_raycast import graph_first_order_distance, random_rays, ray_surface_points
+from tests.raycast_reference import (
+    graph_first_order_distance,
+    graph_value,
+    random_rays,
+    ray_surface_points,
+    world_leaves,
+)
 
 
 def _spheres():
@@ -73,8 +86,39 @@ def _eight():
     return csg.intersection(*parts).transformed(rot), ((0, 0, 0), 1.1)
 
 
+def _paraboloids():
+    """A cup (elliptic paraboloid cut by a plane) with a saddle-shaped lid, and a saddle-topped block."""
+    cup = csg.leaf(elliptic_paraboloid((0.6, 0.5)), "cup") & csg.leaf(csg.graph.Quadric.from_abc(
+        np.zeros((3, 3)), [0, 0, -0.5], 1.6), "rim")  # z ≤ 0.8
+    saddle = csg.leaf(hyperbolic_paraboloid((0.9, 0.9)).translated((0, 0, 0.6)), "saddle")
+    lid = (cup & saddle).rotated((1, 0.3, 0), 0.3)
+    block = csg.box((1.2, -0.5, -0.3), (2.2, 0.5, 0.6), "block") - csg.leaf(
+        hyperbolic_paraboloid((0.5, 0.5)).translated((1.7, 0, 0.3)), "saddle cut")
+    return lid | block, ((1.0, 0.0, 0.3), 1.6)
+
+
+def _sharp_paraboloids():
+    """Figure 15 with paraboloids: a lens of two opposed cups with a sharp rim (0.04 thick at most),
+    a saddle fin and a pointed spike, all thinner or smaller than the splat radius."""
+    up = csg.leaf(elliptic_paraboloid((0.5, 0.5)).translated((0, 0, -0.02)), "lens up")
+    down = csg.leaf(elliptic_paraboloid((0.5, 0.5)).transformed(np.diag([1.0, 1.0, -1.0, 1.0])).translated(
+        (0, 0, 0.02)), "lens down")
+    fin = (csg.leaf(hyperbolic_paraboloid((0.6, 0.6)).translated((1.2, 0, 0)), "fin saddle")
+           & csg.leaf(parallel_planes((1.0, 0.0, 0.0), 1.19, 1.21), "fin slab")
+           & csg.box((0.7, -0.5, -0.5), (1.7, 0.5, 0.5), "fin box"))
+    spike = csg.leaf(elliptic_paraboloid((0.02, 0.02)).translated((0.5, 0.9, 0.0)), "spike") & csg.sphere(
+        (0.5, 0.9, 0.2), 0.22, "spike ball")
+    return csg.union(up & down, fin, spike), ((0.6, 0.3, 0.0), 1.4)
+
+
+#: Regions left unresolved by design (see ``csgnb.sampling.kernel``, rule 5): the pointed cone of the
+#: "thin" model has its cap plane through its apex; the cap's only surface point is the apex, an
+#: isolated point where d_Qab touches 0 (found only to √EPS: d ≈ 6e-8 there), so no rule closes the
+#: few regions around it. The apex itself is covered by the cone's samples.
+DOCUMENTED_UNRESOLVED = {"thin": 16}
+
 MODELS = {"spheres": _spheres, "capsule": _capsule, "plate": _plate, "shared": _shared, "thin": _thin,
-          "eight": _eight}
+          "eight": _eight, "paraboloids": _paraboloids, "sharp paraboloids": _sharp_paraboloids}
 
 
 def _check_on_surface(shape, cloud, scale):
@@ -84,9 +128,19 @@ def _check_on_surface(shape, cloud, scale):
     val = np.einsum("ni,nij,nj->n", h, Q, h)
     grad = 2.0 * np.einsum("ni,nij->nj", h, Q[:, :, :3])
     gn = np.linalg.norm(grad, axis=1)
+    apex = gn <= 1e-8 * np.median(gn)  # a cone's apex: on the quadric, no normal (takes its plane's)
+    assert np.all(np.abs(val[apex]) <= 1e-12 * scale**2), "apex samples off their quadric"
+    val, grad, gn = val[~apex], grad[~apex], gn[~apex]
     assert np.all(np.abs(val) / gn <= 1e-9 * scale), "samples off their quadric"
-    assert np.allclose(np.einsum("ni,ni->n", cloud.normals, grad / gn[:, None]), 1.0, atol=1e-9)
-    f = graph_first_order_distance(shape, cloud.positions)
+    assert np.allclose(np.einsum("ni,ni->n", cloud.normals[~apex], grad / gn[:, None]), 1.0, atol=1e-9)
+    # the reference's first-order distance Q/|∇Q| is unstable at a singular point of any leaf (a
+    # cone's apex): there the sample must make the CSG value itself vanish
+    hom = np.column_stack([cloud.positions, np.ones(len(cloud))])
+    singular = np.zeros(len(cloud), dtype=bool)
+    for _, Qw in world_leaves(shape):
+        singular |= np.linalg.norm(hom @ Qw[:, :3], axis=1) <= 1e-6
+    assert np.all(np.abs(graph_value(shape, cloud.positions[singular])) <= 1e-12 * scale**2)
+    f = graph_first_order_distance(shape, cloud.positions[~singular])
     assert np.all(np.abs(f) <= 1e-7 * scale), f"samples off the CSG surface: {np.sort(np.abs(f))[-5:]}"
 
 
@@ -121,6 +175,35 @@ def test_samples_lie_on_the_csg_surface_and_cover_it(name):
     cloud = sample_csg(shape, r)
     _check_on_surface(shape, cloud, radius)
     _check_coverage(shape, cloud, center, radius, np.random.default_rng(7))
+    assert cloud.stats.unresolved <= DOCUMENTED_UNRESOLVED.get(name, 0)
+
+
+def _mapped_back(cloud, shape, scale, offset):
+    """The samples of ``shape.scaled(scale).translated(offset)`` mapped back to ``shape``'s frame."""
+    nf = shape.normal_form()
+    assert nf.names == cloud.normal_form.names
+    return type(cloud)((cloud.positions - offset) / scale, cloud.normals, cloud.quadric_ids, cloud.radii / scale,
+                       cloud.clip_start, cloud.clip_count, cloud.clip_indices, cloud.radius / scale, nf, cloud.stats)
+
+
+@pytest.mark.parametrize("name", sorted(MODELS))
+@pytest.mark.parametrize("scale, offset", [(1e-6, 0.0), (1e7, 0.0), (1.0, 1e6)], ids=["1e-6", "1e7", "moved 1e6"])
+def test_scaled_and_translated_models_give_the_same_samples(name, scale, offset):
+    """Every tolerance is relative: a model scaled by 1e-6 or 1e7, or moved by 10⁶, is sampled like the
+    model itself (same samples up to the map), on its surface and covering it."""
+    shape, (center, radius) = MODELS[name]()
+    r = 0.12 if name != "thin" else 0.1
+    t = np.array([offset, 0.0, 0.0])
+    moved = shape.scaled(scale).translated(t)
+    cloud = _mapped_back(sample_csg(moved, r * scale), shape, scale, t)
+    ref = sample_csg(shape, r)
+    assert abs(len(cloud) - len(ref)) <= 0.01 * len(ref)
+    near, _ = cKDTree(ref.positions).query(cloud.positions)
+    # identical but for decisions within rounding of a threshold (the thin model's 0.015 fin)
+    assert np.mean(near <= 1e-7 * radius) > (0.99 if name != "thin" else 0.9)
+    _check_on_surface(shape, cloud, radius)
+    _check_coverage(shape, cloud, center, radius, np.random.default_rng(9), n_rays=1500)
+    assert cloud.stats.unresolved <= DOCUMENTED_UNRESOLVED.get(name, 0)
 
 
 @pytest.mark.parametrize("options", [{"reduce_radius": True}, {"distortion": "sqrt3"}, {"refine": False}])

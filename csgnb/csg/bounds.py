@@ -1,19 +1,25 @@
 """Axis-aligned bounding boxes of normal-form terms and of quadric surfaces inside them.
 
 The sampler needs a finite box per term (the paper asks for a bounding sphere; we derive boxes
-where the quadrics allow it). A quadric whose solid ``{Q ≤ 0}`` is convex — a half-space, a slab,
-an elliptic cylinder, an ellipsoid — is contained in its supporting half-spaces
+where the quadrics allow it). A quadric whose solid ``{Q ≤ 0}`` is convex is contained in
+supporting half-spaces (all from :func:`_cylinder_rows`: the solid ``Σ λₖ dₖ² ≤ ρ`` over the
+positive eigen-directions, d = Uᵀ(x − q), has support ``u·q + √(ρ uᵀA⁺u)`` for u in their span):
 
-    u·x ≤ h(u) = u·q + √(ρ uᵀA⁺u),   ρ = qᵀb - c,   for unit u in the range of A
+* a half-space (a single plane) is one row;
+* an ellipsoid, elliptic cylinder or slab (A ⪰ 0, central, ρ = qᵀb − c ≥ 0) gives rows along ±uₖ
+  and along the world axes projected on the span;
+* an elliptic paraboloid or parabolic cylinder (A ⪰ 0, non-central) gives its vertex half-space,
+  and once its axial coordinate is bounded, the cylinder ``Σ λₖdₖ² ≤ 2βs − γ``;
+* a cone or one-sheet hyperboloid (one negative λ) bounds nothing alone; once its axial coordinate
+  s is bounded it lies in the cylinder ``Σ λ₊w² ≤ ρ + |λ₋| s²`` (a capped cone).
 
-(q the center). Intersecting those half-spaces over a term's convex members, with a huge box
-around everything, gives a polytope that contains the term; its vertices, enumerated as
-feasible triples of planes (a small 3-variable LP, solved exactly by enumeration), bound it.
-If the polytope reaches the huge box the term is unbounded. A cone or one-sheet hyperboloid
-bounds the term across its axis once the axial coordinate is bounded (``Σ λ₊w² ≤ ρ + |λ₋|s²``):
-a capped cone gets its cylinder of half-spaces in a second round. Other non-convex members
-(two-sheet hyperboloids, complements of convex solids) bound nothing, so a bounded term can be
-reported unbounded — pass a bounding sphere then.
+Intersecting a term's rows with a search box gives a polytope that contains the term; its extents
+along the world axes and the axial directions come from a small 3-variable LP solved by vertex
+enumeration (every feasible triple of planes), twice when axial bounds apply. If the polytope
+reaches the search box (``tolerances.UNBOUNDED`` model sizes wide) the term is unbounded. Other
+non-convex members (two-sheet hyperboloids, complements of convex solids) bound nothing, so a
+bounded term can be reported unbounded — pass a bounding sphere then. Tolerances are relative to
+the size of the data (``tolerances.SUPPORT_SLACK``), so boxes are the same at any scale.
 """
 
 from __future__ import annotations
@@ -23,16 +29,18 @@ import math
 import numpy as np
 
 from csgnb._jit import jit
-from csgnb.quadric.heightfield import principal_frame
+from csgnb.quadric import tolerances as tol
+from csgnb.quadric.arguments import as_finite_array, as_instance, as_positive
+from csgnb.quadric.frames import frame_kernel
 from csgnb.quadric.quadric import Quadric
 
 __all__ = [
-    "frame_cache_clear",
     "support_halfspaces",
     "polytope_box",
     "polytope_extents",
     "term_boxes",
     "surface_box",
+    "surface_boxes",
     "EMPTY_BOX",
     "box_is_empty",
     "intersect_boxes",
@@ -41,25 +49,13 @@ __all__ = [
 #: An empty box (lo > hi).
 EMPTY_BOX = np.array([np.inf, np.inf, np.inf, -np.inf, -np.inf, -np.inf])
 
-_PSD_TOLERANCE = 1e-12
+#: At most this many support rows per quadric (2·3 eigen-directions + 2·3 projected axes).
+MAX_ROWS = 12
+#: Terms with more rows than this are bounded member by member (the LP is O(rows⁴)).
+MAX_TERM_ROWS = 72
 
-# principal frames by matrix: term boxes, surface boxes and axial bounds all need them
-_FRAMES: dict[bytes, object] = {}
-
-
-def _frame(q: Quadric):
-    key = q.matrix.tobytes()
-    f = _FRAMES.get(key)
-    if f is None:
-        if len(_FRAMES) > 8192:
-            _FRAMES.clear()
-        f = _FRAMES[key] = principal_frame(q)
-    return f
-
-
-def frame_cache_clear() -> None:
-    """Empty the cache of principal frames used for bounds."""
-    _FRAMES.clear()
+# axial records (a second round of rows once the axial coordinate is bounded)
+_AXIAL_NONE, _AXIAL_CONE, _AXIAL_PARABOLOID = 0, 1, 2
 
 
 def box_is_empty(box: np.ndarray) -> bool:
@@ -72,69 +68,136 @@ def intersect_boxes(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.concatenate([np.maximum(a[:3], b[:3]), np.minimum(a[3:], b[3:])])
 
 
-def support_halfspaces(q: Quadric) -> tuple[np.ndarray, np.ndarray]:
-    """Return half-spaces ``N x ≤ h`` that contain the solid ``{Q ≤ 0}`` when it is convex.
-
-    Returns
-    -------
-    normals : (k, 3) float64 — unit normals; ``k = 0`` when the solid is not convex (or not
-        bounded in any direction), so that nothing is claimed.
-    offsets : (k,) float64 — ``+inf`` never occurs; an empty solid gives one impossible
-        half-space (``0·x ≤ -1``).
-    """
-    A, b, c = q.A, q.b, q.c
-    scale = float(np.max(np.abs(q.matrix)))
-    if np.max(np.abs(A)) <= 1e-14 * scale:
-        # half-space: Q = -2 bᵀx + c ≤ 0  ⇔  (-b̂)·x ≤ -c / (2|b|)
-        nb = float(np.linalg.norm(b))
-        return (-b / nb)[None, :], np.array([-c / (2.0 * nb)])
-    frame = _frame(q)
-    lam = frame.eigenvalues
-    top = float(np.max(np.abs(lam)))
-    if np.any(lam < -_PSD_TOLERANCE * top) or not frame.central:
-        return np.empty((0, 3)), np.empty(0)
-    rho = float(frame.center @ b) - c
-    if rho < 0.0:
-        return np.zeros((1, 3)), np.array([-1.0])
-    pos = lam > _PSD_TOLERANCE * top
-    U = frame.axes[:, pos]
-    Ainv = (U / lam[pos]) @ U.T  # pseudo-inverse on the range of A
-    dirs = [U.T, -U.T]
-    proj = (U @ U.T)  # world axes projected on the range of A
-    for k in range(3):
-        v = proj[:, k]
-        nv = float(np.linalg.norm(v))
-        if nv > 1e-9:
-            dirs += [v[None, :] / nv, -v[None, :] / nv]
-    N = np.vstack(dirs)
-    h = N @ frame.center + np.sqrt(np.maximum(rho * np.einsum("ki,ij,kj->k", N, Ainv, N), 0.0))
-    return N, h
+# -- support rows ----------------------------------------------------------------------------------
 
 
 @jit
-def _polytope_extents_kernel(N, h, tol, D, out):
-    """Extremes of D[k]·x over the vertices of {x : N x ≤ h + tol}; returns the vertex count.
+def _cylinder_rows(center, axes, lam, rhs, N, h, at):
+    """Rows ``N x ≤ h`` (from row ``at`` on) containing ``{Σ_{λₖ>0} λₖ dₖ² ≤ rhs}``; returns the new count.
+
+    The one support-half-space helper: ellipsoids, cylinders and slabs (rhs = ρ), the axial
+    bounds of cones (rhs = ρ + |λ₋|s²) and paraboloids (rhs = 2βs − γ). Directions: ±uₖ for λₖ > 0
+    and ± the world axes projected on their span; support u·q + √(rhs · Σ (u·uₖ)²/λₖ).
+    rhs < 0 (an empty solid) gives one impossible row 0·x ≤ −1.
+    """
+    if rhs < 0.0:
+        N[at, 0], N[at, 1], N[at, 2] = 0.0, 0.0, 0.0
+        h[at] = -1.0
+        return at + 1
+    for k in range(3):
+        if lam[k] > 0.0:
+            for sgn in (1.0, -1.0):
+                n0, n1, n2 = sgn * axes[0, k], sgn * axes[1, k], sgn * axes[2, k]
+                N[at, 0], N[at, 1], N[at, 2] = n0, n1, n2
+                h[at] = n0 * center[0] + n1 * center[1] + n2 * center[2] + math.sqrt(rhs / lam[k])
+                at += 1
+    for e in range(3):
+        v0 = 0.0
+        v1 = 0.0
+        v2 = 0.0
+        for k in range(3):
+            if lam[k] > 0.0:
+                v0 += axes[0, k] * axes[e, k]
+                v1 += axes[1, k] * axes[e, k]
+                v2 += axes[2, k] * axes[e, k]
+        nv = math.sqrt(v0 * v0 + v1 * v1 + v2 * v2)
+        if nv <= tol.SPAN:
+            continue  # the world axis is normal to the span: the solid is unbounded along it
+        for sgn in (1.0, -1.0):
+            n0, n1, n2 = sgn * v0 / nv, sgn * v1 / nv, sgn * v2 / nv
+            quad = 0.0
+            for k in range(3):
+                if lam[k] > 0.0:
+                    p = n0 * axes[0, k] + n1 * axes[1, k] + n2 * axes[2, k]
+                    quad += p * p / lam[k]
+            N[at, 0], N[at, 1], N[at, 2] = n0, n1, n2
+            h[at] = n0 * center[0] + n1 * center[1] + n2 * center[2] + math.sqrt(max(rhs * quad, 0.0))
+            at += 1
+    return at
+
+
+@jit
+def _support_kernel(Q, sign, N, h, axial_par, center, axes, lam):
+    """Support rows of the solid ``{sign·Q ≤ 0}`` into N (MAX_ROWS, 3), h; returns (rows, axial kind).
+
+    Also writes its principal frame (``center``, ``axes``, ``lam``) and, for an axial kind,
+    ``axial_par`` = (axis (3), λ₋ or β, ρ or γ) for :func:`_axial_rhs`.
+    """
+    Qs = sign * Q
+    beta = np.empty(3)
+    form = np.empty(3, dtype=np.int64)
+    coef = np.empty((3, 5))
+    central, gamma, _, _ = frame_kernel(Qs, center, axes, lam, beta, form, coef)
+    npos = 0
+    nneg = 0
+    for k in range(3):
+        if lam[k] > 0.0:
+            npos += 1
+        elif lam[k] < 0.0:
+            nneg += 1
+    if npos == 0 and nneg == 0:  # a plane: -2βd + γ ≤ 0 along its β axis
+        for k in range(3):
+            if beta[k] != 0.0:
+                s = 1.0 if beta[k] > 0.0 else -1.0
+                qd = axes[0, k] * center[0] + axes[1, k] * center[1] + axes[2, k] * center[2]
+                N[0, 0], N[0, 1], N[0, 2] = -s * axes[0, k], -s * axes[1, k], -s * axes[2, k]
+                h[0] = -s * qd - s * gamma / (2.0 * beta[k])
+                return 1, _AXIAL_NONE
+        return 0, _AXIAL_NONE
+    if nneg == 0 and central:
+        return _cylinder_rows(center, axes, lam, -gamma, N, h, 0), _AXIAL_NONE
+    if nneg == 0:  # convex paraboloid: the vertex half-space, the rest once s is bounded
+        for k in range(3):
+            if beta[k] != 0.0:
+                s = 1.0 if beta[k] > 0.0 else -1.0
+                qd = axes[0, k] * center[0] + axes[1, k] * center[1] + axes[2, k] * center[2]
+                N[0, 0], N[0, 1], N[0, 2] = -s * axes[0, k], -s * axes[1, k], -s * axes[2, k]
+                h[0] = -s * qd - gamma / (2.0 * abs(beta[k]))
+                axial_par[0], axial_par[1], axial_par[2] = axes[0, k], axes[1, k], axes[2, k]
+                axial_par[3], axial_par[4] = beta[k], gamma
+                return 1, _AXIAL_PARABOLOID
+        return 0, _AXIAL_NONE
+    if nneg == 1 and npos == 2 and central:  # cone / one-sheet hyperboloid
+        for k in range(3):
+            if lam[k] < 0.0:
+                axial_par[0], axial_par[1], axial_par[2] = axes[0, k], axes[1, k], axes[2, k]
+                axial_par[3], axial_par[4] = lam[k], -gamma
+        return 0, _AXIAL_CONE
+    return 0, _AXIAL_NONE
+
+
+@jit
+def _axial_rhs(kind, par, s_lo, s_hi):
+    """The cylinder right-hand side of an axial record with the axial coordinate s in [s_lo, s_hi]."""
+    if kind == _AXIAL_CONE:
+        s = max(abs(s_lo), abs(s_hi))
+        return par[4] + abs(par[3]) * s * s
+    return 2.0 * par[3] * (s_hi if par[3] > 0.0 else s_lo) - par[4]
+
+
+# -- the LP ----------------------------------------------------------------------------------------
+
+
+@jit
+def _extents_kernel(N, h, m, slack, D, nd, out):
+    """Extremes of D[k]·x (k < nd) over the vertices of {x : N[:m] x ≤ h[:m] + slack}; returns the count.
 
     Every triple of planes with an invertible 3×3 system gives a candidate (Cramer's rule); the
-    candidates inside all half-spaces (with ``tol`` slack) are the polytope's vertices.
-    out[k] = (min, max).
+    candidates inside all half-spaces (with ``slack``) are the polytope's vertices. out[k] = (min, max).
     """
-    m = N.shape[0]
-    for k in range(D.shape[0]):
+    for k in range(nd):
         out[k, 0] = math.inf
         out[k, 1] = -math.inf
     count = 0
     for i in range(m):
         for j in range(i + 1, m):
-            # n_i × n_j, reused for every third plane
             c0 = N[i, 1] * N[j, 2] - N[i, 2] * N[j, 1]
             c1 = N[i, 2] * N[j, 0] - N[i, 0] * N[j, 2]
             c2 = N[i, 0] * N[j, 1] - N[i, 1] * N[j, 0]
             for k in range(j + 1, m):
                 det = N[k, 0] * c0 + N[k, 1] * c1 + N[k, 2] * c2
-                if abs(det) < 1e-12:
+                if abs(det) < tol.PARALLEL:
                     continue
-                # x = (h_i (n_j × n_k) + h_j (n_k × n_i) + h_k (n_i × n_j)) / det
                 jk0 = N[j, 1] * N[k, 2] - N[j, 2] * N[k, 1]
                 jk1 = N[j, 2] * N[k, 0] - N[j, 0] * N[k, 2]
                 jk2 = N[j, 0] * N[k, 1] - N[j, 1] * N[k, 0]
@@ -146,97 +209,165 @@ def _polytope_extents_kernel(N, h, tol, D, out):
                 z = (h[i] * jk2 + h[j] * ki2 + h[k] * c2) / det
                 ok = True
                 for r in range(m):
-                    if N[r, 0] * x + N[r, 1] * y + N[r, 2] * z > h[r] + tol:
+                    if N[r, 0] * x + N[r, 1] * y + N[r, 2] * z > h[r] + slack:
                         ok = False
                         break
                 if ok:
                     count += 1
-                    for q in range(D.shape[0]):
+                    for q in range(nd):
                         val = D[q, 0] * x + D[q, 1] * y + D[q, 2] * z
                         out[q, 0] = min(out[q, 0], val)
                         out[q, 1] = max(out[q, 1], val)
     return count
 
 
-def polytope_extents(normals, offsets, box, directions, scale: float | None = None) -> np.ndarray | None:
-    """Return (min, max) of ``directions[k]·x`` over ``{x ∈ box : normals x ≤ offsets}`` : (k, 2).
-
-    ``None`` when the set is empty. ``box`` : (6,) finite (lo, hi); ``scale`` the model size for
-    the feasibility slack (default: of ``box``).
-    """
-    box = np.asarray(box, dtype=np.float64)
-    eye = np.eye(3)
-    N = np.vstack([np.asarray(normals, dtype=np.float64).reshape(-1, 3), eye, -eye])
-    h = np.concatenate([np.asarray(offsets, dtype=np.float64).reshape(-1), box[3:], -box[:3]])
-    if scale is None:
-        scale = float(np.max(np.abs(box)))
-    scale = float(scale) + 1e-300
-    D = np.ascontiguousarray(np.asarray(directions, dtype=np.float64).reshape(-1, 3))
-    out = np.empty((len(D), 2))
-    if _polytope_extents_kernel(np.ascontiguousarray(N), np.ascontiguousarray(h), 1e-9 * scale, D, out) == 0:
-        return None
-    return out
+@jit
+def _box_rows(box, N, h, at):
+    for e in range(3):
+        N[at, 0], N[at, 1], N[at, 2] = 0.0, 0.0, 0.0
+        N[at, e] = 1.0
+        h[at] = box[3 + e]
+        N[at + 1, 0], N[at + 1, 1], N[at + 1, 2] = 0.0, 0.0, 0.0
+        N[at + 1, e] = -1.0
+        h[at + 1] = -box[e]
+        at += 2
+    return at
 
 
-def polytope_box(normals: np.ndarray, offsets: np.ndarray, box: np.ndarray, scale: float | None = None) -> np.ndarray:
-    """Return the AABB of ``{x ∈ box : normals x ≤ offsets}`` : (6,) float64 (``EMPTY_BOX`` if empty).
-
-    ``box`` : (6,) finite (lo, hi). ``scale`` is the size of the model (default: of ``box``); the
-    result is enlarged by 1e-9·scale so that rounding never makes it smaller than the true box.
-    """
-    box = np.asarray(box, dtype=np.float64)
-    if scale is None:
-        scale = float(np.max(np.abs(box)))
-    ext = polytope_extents(normals, offsets, box, np.eye(3), scale)
-    if ext is None:
-        return EMPTY_BOX.copy()
-    pad = 1e-9 * (float(scale) + 1e-300)
-    out = np.concatenate([ext[:, 0] - pad, ext[:, 1] + pad])
-    return intersect_boxes(out, box)
-
-
-def _axial_bound(q: Quadric):
-    """For a central quadric with one negative eigenvalue (cone, one-sheet hyperboloid): the data
-    that bounds ``{Q ≤ 0}`` across its axis once the axial coordinate is bounded.
-
-    Returns (center, axis, λ_neg, U_pos, λ_pos, ρ) or None. Inside, with s the axial coordinate
-    and w the others, ``Σ λ_pos w² ≤ ρ + |λ_neg| s²``.
-    """
-    A = q.A
-    if np.max(np.abs(A)) <= 1e-14 * float(np.max(np.abs(q.matrix))):
-        return None
-    frame = _frame(q)
-    lam = frame.eigenvalues
-    top = float(np.max(np.abs(lam)))
-    neg = lam < -_PSD_TOLERANCE * top
-    pos = lam > _PSD_TOLERANCE * top
-    if not frame.central or neg.sum() != 1 or pos.sum() != 2:
-        return None
-    rho = float(frame.center @ q.b) - q.c
-    return frame.center, frame.axes[:, neg][:, 0], float(lam[neg][0]), frame.axes[:, pos], lam[pos], rho
+@jit
+def _polytope_box(N, h, m, box, slack, out):
+    """out (6,) = AABB of {x ∈ box : N[:m] x ≤ h[:m]}, padded by ``slack`` and cut to ``box``; False if empty."""
+    M = np.empty((m + 6, 3))
+    H = np.empty(m + 6)
+    M[:m] = N[:m]
+    H[:m] = h[:m]
+    n = _box_rows(box, M, H, m)
+    D = np.eye(3)
+    ext = np.empty((3, 2))
+    if _extents_kernel(M, H, n, slack, D, 3, ext) == 0:
+        for e in range(3):
+            out[e], out[3 + e] = math.inf, -math.inf
+        return False
+    for e in range(3):
+        out[e] = max(ext[e, 0] - slack, box[e])
+        out[3 + e] = min(ext[e, 1] + slack, box[3 + e])
+    return True
 
 
-def _axial_halfspaces(data, s_range):
-    """Half-spaces containing the solid of ``_axial_bound`` data with the axial coordinate in s_range."""
-    center, axis, lam_neg, U, lam, rho = data
-    s_max = max(abs(s_range[0] - axis @ center), abs(s_range[1] - axis @ center))
-    rhs = rho + abs(lam_neg) * s_max * s_max
-    if rhs < 0.0:
-        return np.zeros((1, 3)), np.array([-1.0])
-    Ainv = (U / lam) @ U.T
-    dirs = [U.T, -U.T]
-    proj = U @ U.T
-    for k in range(3):
-        v = proj[:, k]
-        nv = float(np.linalg.norm(v))
-        if nv > 1e-9:
-            dirs += [v[None, :] / nv, -v[None, :] / nv]
-    N = np.vstack(dirs)
-    return N, N @ center + np.sqrt(np.maximum(rhs * np.einsum("ki,ij,kj->k", N, Ainv, N), 0.0))
+# -- term boxes --------------------------------------------------------------------------------------
 
 
-def _is_plane(q: Quadric) -> bool:
-    return bool(np.max(np.abs(q.A)) <= 1e-14 * float(np.max(np.abs(q.matrix))))
+@jit
+def _term_boxes_kernel(Ms, term_start, search, has_limit, boxes, unbounded):
+    """boxes (T, 6), unbounded (T,) of the normal form with matrices Ms (n, 4, 4); returns the scale used."""
+    n = Ms.shape[0]
+    rowsN = np.empty((n, MAX_ROWS, 3))
+    rowsH = np.empty((n, MAX_ROWS))
+    nrows = np.zeros(n, dtype=np.int64)
+    kind = np.zeros(n, dtype=np.int64)
+    par = np.zeros((n, 5))
+    centers = np.empty((n, 3))
+    axes = np.empty((n, 3, 3))
+    lams = np.empty((n, 3))
+    scale = 0.0
+    for q in range(n):
+        nrows[q], kind[q] = _support_kernel(Ms[q], 1.0, rowsN[q], rowsH[q], par[q], centers[q], axes[q], lams[q])
+        for r in range(nrows[q]):
+            scale = max(scale, abs(rowsH[q, r]))
+    if has_limit:
+        for e in range(6):
+            scale = max(scale, abs(search[e]))
+    if scale == 0.0:
+        scale = 1.0  # every row passes through the origin: no length in the data
+    huge = tol.UNBOUNDED * scale
+    box = np.empty(6)
+    if has_limit:
+        box[:] = search
+    else:
+        for e in range(3):
+            box[e], box[3 + e] = -huge, huge
+    slack = tol.SUPPORT_SLACK * scale
+    T = term_start.shape[0] - 1
+    for t in range(T):
+        a, b = term_start[t], term_start[t + 1]
+        m = 0
+        n_axial = 0
+        for q in range(a, b):
+            m += nrows[q]
+            if kind[q] != _AXIAL_NONE:
+                n_axial += 1
+        cap = m + MAX_ROWS * n_axial + 6
+        N = np.empty((cap, 3))
+        H = np.empty(cap)
+        at = 0
+        for q in range(a, b):
+            for r in range(nrows[q]):
+                N[at] = rowsN[q, r]
+                H[at] = rowsH[q, r]
+                at += 1
+        out = boxes[t]
+        if at > MAX_TERM_ROWS:  # member by member: the intersection of their boxes
+            for e in range(6):
+                out[e] = box[e]
+            for q in range(a, b):
+                if nrows[q] == 0:
+                    continue
+                mb = np.empty(6)
+                if not _polytope_box(rowsN[q], rowsH[q], nrows[q], box, slack, mb):
+                    for e in range(3):
+                        out[e], out[3 + e] = math.inf, -math.inf
+                    break
+                for e in range(3):
+                    out[e] = max(out[e], mb[e])
+                    out[3 + e] = min(out[3 + e], mb[3 + e])
+            ok = out[0] <= out[3] and out[1] <= out[4] and out[2] <= out[5]
+        else:
+            ok = _polytope_box(N, H, at, box, slack, out)
+            rounds = 2 if n_axial > 0 else 0
+            D = np.empty((n_axial, 3))
+            ext = np.empty((n_axial, 2))
+            base = at
+            for _ in range(rounds):
+                if not ok:
+                    break
+                k = 0
+                for q in range(a, b):
+                    if kind[q] != _AXIAL_NONE:
+                        D[k, 0], D[k, 1], D[k, 2] = par[q, 0], par[q, 1], par[q, 2]
+                        k += 1
+                M = np.empty((at + 6, 3))
+                HM = np.empty(at + 6)
+                M[:at] = N[:at]
+                HM[:at] = H[:at]
+                nm = _box_rows(box, M, HM, at)
+                if _extents_kernel(M, HM, nm, slack, D, n_axial, ext) == 0:
+                    ok = False
+                    break
+                k = 0
+                grown = base
+                for q in range(a, b):
+                    if kind[q] == _AXIAL_NONE:
+                        continue
+                    lo, hi = ext[k, 0], ext[k, 1]
+                    k += 1
+                    if max(abs(lo), abs(hi)) >= 0.5 * huge and not has_limit:
+                        continue
+                    qa = par[q, 0] * centers[q, 0] + par[q, 1] * centers[q, 1] + par[q, 2] * centers[q, 2]
+                    rhs = _axial_rhs(kind[q], par[q], lo - qa - slack, hi - qa + slack)
+                    grown = _cylinder_rows(centers[q], axes[q], lams[q], rhs, N, H, grown)
+                at = grown
+                ok = _polytope_box(N, H, at, box, slack, out)
+        if not ok:
+            for e in range(3):
+                out[e], out[3 + e] = math.inf, -math.inf
+            unbounded[t] = False
+        else:
+            far = False
+            for e in range(6):
+                if abs(out[e]) >= 0.5 * huge:
+                    far = True
+            unbounded[t] = far and not has_limit
+    return scale
 
 
 def term_boxes(nf, limit: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
@@ -251,56 +382,142 @@ def term_boxes(nf, limit: np.ndarray | None = None) -> tuple[np.ndarray, np.ndar
     -------
     boxes : (T, 6) float64 — (lo, hi) per term; ``EMPTY_BOX`` rows for provably empty terms.
     unbounded : (T,) bool — the convex members do not bound the term (only possible without
-        ``limit``; the row then holds the huge search box).
+        ``limit``; the row then reaches the search box).
     """
-    spaces = [support_halfspaces(q) for q in nf.quadrics]
-    offsets = [abs(h[np.isfinite(h)]).max() for _, h in spaces if len(h)]
-    scale = 1.0 + max(offsets, default=0.0)
-    if limit is not None:
-        scale = max(scale, float(np.max(np.abs(limit))))
-    huge = 1e6 * scale
-    search = np.array([-huge] * 3 + [huge] * 3) if limit is None else np.asarray(limit, dtype=np.float64)
-    boxes = np.empty((nf.n_terms, 6))
-    unbounded = np.zeros(nf.n_terms, dtype=bool)
-    axial = [_axial_bound(q) for q in nf.quadrics]
-    for i in range(nf.n_terms):
-        idx = nf.term(i)
-        N = np.vstack([spaces[k][0] for k in idx] + [np.empty((0, 3))])
-        h = np.concatenate([spaces[k][1] for k in idx] + [np.empty(0)])
-        cones = [axial[k] for k in idx if axial[k] is not None]
-        box = polytope_box(N, h, search, scale)
-        # cones and one-sheet hyperboloids bound the term across their axis once the axial
-        # coordinate is bounded (a capped cone): add those half-spaces and solve again
-        for _ in range(2 if cones else 0):
-            if box_is_empty(box):
-                break
-            extra_N, extra_h = [N], [h]
-            for data in cones:
-                s_range = polytope_extents(N, h, search, data[1][None, :], scale)
-                if s_range is None or np.max(np.abs(s_range)) >= 0.5 * huge:
-                    continue
-                n2, h2 = _axial_halfspaces(data, s_range[0])
-                extra_N.append(n2)
-                extra_h.append(h2)
-            N, h = np.vstack(extra_N), np.concatenate(extra_h)
-            box = polytope_box(N, h, search, scale)
-        boxes[i] = box
-        if limit is None and not box_is_empty(box):
-            unbounded[i] = bool(np.any(np.abs(box) >= 0.5 * huge))
+    from csgnb.csg.normal_form import NormalForm
+
+    as_instance(nf, NormalForm, "nf", "a NormalForm (csgnb.csg.to_normal_form)")
+    Ms = np.ascontiguousarray(np.array([q.matrix for q in nf.quadrics]).reshape(-1, 4, 4))
+    return term_boxes_of_matrices(Ms, np.ascontiguousarray(nf.term_start), limit)
+
+
+def term_boxes_of_matrices(Ms: np.ndarray, term_start: np.ndarray, limit=None):
+    """As :func:`term_boxes`, for quadric matrices ``Ms`` : (n, 4, 4) and ``term_start`` : (T + 1,)."""
+    T = len(term_start) - 1
+    boxes = np.empty((T, 6))
+    unbounded = np.zeros(T, dtype=np.bool_)
+    search = np.zeros(6) if limit is None else as_finite_array(limit, (6,), "limit")
+    _term_boxes_kernel(Ms, term_start, search, limit is not None, boxes, unbounded)
     return boxes, unbounded
 
 
-def surface_box(q: Quadric, box: np.ndarray, scale: float | None = None) -> np.ndarray:
-    """Return a box containing the part of the surface ``Q = 0`` inside ``box`` : (6,) float64.
+# -- surface boxes -----------------------------------------------------------------------------------
 
-    A plane gives the box of its polygon in ``box``; a quadric with a convex side (``Q ≤ 0`` or
-    ``Q ≥ 0``) the box of that side within ``box`` (the surface bounds it); others ``box`` itself.
+
+@jit
+def _surface_boxes_kernel(Ms, term_of, term_box, scale, out):
+    """out[q] (6,) = a box containing the part of quadric q's surface inside its term's box."""
+    N = np.empty((MAX_ROWS * 2 + 2, 3))
+    H = np.empty(MAX_ROWS * 2 + 2)
+    par = np.empty(5)
+    center = np.empty(3)
+    axes = np.empty((3, 3))
+    lam = np.empty(3)
+    slack = tol.SUPPORT_SLACK * scale
+    for q in range(Ms.shape[0]):
+        tb = term_box[term_of[q]]
+        o = out[q]
+        if tb[0] > tb[3] or tb[1] > tb[4] or tb[2] > tb[5]:
+            for e in range(6):
+                o[e] = tb[e]
+            continue
+        m, _ = _support_kernel(Ms[q], 1.0, N, H, par, center, axes, lam)
+        if m == 1 and lam[0] == 0.0 and lam[1] == 0.0 and lam[2] == 0.0:  # a plane: its polygon
+            N[1, 0], N[1, 1], N[1, 2] = -N[0, 0], -N[0, 1], -N[0, 2]
+            H[1] = -H[0]
+            _polytope_box(N, H, 2, tb, slack, o)
+            continue
+        if m == 0:  # the convex side may be the outside (a hole's cylinder)
+            m, _ = _support_kernel(Ms[q], -1.0, N, H, par, center, axes, lam)
+        if m > 0:
+            _polytope_box(N, H, m, tb, slack, o)
+        else:
+            for e in range(6):
+                o[e] = tb[e]
+
+
+def surface_boxes(nf, term_box: np.ndarray, scale: float) -> np.ndarray:
+    """Return per quadric a box containing its surface inside its term's box : (n, 6) float64.
+
+    A plane gives the box of its polygon; a quadric with a convex side (``Q ≤ 0`` or ``Q ≥ 0``)
+    the box of that side within the term box (the surface bounds it); others the term box.
+    ``scale`` : the model size, for the rounding slack.
     """
-    if _is_plane(q):
-        N, h = support_halfspaces(q)
-        return polytope_box(np.vstack([N, -N]), np.concatenate([h, -h]), box, scale)
-    for side in (q, -q):
-        N, h = support_halfspaces(side)
-        if len(h):
-            return polytope_box(N, h, box, scale)
-    return np.asarray(box, dtype=np.float64).copy()
+    from csgnb.csg.normal_form import NormalForm
+
+    as_instance(nf, NormalForm, "nf", "a NormalForm (csgnb.csg.to_normal_form)")
+    term_box = as_finite_array(term_box, (nf.n_terms, 6), "term_box", finite=False)
+    Ms = np.ascontiguousarray(np.array([q.matrix for q in nf.quadrics]).reshape(-1, 4, 4))
+    out = np.empty((len(Ms), 6))
+    _surface_boxes_kernel(Ms, np.ascontiguousarray(nf.term_of), np.ascontiguousarray(term_box, dtype=np.float64),
+                          float(scale), out)
+    return out
+
+
+def surface_box(q: Quadric, box: np.ndarray, scale: float | None = None) -> np.ndarray:
+    """Return a box containing the part of the surface ``Q = 0`` inside ``box`` : (6,) float64."""
+    if not isinstance(q, Quadric):
+        raise TypeError(f"expected a csgnb.quadric.Quadric, got {type(q).__name__}")
+    box = as_finite_array(box, (6,), "box")
+    scale = float(np.max(np.abs(box))) if scale is None else as_positive(scale, "scale")
+    out = np.empty((1, 6))
+    _surface_boxes_kernel(np.ascontiguousarray(q.matrix)[None], np.zeros(1, dtype=np.int64), box[None],
+                          float(scale), out)
+    return out[0]
+
+
+def support_halfspaces(q: Quadric) -> tuple[np.ndarray, np.ndarray]:
+    """Return half-spaces ``N x ≤ h`` that contain the solid ``{Q ≤ 0}`` when it is convex.
+
+    Returns
+    -------
+    normals : (k, 3) float64 — unit normals; ``k = 0`` when the solid is not convex (or not
+        bounded in any direction), so that nothing is claimed.
+    offsets : (k,) float64 — an empty solid gives one impossible half-space (``0·x ≤ -1``).
+    """
+    if not isinstance(q, Quadric):
+        raise TypeError(f"expected a csgnb.quadric.Quadric, got {type(q).__name__}")
+    N, h = np.empty((MAX_ROWS, 3)), np.empty(MAX_ROWS)
+    m, _ = _support_kernel(np.ascontiguousarray(q.matrix), 1.0, N, h, np.empty(5), np.empty(3), np.empty((3, 3)),
+                           np.empty(3))
+    return N[:m].copy(), h[:m].copy()
+
+
+def polytope_extents(normals, offsets, box, directions, scale: float | None = None) -> np.ndarray | None:
+    """Return (min, max) of ``directions[k]·x`` over ``{x ∈ box : normals x ≤ offsets}`` : (k, 2).
+
+    ``None`` when the set is empty. ``box`` : (6,) finite (lo, hi); ``scale`` the model size for
+    the feasibility slack (default: of ``box``).
+    """
+    box = as_finite_array(box, (6,), "box")
+    N0 = as_finite_array(normals, None, "normals").reshape(-1, 3)
+    h0 = as_finite_array(offsets, None, "offsets").reshape(-1)
+    N = np.empty((len(N0) + 6, 3))
+    h = np.empty(len(N0) + 6)
+    N[: len(N0)], h[: len(N0)] = N0, h0
+    n = _box_rows(box, N, h, len(N0))
+    if scale is None:
+        scale = float(np.max(np.abs(box)))
+    D = np.ascontiguousarray(as_finite_array(directions, None, "directions").reshape(-1, 3))
+    out = np.empty((len(D), 2))
+    if _extents_kernel(N, h, n, tol.SUPPORT_SLACK * float(scale), D, len(D), out) == 0:
+        return None
+    return out
+
+
+def polytope_box(normals, offsets, box, scale: float | None = None) -> np.ndarray:
+    """Return the AABB of ``{x ∈ box : normals x ≤ offsets}`` : (6,) float64 (``EMPTY_BOX`` if empty).
+
+    ``box`` : (6,) finite (lo, hi). ``scale`` is the size of the model (default: of ``box``); the
+    result is enlarged by ``tolerances.SUPPORT_SLACK``·scale so that rounding never makes it
+    smaller than the true box.
+    """
+    box = as_finite_array(box, (6,), "box")
+    N = np.ascontiguousarray(as_finite_array(normals, None, "normals").reshape(-1, 3))
+    h = np.ascontiguousarray(as_finite_array(offsets, None, "offsets").reshape(-1))
+    if scale is None:
+        scale = float(np.max(np.abs(box)))
+    out = np.empty(6)
+    if not _polytope_box(N, h, len(h), box, tol.SUPPORT_SLACK * float(scale), out):
+        return EMPTY_BOX.copy()
+    return out

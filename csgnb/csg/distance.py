@@ -29,13 +29,10 @@ import math
 
 import numpy as np
 
-from csgnb._jit import jit
 from csgnb.csg.normal_form import NormalForm
-from csgnb.quadric.evaluate import as_points, ieee_jit
-
-#: ieee_jit for scalar helpers called from loops: LLVM always inlines them, which also removes the
-#: reference counting of their array arguments (a call per sample would otherwise cost ~100 ns).
-inline_jit = jit(error_model="numpy", inline="always")
+from csgnb.errors import CsgnbError
+from csgnb.quadric.arguments import as_count
+from csgnb.quadric.evaluate import as_points, ieee_jit, inline_jit
 
 __all__ = ["csg_distance", "relative_distance", "csg_value", "quadric_distance", "box_distance", "inline_jit"]
 
@@ -194,8 +191,9 @@ def relative_distance(nf: NormalForm, index: int, points) -> np.ndarray:
     Q_ab within |d|; positive where it does not, and neither does any point of Q_ab within d.
     """
     C, ts, pts = _prepare(nf, points)
-    if not 0 <= int(index) < len(nf):
-        raise IndexError(f"quadric index {index} out of range for {len(nf)} quadrics")
+    index = as_count(index, "index")
+    if not index < len(nf):
+        raise CsgnbError(f"quadric index {index} out of range for {len(nf)} quadrics")
     out = np.empty(pts.shape[0])
     _relative_distance_kernel(
         C, ts, np.ascontiguousarray(nf.surface), np.ascontiguousarray(nf.orientation), int(index), pts, out

@@ -23,8 +23,9 @@ from collections.abc import Iterable, Iterator
 import numpy as np
 
 from csgnb.errors import CsgnbError, GeometryError
-from csgnb.quadric.quadric import SINGULAR_CONDITION, Quadric
-from csgnb.quadric.quadric import _as_finite_array as _finite  # one finite-array check for quadrics and transforms
+from csgnb.quadric.arguments import as_finite_array as _finite  # one check for quadrics and transforms
+from csgnb.quadric.arguments import as_matrix, as_real
+from csgnb.quadric.quadric import Quadric, transform_inverse
 
 __all__ = [
     "Node",
@@ -94,7 +95,10 @@ class Node:
 
     def scaled(self, factors, center=(0.0, 0.0, 0.0)) -> Transformed:
         """Return this node scaled by ``factors`` (scalar or (3,)) about ``center``."""
-        f = _finite(np.broadcast_to(np.asarray(factors, dtype=np.float64), (3,)), (3,), "factors")
+        f = _finite(factors, None, "factors")
+        if f.shape not in ((), (1,), (3,)):
+            raise CsgnbError(f"factors must be a number or 3 numbers, got shape {f.shape}")
+        f = np.broadcast_to(f, (3,)).astype(np.float64)
         c = _finite(center, (3,), "center")
         m = np.diag([*f, 1.0])
         m[:3, 3] = c - f * c
@@ -123,6 +127,8 @@ class Leaf(Node):
     def __init__(self, quadric: Quadric, name: str | None = None) -> None:
         if not isinstance(quadric, Quadric):
             raise TypeError(f"a leaf holds a csgnb.quadric.Quadric, got {type(quadric).__name__}")
+        if name is not None and not isinstance(name, str):
+            raise TypeError(f"a leaf's name must be a str or None, got {type(name).__name__}")
         self.quadric = quadric
         self.name = name
 
@@ -197,15 +203,8 @@ class Transformed(Node):
 
     def __init__(self, child, matrix) -> None:
         self.child = as_node(child)
-        m = _finite(matrix, np.shape(matrix), "transform")
-        if m.shape == (3, 4):
-            m = np.vstack([m, [0.0, 0.0, 0.0, 1.0]])
-        m = _finite(m, (4, 4), "transform").copy()
-        cond = np.linalg.cond(m)
-        if not np.isfinite(cond) or cond > SINGULAR_CONDITION:
-            raise GeometryError(
-                f"transform is singular (condition number {cond:.3g}); CSG edges need an invertible 4×4 matrix"
-            )
+        m = as_matrix(matrix, "transform").copy()
+        transform_inverse(m, "transform (a CSG edge)")  # refuses singular maps here, where the edge is built
         m.setflags(write=False)
         self.matrix = m
 
@@ -274,6 +273,7 @@ def rotation_matrix(axis, angle: float, center=(0.0, 0.0, 0.0)) -> np.ndarray:
     if n == 0.0:
         raise GeometryError("rotation axis is zero; pass a non-zero direction")
     a = a / n
+    angle = as_real(angle, "angle")
     c, s = np.cos(angle), np.sin(angle)
     K = np.array([[0.0, -a[2], a[1]], [a[2], 0.0, -a[0]], [-a[1], a[0], 0.0]])
     R = np.eye(3) + s * K + (1.0 - c) * (K @ K)

@@ -12,7 +12,7 @@ Three simplifications keep the form small and the sampler well-posed:
 * a term holding a surface with both orientations is dropped (``A ∩ ¬A`` has no interior);
 * a term that contains every quadric of another term is dropped (absorption, ``X ∪ (X ∩ Y) = X``).
 
-Surfaces are matched up to scale and sign with a relative tolerance (``SURFACE_TOLERANCE``):
+Surfaces are matched up to scale and sign with a relative tolerance (``tolerances.SURFACE``):
 ``surface[k]`` numbers the distinct surfaces and ``orientation[k]`` (±1) says whether quadric k
 equals its surface's representative or its complement. The relative distance of eq. 22 uses
 these to treat one surface reached through several terms (:mod:`csgnb.csg.distance`).
@@ -27,15 +27,14 @@ import numpy as np
 
 from csgnb.csg.graph import Complement, Difference, Intersection, Leaf, Node, Transformed, Union, as_node
 from csgnb.errors import CsgnbError
-from csgnb.quadric.quadric import Quadric
+from csgnb.quadric import tolerances as tol
+from csgnb.quadric.arguments import as_count, as_matrix
+from csgnb.quadric.quadric import Quadric, _apply_inverse, transform_inverse
 
-__all__ = ["NormalForm", "to_normal_form", "SURFACE_TOLERANCE", "quadric_coefficients"]
-
-#: Two quadrics are the same surface when their matrices, each scaled to max |entry| = 1, agree
-#: (up to sign) within this tolerance.
-SURFACE_TOLERANCE = 1e-12
+__all__ = ["NormalForm", "to_normal_form", "quadric_coefficients"]
 
 _UPPER = (np.array([0, 0, 0, 1, 1, 2]), np.array([0, 1, 2, 1, 2, 2]))
+_TRIU_FLAT = np.flatnonzero(np.triu(np.ones((4, 4), dtype=bool)))
 
 
 def quadric_coefficients(quadrics) -> np.ndarray:
@@ -45,15 +44,26 @@ def quadric_coefficients(quadrics) -> np.ndarray:
     (= -b) and λ the extreme eigenvalues of A: the 10 distinct matrix entries of §6's quadric
     buffer plus what the conservative distance (eq. 12) needs.
     """
+    if isinstance(quadrics, Quadric) or not hasattr(quadrics, "__iter__") or isinstance(quadrics, str | bytes):
+        raise TypeError(f"quadrics must be an iterable of csgnb.quadric.Quadric, got {type(quadrics).__name__}")
     qs = list(quadrics)
-    out = np.empty((len(qs), 12))
-    for k, q in enumerate(qs):
-        Q = q.matrix
-        out[k, :6] = Q[_UPPER]
-        out[k, 6:9] = Q[:3, 3]
-        out[k, 9] = Q[3, 3]
-        lam = q.eigenvalues
-        out[k, 10], out[k, 11] = lam[0], lam[-1]
+    for q in qs:
+        if not isinstance(q, Quadric):
+            raise TypeError(f"quadrics must hold csgnb.quadric.Quadric objects, got a {type(q).__name__}")
+    if not qs:
+        return np.empty((0, 12))
+    M = np.array([q.matrix for q in qs])
+    return coefficients_of_matrices(M)
+
+
+def coefficients_of_matrices(M: np.ndarray) -> np.ndarray:
+    """Return the kernel layout (see :func:`quadric_coefficients`) of matrices ``M`` : (n, 4, 4)."""
+    out = np.empty((len(M), 12))
+    out[:, :6] = M[:, _UPPER[0], _UPPER[1]]
+    out[:, 6:9] = M[:, :3, 3]
+    out[:, 9] = M[:, 3, 3]
+    lam = np.linalg.eigvalsh(M[:, :3, :3]) if len(M) else np.empty((0, 3))
+    out[:, 10], out[:, 11] = lam[:, 0], lam[:, -1]
     return out
 
 
@@ -126,6 +136,31 @@ class NormalForm:
 
         return np.sign(csg_value(self, points)).astype(np.int8)
 
+    def mapped(self, matrix) -> NormalForm:
+        """Return this normal form with every quadric mapped by the 4×4 ``matrix`` (eq. 17).
+
+        Terms, names and surface ids are kept (a map keeps surfaces distinct).
+        """
+        Minv = transform_inverse(as_matrix(matrix, "matrix"))
+        if not self.quadrics:
+            return self
+        M = np.array([q.matrix for q in self.quadrics])
+        if Minv[3, 0] == 0.0 and Minv[3, 1] == 0.0 and Minv[3, 2] == 0.0 and Minv[3, 3] == 1.0:
+            # affine: blockwise, as ``quadric._apply_inverse``, for all quadrics at once
+            Li, sv = Minv[:3, :3], Minv[:3, 3]
+            A, m, c = M[:, :3, :3], M[:, :3, 3], M[:, 3, 3]
+            As_m = A @ sv + m
+            out = np.empty_like(M)
+            out[:, :3, :3] = Li.T @ A @ Li
+            out[:, :3, 3] = As_m @ Li
+            out[:, 3, :3] = out[:, :3, 3]
+            out[:, 3, 3] = np.einsum("i,ni->n", sv, A @ sv) + 2.0 * (m @ sv) + c
+        else:
+            out = np.einsum("ji,njk,kl->nil", Minv, M, Minv)
+        out = 0.5 * (out + out.transpose(0, 2, 1))
+        qs = tuple(Quadric._trusted(q, symmetric=True) for q in out)
+        return NormalForm(qs, self.term_start, self.names, self.surface, self.orientation)
+
     def __repr__(self) -> str:
         sizes = np.diff(self.term_start).tolist()
         return f"NormalForm({len(self.quadrics)} quadrics in {self.n_terms} terms of sizes {sizes})"
@@ -141,15 +176,16 @@ class _Registry:
         self.name: dict[tuple[int, int], str | None] = {}
 
     def key(self, q: Quadric, name: str | None) -> tuple[int, int]:
-        w = q.matrix[np.triu_indices(4)]
-        w = w / np.max(np.abs(w))
+        w = q.matrix.ravel()[_TRIU_FLAT]
+        w = w / np.abs(w).max()
         V = self.vectors[: self.count]
         k = None
-        for orient in (1, -1):
-            hit = np.flatnonzero(np.max(np.abs(orient * w - V), axis=1) <= SURFACE_TOLERANCE)
-            if len(hit):
-                k = (int(hit[0]), orient)
-                break
+        if self.count:
+            for orient in (1, -1):
+                close = (np.abs(V - orient * w).max(axis=1) <= tol.SURFACE).nonzero()[0]
+                if len(close):
+                    k = (int(close[0]), orient)
+                    break
         if k is None:
             if self.count == len(self.vectors):
                 self.vectors = np.vstack([self.vectors, np.empty_like(self.vectors)])
@@ -188,6 +224,15 @@ class _Converter:
         self.registry = _Registry()
         self.memo: dict[tuple, list[Term]] = {}
         self.leaf_memo: dict[tuple, tuple[int, int]] = {}
+        self.inverse: dict[bytes, np.ndarray] = {}
+
+    def _leaf_quadric(self, q: Quadric, M: np.ndarray | None, mkey: bytes | None) -> Quadric:
+        if M is None:
+            return q
+        Minv = self.inverse.get(mkey)
+        if Minv is None:  # a composed path map: checked once (a product of good maps can be singular)
+            Minv = self.inverse[mkey] = transform_inverse(M, "the transform along a path to a leaf")
+        return Quadric._trusted(_apply_inverse(q.matrix, Minv))
 
     def _check(self, terms: list[Term]) -> list[Term]:
         if len(terms) > self.max_terms:
@@ -218,8 +263,8 @@ class _Converter:
             lk = (id(node), mkey, neg)
             k = self.leaf_memo.get(lk)
             if k is None:
-                q = node.quadric if M is None else node.quadric.transformed(M)
-                k = self.registry.key(-q if neg else q, node.name)
+                q = self._leaf_quadric(node.quadric, M, mkey)
+                k = self.registry.key(Quadric._trusted(-q.matrix) if neg else q, node.name)
                 self.leaf_memo[lk] = k
             out = [frozenset([k])]
         elif isinstance(node, Transformed):
@@ -238,7 +283,7 @@ class _Converter:
         return out
 
 
-def to_normal_form(root, max_terms: int = 4096) -> NormalForm:
+def to_normal_form(root, max_terms: int = 4096, frame=None) -> NormalForm:
     """Return the disjunctive normal form of a CSG graph (eq. 17–18).
 
     Parameters
@@ -248,14 +293,31 @@ def to_normal_form(root, max_terms: int = 4096) -> NormalForm:
     max_terms : int
         Limit on the number of terms; the conversion can grow exponentially with the depth of
         alternating unions and intersections, and raises :class:`CsgnbError` beyond the limit.
+    frame : (4, 4) float64 or None
+        A map applied at the root (composed with every path's transforms before any leaf is
+        transformed): the sampler passes its normalised frame, so that a model far from the
+        origin keeps the precision of its leaves. Without it, surfaces are still matched in a
+        normalised frame (:func:`csgnb.csg.normalisation.graph_frame`) and the result is mapped
+        back to world coordinates: matching world matrices would merge distinct surfaces of a
+        model far from the origin, whose coefficients differ only in their 13th digit.
 
     Returns
     -------
     NormalForm
         Possibly with zero terms (an empty object such as ``A ∩ ¬A``).
     """
-    conv = _Converter(int(max_terms))
-    terms = conv.convert(as_node(root), None, False)
+    conv = _Converter(as_count(max_terms, "max_terms", 1))
+    root = as_node(root)
+    if frame is None:
+        from csgnb.csg.normalisation import graph_frame
+
+        provisional = graph_frame(root)
+        return _convert(conv, root, provisional.matrix).mapped(provisional.inverse)
+    return _convert(conv, root, as_matrix(frame, "frame"))
+
+
+def _convert(conv: _Converter, root: Node, F: np.ndarray) -> NormalForm:
+    terms = conv.convert(root, F, False)
     quadrics: list[Quadric] = []
     names: list[str | None] = []
     surface: list[int] = []

@@ -12,6 +12,7 @@ import numpy as np
 
 from csgnb.csg.graph import Leaf, Node, intersection, union
 from csgnb.errors import GeometryError
+from csgnb.quadric.arguments import as_finite_array, as_positive, as_real
 from csgnb.quadric.quadric import ellipsoid as _ellipsoid
 from csgnb.quadric.quadric import elliptic_cone, elliptic_cylinder, plane
 from csgnb.quadric.quadric import sphere as _sphere
@@ -20,19 +21,11 @@ __all__ = ["box", "cylinder", "cone", "sphere", "ellipsoid", "capsule", "rounded
 
 
 def _vec(v, name: str) -> np.ndarray:
-    a = np.asarray(v, dtype=np.float64)
-    if a.shape != (3,):
-        raise ValueError(f"{name} must be a 3-vector, got shape {a.shape}")
-    if not np.all(np.isfinite(a)):
-        raise GeometryError(f"{name} contains NaN or inf: {a.tolist()}")
-    return a
+    return as_finite_array(v, (3,), name)
 
 
-def _positive(v: float, name: str) -> float:
-    v = float(v)
-    if not (np.isfinite(v) and v > 0.0):
-        raise GeometryError(f"{name} must be positive and finite, got {v}")
-    return v
+def _positive(v, name: str) -> float:
+    return as_positive(v, name)
 
 
 def frame_to_axis(origin, axis) -> np.ndarray:
@@ -87,8 +80,8 @@ def cone(p0, p1, r0: float, r1: float, name: str = "cone") -> Node:
     side and two caps (the cap at an apex keeps the cone's other nappe out).
     """
     p0, p1 = _vec(p0, "p0"), _vec(p1, "p1")
-    r0, r1 = float(r0), float(r1)
-    if not (np.isfinite(r0) and np.isfinite(r1)) or r0 < 0.0 or r1 < 0.0 or max(r0, r1) == 0.0:
+    r0, r1 = as_real(r0, "r0"), as_real(r1, "r1")
+    if r0 < 0.0 or r1 < 0.0 or max(r0, r1) == 0.0:
         raise GeometryError(f"cone radii must be ≥ 0, finite and not both 0, got {r0}, {r1}")
     if r0 == r1:
         return cylinder(p0, p1, r0, name)

@@ -1,15 +1,17 @@
 """Quadric fundamentals (paper: Trettner & Kobbelt, *Sampling from quadric-based CSG surfaces*).
 
 Quadrics and their constructors (:mod:`.quadric`), point kernels (:mod:`.evaluate`),
-principal frames, sampling planes and heightfields (:mod:`.heightfield`), the conservative
-signed distance (:mod:`.distance`), heightfield distortion (:mod:`.distortion`) and the
-low-distortion basic regions (:mod:`.regions`).
+principal frames, sampling planes and heightfields of every quadric type (:mod:`.frames`), the
+conservative signed distance (:mod:`.distance`), heightfield distortion (:mod:`.distortions`),
+the low-distortion basic regions (:mod:`.regions`), argument checks (:mod:`.arguments`) and
+every float tolerance of the quadric track (:mod:`.tolerances`).
 """
 
 from csgnb.quadric.distance import signed_distance
-from csgnb.quadric.distortion import distortion, distortion_bounds
+from csgnb.quadric.distortions import distortion, distortion_bounds
 from csgnb.quadric.evaluate import gradient, intersect_lines, normal, value
-from csgnb.quadric.heightfield import (
+from csgnb.quadric.frames import (
+    FORMS,
     HEIGHTFIELD_TYPES,
     PrincipalFrame,
     SamplingPlane,
@@ -66,6 +68,7 @@ __all__ = [
     "PrincipalFrame",
     "SamplingPlane",
     "HEIGHTFIELD_TYPES",
+    "FORMS",
     "principal_frame",
     "sampling_planes",
     "heightfield",

@@ -17,7 +17,9 @@ from functools import cached_property
 
 import numpy as np
 
-from csgnb.errors import GeometryError
+from csgnb.errors import CsgnbError, GeometryError
+from csgnb.quadric import tolerances as tol
+from csgnb.quadric.arguments import as_finite_array, as_matrix, as_real
 
 __all__ = [
     "Quadric",
@@ -32,24 +34,70 @@ __all__ = [
     "hyperboloid_two_sheets",
     "elliptic_paraboloid",
     "hyperbolic_paraboloid",
+    "transform_inverse",
 ]
 
-#: Relative asymmetry |Q - Qᵀ| / max|Q| above which a matrix is rejected (rounding is far below).
-SYMMETRY_TOLERANCE = 1e-12
-#: Condition number above which a transform is treated as singular (its inverse is noise).
-SINGULAR_CONDITION = 1e12
+#: Kept for callers of the former names (the values live in :mod:`csgnb.quadric.tolerances`).
+SYMMETRY_TOLERANCE = tol.SYMMETRY
+SINGULAR_CONDITION = tol.SINGULAR_CONDITION
+
+# one finite-array check for quadrics and CSG transforms (csgnb.csg imports it under this name)
+_as_finite_array = as_finite_array
 
 
-def _as_finite_array(values, shape: tuple[int, ...], name: str) -> np.ndarray:
-    try:
-        arr = np.asarray(values, dtype=np.float64)
-    except (TypeError, ValueError) as exc:
-        raise TypeError(f"{name} must be an array of numbers, got {type(values).__name__}") from exc
-    if arr.shape != shape:
-        raise ValueError(f"{name} must have shape {shape}, got {arr.shape}")
-    if not np.all(np.isfinite(arr)):
-        raise GeometryError(f"{name} contains NaN or inf: {arr.tolist()}; pass finite numbers")
-    return arr
+def transform_inverse(M: np.ndarray, name: str = "transform") -> np.ndarray:
+    """Return the inverse of the 4×4 map ``M``, or raise :class:`GeometryError` if it is singular.
+
+    An affine ``M = [[L, t], [0, 1]]`` is inverted blockwise (``[[L⁻¹, -L⁻¹t], [0, 1]]``), so the
+    last row stays exactly ``(0, 0, 0, 1)`` and a plane's zero A block stays exactly zero. Its
+    conditioning is that of L — a translation, however far, is harmless. A projective M is
+    judged by its own condition number. The bound is ``tolerances.SINGULAR_CONDITION``, measured
+    as ``|L|_F |L⁻¹|_F`` (at most 3× the 2-norm condition number, and cheap).
+    """
+    if M[3, 0] == 0.0 and M[3, 1] == 0.0 and M[3, 2] == 0.0 and M[3, 3] != 0.0:
+        L = M[:3, :3] / M[3, 3]
+        t = M[:3, 3] / M[3, 3]
+        det = float(np.linalg.det(L))
+        Li = np.linalg.inv(L) if det != 0.0 and np.isfinite(det) else None
+        cond = np.inf if Li is None else float(np.linalg.norm(L) * np.linalg.norm(Li))
+        if not cond <= tol.SINGULAR_CONDITION:
+            raise GeometryError(
+                f"{name} is singular (condition number of its linear part ≈ {cond:.3g}, above "
+                f"{tol.SINGULAR_CONDITION:.0e}); a quadric can only be mapped by an invertible matrix"
+            )
+        out = np.zeros((4, 4))
+        out[:3, :3] = Li
+        out[:3, 3] = -(Li @ t)
+        out[3, 3] = 1.0
+        return out
+    cond = np.linalg.cond(M)
+    if not cond <= tol.SINGULAR_CONDITION:
+        raise GeometryError(
+            f"{name} is singular (condition number {cond:.3g}, above {tol.SINGULAR_CONDITION:.0e}); "
+            "a quadric can only be mapped by an invertible 4×4 matrix"
+        )
+    return np.linalg.inv(M)
+
+
+def planes_mask(matrices: np.ndarray) -> np.ndarray:
+    """Return which quadric matrices ``(..., 4, 4)`` are single planes (``Quadric.is_plane``, vectorised)."""
+    M = np.asarray(matrices, dtype=np.float64)
+    a = np.abs(M[..., :3, :3]).max(axis=(-2, -1))
+    return (a == 0.0) | (a <= tol.PLANE * np.linalg.norm(M[..., :3, 3], axis=-1))
+
+
+def _apply_inverse(Q: np.ndarray, Minv: np.ndarray) -> np.ndarray:
+    """Return ``Minv.T @ Q @ Minv`` (eq. 17), blockwise for affine ``Minv`` (exact zeros stay)."""
+    if Minv[3, 0] == 0.0 and Minv[3, 1] == 0.0 and Minv[3, 2] == 0.0 and Minv[3, 3] == 1.0:
+        Li, s = Minv[:3, :3], Minv[:3, 3]
+        A, m, c = Q[:3, :3], Q[:3, 3], Q[3, 3]
+        As_m = A @ s + m
+        out = np.empty((4, 4))
+        out[:3, :3] = Li.T @ A @ Li
+        out[:3, 3] = out[3, :3] = Li.T @ As_m
+        out[3, 3] = s @ (A @ s) + 2.0 * (m @ s) + c
+        return out
+    return Minv.T @ Q @ Minv
 
 
 class Quadric:
@@ -64,12 +112,12 @@ class Quadric:
     """
 
     def __init__(self, matrix) -> None:
-        q = _as_finite_array(matrix, (4, 4), "quadric matrix")
+        q = as_finite_array(matrix, (4, 4), "quadric matrix")
         scale = float(np.max(np.abs(q)))
         if scale == 0.0:
             raise GeometryError("quadric matrix is zero: every point would lie on the surface")
         asym = float(np.max(np.abs(q - q.T)))
-        if asym > SYMMETRY_TOLERANCE * scale:
+        if asym > tol.SYMMETRY * scale:
             raise GeometryError(
                 f"quadric matrix is not symmetric (max |Q - Qᵀ| = {asym:.3g}, max |Q| = "
                 f"{scale:.3g}); pass (Q + Q.T) / 2 if the asymmetry is intended noise"
@@ -82,13 +130,22 @@ class Quadric:
         q.setflags(write=False)
         self._matrix = q
 
+    @classmethod
+    def _trusted(cls, matrix: np.ndarray, symmetric: bool = False) -> Quadric:
+        """Wrap a finite matrix computed by csgnb itself (no re-validation; symmetrised unless it is)."""
+        out = cls.__new__(cls)
+        m = np.array(matrix) if symmetric else 0.5 * (matrix + matrix.T)
+        m.setflags(write=False)
+        out._matrix = m
+        return out
+
     # -- construction ------------------------------------------------------------------
     @classmethod
     def from_abc(cls, A, b, c: float) -> Quadric:
         """Return the quadric ``xᵀAx - 2xᵀb + c`` (eq. 3). ``A`` : (3, 3), ``b`` : (3,)."""
-        A = _as_finite_array(A, (3, 3), "A")
-        b = _as_finite_array(b, (3,), "b")
-        c = float(_as_finite_array(c, (), "c"))
+        A = as_finite_array(A, (3, 3), "A")
+        b = as_finite_array(b, (3,), "b")
+        c = as_real(c, "c")
         m = np.empty((4, 4))
         m[:3, :3] = A
         m[:3, 3] = -b
@@ -122,32 +179,32 @@ class Quadric:
         """Eigenvalues λ of A in ascending order : (3,) float64."""
         return np.linalg.eigvalsh(self.A)
 
+    @property
+    def is_plane(self) -> bool:
+        """Whether this is a single plane: A = 0, or negligible next to b over a unit length.
+
+        ``max|A| ≤ tolerances.PLANE · |b|`` (:func:`planes_mask`). Planes built by csgnb and their
+        affine images have A exactly 0. The test assumes lengths of order 1; the sampler asks it
+        in its normalised frame, where that is the model's size.
+        """
+        return bool(planes_mask(self._matrix))
+
     # -- transforms ----------------------------------------------------------------------
     def transformed(self, M) -> Quadric:
         """Return the image of this quadric under the 4×4 (affine or projective) map ``M``.
 
         ``Q' = M⁻ᵀ Q M⁻¹`` (eq. 17), so that ``Q'(M x) = Q(x)`` for homogeneous ``x``.
-        A 3×4 affine matrix ``[R | t]`` is accepted too. Singular or ill-conditioned
-        ``M`` (condition number above ``SINGULAR_CONDITION``) raises :class:`GeometryError`.
+        A 3×4 affine matrix ``[R | t]`` is accepted too. A singular or ill-conditioned ``M``
+        (see :func:`transform_inverse`) raises :class:`GeometryError`; affine maps are applied
+        blockwise, so a plane stays a plane exactly.
         """
-        M = np.asarray(M, dtype=np.float64)
-        if M.shape == (3, 4):
-            M = np.vstack([M, [0.0, 0.0, 0.0, 1.0]])
-        M = _as_finite_array(M, (4, 4), "transform")
-        cond = np.linalg.cond(M)
-        if not np.isfinite(cond) or cond > SINGULAR_CONDITION:
-            raise GeometryError(
-                f"transform is singular (condition number {cond:.3g}); a quadric can only be "
-                "mapped by an invertible 4×4 matrix"
-            )
-        Minv = np.linalg.inv(M)
-        q = Minv.T @ self._matrix @ Minv
-        return Quadric(0.5 * (q + q.T))
+        M = as_matrix(M, "transform")
+        return Quadric(_apply_inverse(self._matrix, transform_inverse(M)))
 
     def translated(self, offset) -> Quadric:
         """Return this quadric moved by ``offset`` : (3,)."""
         m = np.eye(4)
-        m[:3, 3] = _as_finite_array(offset, (3,), "offset")
+        m[:3, 3] = as_finite_array(offset, (3,), "offset")
         return self.transformed(m)
 
     def complement(self) -> Quadric:
@@ -197,7 +254,10 @@ class Quadric:
 
 
 def _positive(values, n: int, name: str) -> np.ndarray:
-    arr = _as_finite_array(np.broadcast_to(np.asarray(values, dtype=np.float64), (n,)), (n,), name)
+    arr = as_finite_array(values, None, name)
+    if arr.shape not in ((), (1,), (n,)):
+        raise CsgnbError(f"{name} must be a number or {n} numbers, got shape {arr.shape}")
+    arr = np.broadcast_to(arr, (n,)).copy()
     if np.any(arr <= 0.0):
         raise GeometryError(f"{name} must be positive, got {arr.tolist()}")
     return arr
@@ -212,25 +272,27 @@ def _diag(a: np.ndarray, b=(0.0, 0.0, 0.0), c: float = 0.0, center=None) -> Quad
 
 def plane(normal, offset: float = 0.0) -> Quadric:
     """Return the plane ``n·x = offset`` (inside where ``n·x < offset``). ``normal`` : (3,)."""
-    n = _as_finite_array(normal, (3,), "normal")
+    n = as_finite_array(normal, (3,), "normal")
+    offset = as_real(offset, "offset")
     norm = float(np.linalg.norm(n))
     if norm == 0.0:
         raise GeometryError("plane normal is zero; pass a non-zero direction")
     n = n / norm
     # Q(x) = n·x - d  ⇔  A = 0, -2b = n, c = -d
-    return Quadric.from_abc(np.zeros((3, 3)), -0.5 * n, -float(offset) / norm)
+    return Quadric.from_abc(np.zeros((3, 3)), -0.5 * n, -offset / norm)
 
 
 def parallel_planes(normal, offset0: float, offset1: float) -> Quadric:
     """Return the slab between the planes ``n·x = offset0`` and ``n·x = offset1`` (inside)."""
-    n = _as_finite_array(normal, (3,), "normal")
+    n = as_finite_array(normal, (3,), "normal")
+    offset0, offset1 = as_real(offset0, "offset0"), as_real(offset1, "offset1")
     norm = float(np.linalg.norm(n))
     if norm == 0.0:
         raise GeometryError("plane normal is zero; pass a non-zero direction")
     if offset0 == offset1:
         raise GeometryError("parallel planes coincide; pass two different offsets")
     n = n / norm
-    d0, d1 = float(offset0) / norm, float(offset1) / norm
+    d0, d1 = offset0 / norm, offset1 / norm
     # (n·x - d0)(n·x - d1): negative strictly between the planes
     return Quadric.from_abc(np.outer(n, n), 0.5 * (d0 + d1) * n, d0 * d1)
 
@@ -238,7 +300,7 @@ def parallel_planes(normal, offset0: float, offset1: float) -> Quadric:
 def sphere(center=(0.0, 0.0, 0.0), radius: float = 1.0) -> Quadric:
     """Return the sphere ``|x - center|² = radius²``."""
     r = _positive(radius, 1, "radius")[0]
-    return _diag(np.ones(3), c=-r * r, center=center)
+    return _diag(np.ones(3), c=-r * r, center=as_finite_array(center, (3,), "center"))
 
 
 def ellipsoid(radii=(1.0, 1.0, 1.0), center=None) -> Quadric:

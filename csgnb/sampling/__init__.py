@@ -10,9 +10,16 @@ per-quadric tasks (:mod:`.tasks`), the adaptive kernel (:mod:`.kernel`), the out
 
 from csgnb.sampling.cloud import SampleCloud, SamplingStats, SamplingTrace, deduplicate_clip_sets
 from csgnb.sampling.domains import domain_cache_clear, quadric_jobs
-from csgnb.sampling.kernel import STATUS
-from csgnb.sampling.sampler import DISTORTION_MODES, MIN_REGION, sample_csg
-from csgnb.sampling.tasks import build_tasks
+from csgnb.sampling.kernel import COUNTERS, STATUS
+from csgnb.sampling.sampler import (
+    BYTES_PER_SAMPLE,
+    DEFAULT_MAX_SAMPLES,
+    DISTORTION_MODES,
+    MIN_REGION,
+    estimate_samples,
+    sample_csg,
+)
+from csgnb.sampling.tasks import TaskSet, build_task_set, build_tasks
 
 __all__ = [
     "sample_csg",
@@ -20,6 +27,12 @@ __all__ = [
     "SamplingStats",
     "SamplingTrace",
     "STATUS",
+    "COUNTERS",
+    "DEFAULT_MAX_SAMPLES",
+    "BYTES_PER_SAMPLE",
+    "estimate_samples",
+    "TaskSet",
+    "build_task_set",
     "DISTORTION_MODES",
     "MIN_REGION",
     "deduplicate_clip_sets",

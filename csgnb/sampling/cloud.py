@@ -16,6 +16,9 @@ from numba.typed import Dict
 
 from csgnb._jit import jit
 from csgnb.csg.normal_form import NormalForm
+from csgnb.csg.normalisation import ModelFrame
+from csgnb.errors import CsgnbError
+from csgnb.quadric.arguments import as_finite_array
 
 __all__ = ["SampleCloud", "SamplingStats", "SamplingTrace", "deduplicate_clip_sets"]
 
@@ -28,10 +31,14 @@ class SamplingStats:
     distance_queries : int — evaluations of d_Qab (eq. 22) at region corners.
     clip_indices : int — length of the clip indirection buffer.
     regions : int — triangles visited (basic-region pieces and their subdivisions).
-    unresolved : int — regions given up below the size floor (0 in normal use).
+    unresolved : int — regions given up below the size floor (``tolerances.MIN_REGION``): only
+        around isolated tangency points (see ``csgnb.sampling.kernel``, rule 5).
     quadrics : int — quadrics of the normal form; sampled_quadrics : int — those with a task.
     terms : int — terms of the normal form.
     seconds : float — wall time of the whole run (normal form, bounds, regions, kernels, output).
+    feature_points : int — single samples placed on tangency curves by the edge search (rule 3).
+    covered_by_neighbours : int — regions given up below the size floor but covered by a single
+        sample of the same quadric (the neighbour rule); not counted in ``unresolved``.
     """
 
     samples: int
@@ -43,6 +50,8 @@ class SamplingStats:
     sampled_quadrics: int
     terms: int
     seconds: float
+    feature_points: int = 0
+    covered_by_neighbours: int = 0
 
 
 @dataclass(frozen=True)
@@ -50,11 +59,12 @@ class SamplingTrace:
     """What the adaptive subdivision did, for pictures (Figure 9) and checks.
 
     Leaves (one row per final region): ``leaf_quadric``, ``leaf_plane``, ``leaf_sheet`` (±1),
-    ``leaf_triangle`` (t, 3, 2) plane coordinates, ``leaf_uv`` (1: sides are (u, v)-segments),
-    ``leaf_quadrant`` (t, 2), ``leaf_status`` (codes of ``kernel.STATUS``), ``leaf_depth``.
-    Distance evaluations: ``point_quadric``, ``point_plane``, ``point_sheet``, ``point_xy``
-    (e, 2) plane coordinates, ``point_world`` (e, 3), ``point_distance`` (e,) the value of d_Qab.
-    ``planes[(quadric, k)] = (origin (3,), frame (3, 3), alpha (3,))``.
+    ``leaf_triangle`` (t, 3, 2) plane coordinates, ``leaf_uv`` (squared-coordinate flags of its
+    (U, V)-sides: bit 0 x, bit 1 y; 0 straight), ``leaf_quadrant`` (t, 2), ``leaf_status`` (codes
+    of ``kernel.STATUS``), ``leaf_depth``. Distance evaluations: ``point_quadric``,
+    ``point_plane``, ``point_sheet``, ``point_xy`` (e, 2) plane coordinates, ``point_world``
+    (e, 3), ``point_distance`` (e,) the value of d_Qab. ``planes[(quadric, k)]``: the
+    :class:`~csgnb.quadric.SamplingPlane` those plane coordinates refer to. All in world units.
     """
 
     leaf_quadric: np.ndarray
@@ -73,6 +83,18 @@ class SamplingTrace:
     point_distance: np.ndarray
     planes: dict
 
+    def leaf_outline(self, i: int, samples_per_side: int = 12) -> np.ndarray:
+        """Return the boundary of leaf ``i`` in its plane coordinates : (m, 2) (sides as the curves they are)."""
+        tri = self.leaf_triangle[i]
+        flags = int(self.leaf_uv[i])
+        sq = np.array([flags & 1, flags & 2], dtype=bool)
+        quad = self.leaf_quadrant[i]
+        uv = np.where(sq, tri**2, tri)
+        s = np.linspace(0.0, 1.0, samples_per_side, endpoint=False)[:, None]
+        sides = [(1.0 - s) * uv[e] + s * uv[(e + 1) % 3] for e in range(3)]
+        pts = np.vstack(sides + [uv[:1]])
+        return np.where(sq, np.sqrt(np.maximum(pts, 0.0)) * quad, pts)
+
 
 @dataclass(frozen=True)
 class SampleCloud:
@@ -86,8 +108,11 @@ class SampleCloud:
     clip_indices : (k,) int32 — the clip indirection buffer (normal-form indices, each distinct
         set stored once).
     radius : float — the requested splat radius.
-    normal_form : NormalForm — what was sampled.
+    normal_form : NormalForm — what was sampled (world coordinates).
     stats : SamplingStats; trace : SamplingTrace or None.
+    frame : ModelFrame or None — the normalised frame the sampler worked in
+        (:mod:`csgnb.csg.normalisation`): ``frame.to_local(positions)`` gives coordinates of unit
+        size, where the quadrics keep full precision even for models far from the origin.
 
     Guarantee (§4.2): every sample lies on the CSG surface, and every point of the CSG surface
     (inside the bounds) has a sample on the same quadric within its radius.
@@ -104,6 +129,7 @@ class SampleCloud:
     normal_form: NormalForm
     stats: SamplingStats
     trace: SamplingTrace | None = None
+    frame: ModelFrame | None = None
 
     def __len__(self) -> int:
         return len(self.positions)
@@ -188,16 +214,32 @@ def _dedup_kernel(ptr, idx, start, count, buf):
     return nb
 
 
+def _as_index_array(values, name: str) -> np.ndarray:
+    arr = as_finite_array(values, None, name).reshape(-1) if not (
+        isinstance(values, np.ndarray) and values.dtype.kind in "iu") else values.reshape(-1)
+    if np.any(arr != np.round(arr)):
+        raise CsgnbError(f"{name} must hold integers")
+    return arr.astype(np.int64)
+
+
 def deduplicate_clip_sets(ptr: np.ndarray, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Return (start, count, buffer) with every distinct clip set stored once (§6).
 
     ptr : (n + 1,) int64 and idx : (m,) int64 — sample i's set is ``idx[ptr[i]:ptr[i + 1]]``.
     Returns start, count : (n,) int32 and buffer : (k,) int32.
     """
+    ptr = _as_index_array(ptr, "ptr")
+    idx = _as_index_array(idx, "idx")
+    if len(ptr) == 0 or ptr[0] != 0 or np.any(np.diff(ptr) < 0) or ptr[-1] != len(idx):
+        raise CsgnbError("ptr must start at 0, be non-decreasing and end at len(idx)")
+    return _deduplicate(ptr, idx)
+
+
+def _deduplicate(ptr: np.ndarray, idx: np.ndarray):
+    """``deduplicate_clip_sets`` for the sampler's own (valid, int64) arrays."""
     n = len(ptr) - 1
-    start = np.empty(n, dtype=np.int64)
-    count = np.empty(n, dtype=np.int64)
-    buf = np.empty(max(len(idx), 1), dtype=np.int64)
-    nb = _dedup_kernel(np.ascontiguousarray(ptr, dtype=np.int64), np.ascontiguousarray(idx, dtype=np.int64),
-                       start, count, buf)
-    return start.astype(np.int32), count.astype(np.int32), buf[:nb].astype(np.int32)
+    start = np.empty(n, dtype=np.int32)
+    count = np.empty(n, dtype=np.int32)
+    buf = np.empty(max(len(idx), 1), dtype=np.int32)
+    nb = _dedup_kernel(ptr, idx, start, count, buf)
+    return start, count, buf[:nb].copy()

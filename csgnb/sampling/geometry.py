@@ -1,13 +1,15 @@
 """Scalar geometry of one sampling region: lift, distortion bound, bulge, disc cover, lattices.
 
-A region is a triangle on a sampling plane, given by its corners in (x, y). Its sides are either
-straight (planes) or, in *(u, v) mode*, images of straight segments of (u, v) = (x², y²) within
-one quadrant (:mod:`.domains`): arcs of axis-aligned conics centered at the origin, straight
-when the segment is axis-parallel or points at the origin. Such an arc turns by at most 90°, so
-it lies in the triangle spanned by its chord and its end tangents, and the region lies within a
-*bulge* distance of its straight triangle (``region_bulge``). The sampler works on the straight
-triangle and shortens every radius by the bulge: that bounds δ, tests disc covers and places
-samples for the curved region (arcs flatten quadratically as regions shrink).
+A region is a triangle on a sampling plane, given by its corners in (x, y). Its sides are images of
+straight segments in (U, V) = (x² or x, y² or y) within one quadrant (:mod:`.domains`): ``uv``
+flags say which coordinates are squared (bit 0: x, bit 1: y; 0: all sides straight). With both
+squared the sides are arcs of axis-aligned conics centered at the origin, with one a parabola arc;
+they are straight when the segment is axis-parallel (or, both squared, points at the origin).
+Such an arc is convex and turns by at most 90°, so it lies in the triangle spanned by its chord
+and its end tangents, and the region lies within a *bulge* distance of its straight triangle
+(``region_bulge``). The sampler works on the straight triangle and shortens every radius by the
+bulge: that bounds δ, tests disc covers and places samples for the curved region (arcs flatten
+quadratically as regions shrink).
 
 All functions are numba kernels on scalars and small arrays, called from the sampler.
 """
@@ -16,12 +18,15 @@ from __future__ import annotations
 
 import math
 
-from csgnb.csg.distance import inline_jit
+from csgnb.quadric.distortions import delta_range
+from csgnb.quadric.evaluate import inline_jit
+from csgnb.quadric.frames import plane_height
 
 __all__ = [
     "lift",
     "delta_range",
     "arc_midpoint",
+    "segment_point",
     "region_bulge",
     "discs_cover",
     "corner_reach",
@@ -39,16 +44,16 @@ def _norm2(x, y):
 
 
 @inline_jit
-def lift(o0, o1, o2, f00, f01, f02, f10, f11, f12, f20, f21, f22, ax, ay, ac, sheet, x, y):
-    """Return the world point over (x, y) of a sampling plane on the sheet ``t = sheet·h(x, y)``.
+def lift(o0, o1, o2, f00, f01, f02, f10, f11, f12, f20, f21, f22, form, ax, bx, ay, by, ac, sheet, x, y):
+    """Return the world point over (x, y) of a sampling plane on the sheet ``t = sheet·√H`` (or t = H).
 
-    The plane is given by scalars: origin (o0, o1, o2), frame F (columns x axis, y axis, normal)
-    and α = (ax, ay, ac) — scalars, not arrays, because numba reference-counts every array bound
-    in an inlined call, which in the sampler's loops cost more than the arithmetic. Rounding just
-    outside the heightfield's domain (h² < 0) is clamped to the rim, h = 0.
+    The plane is given by scalars: origin (o0, o1, o2), frame F (columns x axis, y axis, normal),
+    its form and heightfield (αₓ, bₓ, α_y, b_y, α_c) (``csgnb.quadric.frames``) — scalars, not
+    arrays, because numba reference-counts every array bound in an inlined call, which in the
+    sampler's loops cost more than the arithmetic. Rounding just outside a sheet's domain (H < 0)
+    is clamped to the rim, t = 0.
     """
-    h2 = ax * x * x + ay * y * y + ac
-    t = sheet * math.sqrt(h2) if h2 > 0.0 else 0.0
+    t = plane_height(form, ax, bx, ay, by, ac, sheet, x, y)
     return (
         o0 + x * f00 + y * f01 + t * f02,
         o1 + x * f10 + y * f11 + t * f12,
@@ -57,55 +62,45 @@ def lift(o0, o1, o2, f00, f01, f02, f10, f11, f12, f20, f21, f22, ax, ay, ac, sh
 
 
 @inline_jit
-def delta_range(ax, ay, ac, flat, x0, y0, x1, y1):
-    """Return (min δ, max δ) (eq. 13) over the rectangle [x0, x1] × [y0, y1]; max is inf off the domain.
-
-    As ``csgnb.quadric.distortion_bounds``: δ² - 1 is linear-fractional in (u, v) = (x², y²), so
-    the corners of the rectangle folded into one quadrant bound it. At a cone's apex (α_c = 0,
-    u = v = 0) δ is undefined but constant along rays, so the other corners bound it. ``flat``
-    planes have δ = 1.
-    """
-    if flat:
-        return 1.0, 1.0
-    sx, sy = ax * ax, ay * ay
-    u0, u1 = x0 * x0, x1 * x1
-    v0, v1 = y0 * y0, y1 * y1
-    uhi, vhi = max(u0, u1), max(v0, v1)
-    ulo = 0.0 if x0 * x1 <= 0.0 else min(u0, u1)
-    vlo = 0.0 if y0 * y1 <= 0.0 else min(v0, v1)
-    lo = math.inf
-    hi = 0.0
-    for c in range(4):
-        u = uhi if c & 1 else ulo
-        v = vhi if c & 2 else vlo
-        den = ax * u + ay * v + ac
-        if den > 0.0:
-            r = (sx * u + sy * v) / den
-            lo = min(lo, r)
-            hi = max(hi, r)
-        elif ac == 0.0 and u == 0.0 and v == 0.0:
-            continue
-        else:
-            return 1.0, math.inf
-    return math.sqrt(1.0 + lo), math.sqrt(1.0 + hi)
+def _to_uv(v, squared):
+    return v * v if squared else v
 
 
 @inline_jit
-def arc_midpoint(ax, ay, bx, by, sx, sy):
-    """Return the point of the (u, v)-segment a → b whose x (or y, if that spans more) is halfway.
+def arc_midpoint(ax, ay, bx, by, sx, sy, uv):
+    """Return the point of the (U, V)-segment a → b whose x (or y, if that spans more) is halfway.
 
-    Any point of the segment keeps both halves (u, v)-segments; halving the larger coordinate
-    span keeps the two pieces about equally long in (x, y).
+    ``uv``: the squared-coordinate flags (bit 0 x, bit 1 y). Any point of the segment keeps both
+    halves (U, V)-segments; halving the larger coordinate span keeps the two pieces about equally
+    long in (x, y).
     """
+    xs = (uv & 1) != 0
+    ys = (uv & 2) != 0
     if abs(bx - ax) >= abs(by - ay):
         xm = 0.5 * (ax + bx)
-        s = (xm * xm - ax * ax) / (bx * bx - ax * ax)
-        vm = ay * ay + s * (by * by - ay * ay)
-        return xm, sy * math.sqrt(max(vm, 0.0))
+        den = _to_uv(bx, xs) - _to_uv(ax, xs)
+        s = (_to_uv(xm, xs) - _to_uv(ax, xs)) / den if den != 0.0 else 0.5
+        va, vb = _to_uv(ay, ys), _to_uv(by, ys)
+        vm = va + s * (vb - va)
+        return xm, (sy * math.sqrt(max(vm, 0.0)) if ys else vm)
     ym = 0.5 * (ay + by)
-    s = (ym * ym - ay * ay) / (by * by - ay * ay)
-    um = ax * ax + s * (bx * bx - ax * ax)
-    return sx * math.sqrt(max(um, 0.0)), ym
+    den = _to_uv(by, ys) - _to_uv(ay, ys)
+    s = (_to_uv(ym, ys) - _to_uv(ay, ys)) / den if den != 0.0 else 0.5
+    ua, ub = _to_uv(ax, xs), _to_uv(bx, xs)
+    um = ua + s * (ub - ua)
+    return (sx * math.sqrt(max(um, 0.0)) if xs else um), ym
+
+
+@inline_jit
+def segment_point(ax, ay, bx, by, sx, sy, uv, s):
+    """Return the point at parameter ``s`` ∈ [0, 1] of the (U, V)-segment a → b (straight if ``uv`` = 0)."""
+    xs = (uv & 1) != 0
+    ys = (uv & 2) != 0
+    ua, ub = _to_uv(ax, xs), _to_uv(bx, xs)
+    va, vb = _to_uv(ay, ys), _to_uv(by, ys)
+    u = ua + s * (ub - ua)
+    v = va + s * (vb - va)
+    return (sx * math.sqrt(max(u, 0.0)) if xs else u), (sy * math.sqrt(max(v, 0.0)) if ys else v)
 
 
 @inline_jit
@@ -118,37 +113,70 @@ def _segment_distance(px, py, ax, ay, bx, by):
 
 
 @inline_jit
+def _arc_deviation(x0, y0, x1, y1, sx, sy, xs, ys):
+    """Return the largest distance of the (U, V)-segment's arc x0 y0 → x1 y1 from its chord.
+
+    The arc P(s) = (x(U(s)), y(V(s))), U and V linear in s, is convex and turns by at most 90°
+    within a quadrant, so it is a graph over its chord and its distance n·(P(s) − P(0)) from the
+    chord is extremal where n·P'(s) = 0 — a closed form: with a = nₓ·dx/dU-part, b = n_y·(…),
+    a²V = b²U (both coordinates squared) or √U = −a/(2 b) (one squared).
+    """
+    cx, cy = x1 - x0, y1 - y0
+    c = math.sqrt(cx * cx + cy * cy)
+    if c == 0.0:
+        return 0.0
+    nx, ny = -cy / c, cx / c
+    u0 = x0 * x0 if xs else x0
+    u1 = x1 * x1 if xs else x1
+    v0 = y0 * y0 if ys else y0
+    v1 = y1 * y1 if ys else y1
+    du, dv = u1 - u0, v1 - v0
+    s = -1.0
+    if xs and ys:
+        a = nx * sx * du
+        b = ny * sy * dv
+        den = a * a * dv - b * b * du
+        if a * b < 0.0 and den != 0.0:
+            s = (b * b * u0 - a * a * v0) / den
+    elif xs:
+        a = nx * sx * du
+        b = ny * dv
+        if a * b < 0.0:
+            r = -a / (2.0 * b)
+            s = (r * r - u0) / du
+    elif ys:
+        a = ny * sy * dv
+        b = nx * du
+        if a * b < 0.0:
+            r = -a / (2.0 * b)
+            s = (r * r - v0) / dv
+    if not (0.0 < s < 1.0):
+        return 0.0
+    u = u0 + s * du
+    v = v0 + s * dv
+    px = sx * math.sqrt(max(u, 0.0)) if xs else u
+    py = sy * math.sqrt(max(v, 0.0)) if ys else v
+    return abs(nx * (px - x0) + ny * (py - y0))
+
+
+@inline_jit
 def region_bulge(v0x, v0y, v1x, v1y, v2x, v2y, uv, sx, sy):
     """Return how far the region over the triangle v0 v1 v2 reaches beyond the straight triangle.
 
-    ``uv``: whether the sides are (u, v)-segments in the quadrant of signs ``sx, sy`` (else the
-    region is the triangle: 0). Each arc lies in the triangle of its chord and the intersection T
-    of its end tangents, so the lens between arc and chord is within dist(T, chord) of the chord;
-    the region differs from the straight triangle only by such lenses (a winding-number argument
-    that holds even when strongly curved sides flip the straight triangle's orientation). The
-    sampler works on the straight triangle with every radius shortened by this bound.
+    ``uv``: the squared-coordinate flags of its (U, V)-sides in the quadrant of signs ``sx, sy``
+    (0: the region is the triangle, bulge 0). The region differs from the straight triangle only by
+    the lenses between each side's arc and its chord (a winding-number argument that holds even
+    when strongly curved sides flip the straight triangle's orientation), and each lens is within
+    the arc's largest distance from its chord (``_arc_deviation``, exact). The sampler works on the
+    straight triangle with every radius shortened by this bound.
     """
-    if not uv:
+    if uv == 0:
         return 0.0
-    bulge = 0.0
-    vx = (v0x, v1x, v2x)
-    vy = (v0y, v1y, v2y)
-    for e in range(3):
-        f = (e + 1) % 3
-        x0, y0 = vx[e], vy[e]
-        x1, y1 = vx[f], vy[f]
-        du = x1 * x1 - x0 * x0
-        dv = y1 * y1 - y0 * y0
-        # tangent of s ↦ (sx √u(s), sy √v(s)), scaled by 2√u√v to stay finite on the axes
-        t0x, t0y = sx * du * abs(y0), sy * dv * abs(x0)
-        t1x, t1y = sx * du * abs(y1), sy * dv * abs(x1)
-        det = t1x * t0y - t0x * t1y
-        tn = math.sqrt(t0x * t0x + t0y * t0y) * math.sqrt(t1x * t1x + t1y * t1y)
-        if not abs(det) > 1e-12 * tn:
-            continue  # a straight side (axis-parallel or radial), or too short to bulge
-        w = ((x1 - x0) * (-t1y) + t1x * (y1 - y0)) / det
-        bulge = max(bulge, _segment_distance(x0 + w * t0x, y0 + w * t0y, x0, y0, x1, y1))
-    return bulge
+    xs = (uv & 1) != 0
+    ys = (uv & 2) != 0
+    return max(_arc_deviation(v0x, v0y, v1x, v1y, sx, sy, xs, ys),
+               max(_arc_deviation(v1x, v1y, v2x, v2y, sx, sy, xs, ys),
+                   _arc_deviation(v2x, v2y, v0x, v0y, sx, sy, xs, ys)))
 
 
 @inline_jit

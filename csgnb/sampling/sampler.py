@@ -12,48 +12,162 @@ import time
 
 import numpy as np
 
-from csgnb.csg.bounds import box_is_empty, term_boxes
+from csgnb.csg.bounds import box_is_empty, surface_boxes, term_boxes
 from csgnb.csg.normal_form import NormalForm, to_normal_form
+from csgnb.csg.normalisation import ModelFrame, box_frame, graph_frame, quadrics_frame
 from csgnb.errors import CsgnbError, GeometryError
-from csgnb.sampling.cloud import SampleCloud, SamplingStats, SamplingTrace, deduplicate_clip_sets
-from csgnb.sampling.kernel import OVERFLOW, emit_quadric, subdivide_quadric
-from csgnb.sampling.tasks import QuadricTask, build_tasks
+from csgnb.quadric import tolerances as tol
+from csgnb.quadric.arguments import as_count, as_finite_array, as_flag, as_positive, as_real
+from csgnb.quadric.quadric import Quadric, planes_mask
+from csgnb.sampling.cloud import SampleCloud, SamplingStats, SamplingTrace, _deduplicate
+from csgnb.sampling.kernel import OVERFLOW, cover_by_neighbours, emit_all, subdivide_all
+from csgnb.sampling.tasks import TaskSet, build_task_set
 
-__all__ = ["sample_csg", "DISTORTION_MODES", "MIN_REGION", "ON_SURFACE"]
+__all__ = ["sample_csg", "DISTORTION_MODES", "MIN_REGION", "ON_SURFACE", "DEFAULT_MAX_SAMPLES",
+           "BYTES_PER_SAMPLE", "estimate_samples"]
 
 #: ``distortion=`` choices: per-region bounds of δ (eq. 13, §3.4) or the worst case √3 (§4.1).
 DISTORTION_MODES = ("bounds", "sqrt3")
 
-#: Regions still unclassified when their plane diameter falls below this fraction of the radius
-#: are given up (``stats.unresolved``). This happens along curves where a quadric touches the
-#: CSG surface without contributing area — a cap inside a capsule's sphere, the bottom disc of a
-#: boss on a plate — where d_Qab is positive on both sides and zero on the curve, so no disc
-#: cover can ever close. Only surface features smaller than this (1/256 of a splat; the paper
-#: suggests discarding at 1/10) could be missed there.
-MIN_REGION = 2.0**-8
+#: Kept for callers of the former names (the values live in :mod:`csgnb.quadric.tolerances`).
+MIN_REGION = tol.MIN_REGION
+ON_SURFACE = tol.ON_SURFACE
 
-#: A corner with |d_Qab| below this fraction of the model size is on a feature curve (closure of
-#: the surface) and may carry a sample: rounding puts points of aligned curves at ±1e-16.
-ON_SURFACE = 1e-12
+#: ``max_samples`` default: about 5 GB of output (see ``BYTES_PER_SAMPLE``).
+DEFAULT_MAX_SAMPLES = 50_000_000
+#: Memory per sample while sampling: position, normal, radius (56 B), id, clip count and slice
+#: (20 B), the clip pointers (8 B) and pass-1 leaves and clip indices (≈ 16 B amortised).
+BYTES_PER_SAMPLE = 100
+#: The estimate is _SAMPLES_PER_AREA · (area of the domains, δ ≤ √3) / r² + _SAMPLES_PER_JOB · jobs:
+#: measured on the benchmark models the samples are 0.5–1.9 × area/r² once r is small against the
+#: features (the memory that matters), and a few per job when it is not (up to 7 × area/r²).
+_SAMPLES_PER_AREA = 2.0
+_SAMPLES_PER_JOB = 4.0
 
 
-def _bounds_box(bounds) -> np.ndarray:
+def _bounds_frame(bounds) -> tuple[ModelFrame, np.ndarray]:
     try:
         center, r = bounds
-        c = np.asarray(center, dtype=np.float64).reshape(3)
-        r = float(r)
     except (TypeError, ValueError) as exc:
-        raise CsgnbError("bounds must be a bounding sphere (center (3,), radius)") from exc
-    if not (np.all(np.isfinite(c)) and math.isfinite(r) and r > 0.0):
-        raise GeometryError(f"bounding sphere needs a finite center and a positive radius, got {c.tolist()}, {r}")
-    return np.concatenate([c - r, c + r])
+        raise TypeError(
+            f"bounds must be a bounding sphere (center (3,), radius), got {type(bounds).__name__}"
+        ) from exc
+    try:
+        c = as_finite_array(center, (3,), "bounds center")
+    except GeometryError as exc:
+        raise GeometryError(f"bounding sphere needs a finite center: {exc}") from exc
+    except ValueError as exc:
+        raise GeometryError(f"bounds must be a bounding sphere (center (3,), radius): {exc}") from exc
+    try:
+        r = as_positive(r, "bounds radius")
+    except GeometryError as exc:
+        raise GeometryError(f"bounding sphere needs a positive radius: {exc}") from exc
+    return ModelFrame(c, r), np.concatenate([c - r, c + r])
 
 
-def _check_radius(radius) -> float:
-    r = float(radius)
-    if not (math.isfinite(r) and r > 0.0):
-        raise GeometryError(f"splat radius must be positive and finite, got {radius!r}")
-    return r
+def _flatten_planes(nf: NormalForm) -> NormalForm:
+    """Replace quadrics that are planes up to rounding at the model scale by exact planes."""
+    if not len(nf):
+        return nf
+    M = np.array([q.matrix for q in nf.quadrics])
+    near = planes_mask(M) & np.any(M[:, :3, :3] != 0.0, axis=(1, 2))
+    if not near.any():
+        return nf
+    qs = list(nf.quadrics)
+    for k in np.flatnonzero(near):
+        m = M[k].copy()
+        m[:3, :3] = 0.0
+        qs[k] = Quadric._trusted(m)
+    return NormalForm(tuple(qs), nf.term_start, nf.names, nf.surface, nf.orientation)
+
+
+def _normalised(shape, bounds, max_terms):
+    """Return (normal form in the normalised frame, the frame, term boxes there, the world limit box)."""
+    limit_world = None
+    if bounds is not None:
+        F0, limit_world = _bounds_frame(bounds)
+    elif isinstance(shape, NormalForm):
+        F0 = quadrics_frame(shape.quadrics)
+    else:
+        F0 = graph_frame(shape)
+    nf0 = shape.mapped(F0.matrix) if isinstance(shape, NormalForm) else to_normal_form(shape, max_terms, F0.matrix)
+    if nf0.n_terms == 0:
+        raise GeometryError("the CSG object is empty: its normal form has no term (e.g. A ∩ ¬A); nothing to sample")
+    limit0 = None if limit_world is None else F0.box_to_local(limit_world)
+    boxes0, unbounded = term_boxes(nf0, limit0)
+    if np.any(unbounded):
+        i = int(np.flatnonzero(unbounded)[0])
+        names = [nf0.names[k] or f"quadric {k}" for k in nf0.term(i)]
+        raise GeometryError(
+            f"term {i} of the normal form ({', '.join(names)}) is unbounded, or not bounded by its convex "
+            "members; pass bounds=(center, radius), a bounding sphere of the region to sample"
+        )
+    F1 = box_frame(boxes0)
+    if F1 is None:
+        raise GeometryError("the CSG object is empty: every term of its normal form is empty" +
+                            ("" if limit_world is None else " inside the bounding sphere"))
+    F = F0.then(F1)
+    if not isinstance(shape, NormalForm) and np.linalg.norm(F1.center) > 16.0 * F1.scale:
+        # the first frame was far off (e.g. box faces built at 10⁶): redo the normal form from the
+        # graph in the final frame, so that no precision is lost to the correction
+        nf = to_normal_form(shape, max_terms, F.matrix)
+        boxes, _ = term_boxes(nf, None if limit_world is None else F.box_to_local(limit_world))
+    else:
+        nf = nf0.mapped(F1.matrix)
+        boxes = np.array([b if box_is_empty(b) else F1.box_to_local(b) for b in boxes0]).reshape(-1, 6)
+        live = np.all(boxes[:, :3] <= boxes[:, 3:], axis=1)
+        boxes[live, :3] -= 4.0 * tol.EPS  # the map's rounding, in units of the (unit) model
+        boxes[live, 3:] += 4.0 * tol.EPS
+    return _flatten_planes(nf), F, boxes
+
+
+def _estimate_from_tasks(ts: TaskSet, radius: float) -> float:
+    """Return an estimate of the samples of a task set at splat radius ``radius`` (its units).
+
+    From the area of the domains' jobs (plane area × δ², δ ≤ √3 in low-distortion regions): the
+    area of every quadric's surface inside its box, whether or not it is on the CSG surface.
+    """
+    if not len(ts.job_tri):
+        return 0.0
+    t = ts.job_tri
+    area2 = np.abs((t[:, 1, 0] - t[:, 0, 0]) * (t[:, 2, 1] - t[:, 0, 1]) - (t[:, 1, 1] - t[:, 0, 1]) *
+                   (t[:, 2, 0] - t[:, 0, 0]))
+    return float(_SAMPLES_PER_AREA * 3.0 * 0.5 * area2.sum() / (radius * radius) + _SAMPLES_PER_JOB * len(t))
+
+
+def estimate_samples(shape, radius: float, *, bounds=None, max_terms: int = 4096) -> float:
+    """Return the sampler's estimate of the number of samples of ``shape`` at ``radius``.
+
+    It runs only the set-up (normal form, boxes, domains; milliseconds) and counts every quadric's
+    surface inside its box, on the CSG surface or not: on the benchmark models it is 1–4× the
+    count at small radii. :func:`sample_csg` refuses to start when it is above ``max_samples`` —
+    and checks the exact count again after its first pass, before allocating the samples.
+    Multiply by ``BYTES_PER_SAMPLE`` for the memory.
+    """
+    r = as_positive(radius, "radius")
+    max_terms = as_count(max_terms, "max_terms", 1)
+    if not isinstance(shape, NormalForm):
+        from csgnb.csg.graph import as_node
+
+        shape = as_node(shape)
+    nf, frame, boxes = _normalised(shape, bounds, max_terms)
+    rn = r / frame.scale
+    if rn < tol.MIN_RADIUS:
+        return math.inf
+    ts = build_task_set(nf, surface_boxes(nf, boxes, 1.0), boxes, rn, 1.0)
+    return _estimate_from_tasks(ts, rn)
+
+
+def _check_estimate(count: float, max_samples: int | None, exact: bool, bound: str = "") -> None:
+    if max_samples is None or count <= max_samples:
+        return
+    gib = count * BYTES_PER_SAMPLE / 2**30
+    what = f"needs {bound + ' ' if bound else ''}{int(count)}" if exact else f"would need about {count:.3g}"
+    raise CsgnbError(
+        f"sampling {what} samples (≈ {gib:.3g} GiB), above max_samples={max_samples:_}; "
+        "pass a larger radius, a bounding sphere around the part of interest, or a larger max_samples "
+        "(None: no limit)"
+    )
 
 
 def sample_csg(
@@ -68,13 +182,15 @@ def sample_csg(
     trace: bool = False,
     progress: bool = False,
     max_terms: int = 4096,
+    max_samples: int | None = DEFAULT_MAX_SAMPLES,
 ) -> SampleCloud:
     """Return samples on the surface of a CSG object with splat radius ``radius`` (§4.2, §5).
 
     Parameters
     ----------
     shape : Node, Quadric or NormalForm
-        The CSG graph (``csgnb.csg``) or its normal form.
+        The CSG graph (``csgnb.csg``) or its normal form. Every quadric type may occur: central
+        quadrics, elliptic and hyperbolic paraboloids, single planes.
     radius : float
         Splat radius r: every point of the CSG surface gets a sample on the same quadric within r.
     bounds : (center (3,), radius) or None
@@ -99,6 +215,9 @@ def sample_csg(
         Show a tqdm bar over the quadrics.
     max_terms : int
         Limit for the normal form (see ``csgnb.csg.to_normal_form``).
+    max_samples : int or None
+        Refuse (with :class:`CsgnbError`, naming the estimate and its memory) to sample when the
+        estimated — and, after the first pass, the exact — number of samples is above this.
 
     Returns
     -------
@@ -106,92 +225,178 @@ def sample_csg(
 
     Raises
     ------
+    TypeError
+        If an argument has the wrong type (a string or None radius, a non-bool flag, ...).
     GeometryError
-        If the object is empty, unbounded without ``bounds``, or has no surface in the bounds;
-        if the radius is not positive; if a quadric is a paraboloid (not supported).
+        If the object is empty, unbounded without ``bounds``, or has no surface in the bounds; if
+        the radius is not positive or below ``tolerances.MIN_RADIUS`` of the model's size.
+    CsgnbError
+        If an option is unknown, or the sample count is above ``max_samples``.
+
+    All tolerances are relative to the model: it is sampled in a normalised frame (its box
+    centered at 0 with half-diagonal 1, :mod:`csgnb.csg.normalisation`), so a model and a scaled
+    or translated copy give the same samples up to the map.
     """
     t0 = time.perf_counter()
-    r = _check_radius(radius)
+    r = as_positive(radius, "radius")
+    if not isinstance(distortion, str):
+        raise TypeError(f"distortion must be a str, one of {DISTORTION_MODES}, got {type(distortion).__name__}")
     if distortion not in DISTORTION_MODES:
         raise CsgnbError(f"distortion must be one of {DISTORTION_MODES}, got {distortion!r}")
-    min_size = float(min_size)
-    if not (math.isfinite(min_size) and min_size >= 0.0):
+    min_size = as_real(min_size, "min_size")
+    if min_size < 0.0:
         raise CsgnbError(f"min_size must be ≥ 0 (a fraction of the radius), got {min_size}")
-    nf = shape if isinstance(shape, NormalForm) else to_normal_form(shape, max_terms=max_terms)
-    if nf.n_terms == 0:
-        raise GeometryError("the CSG object is empty: its normal form has no term (e.g. A ∩ ¬A); nothing to sample")
-    limit = None if bounds is None else _bounds_box(bounds)
-    boxes, unbounded = term_boxes(nf, limit)
-    if np.any(unbounded):
-        i = int(np.flatnonzero(unbounded)[0])
-        names = [nf.names[k] or f"quadric {k}" for k in nf.term(i)]
-        raise GeometryError(
-            f"term {i} of the normal form ({', '.join(names)}) is unbounded, or not bounded by its convex "
-            "members; pass bounds=(center, radius), a bounding sphere of the region to sample"
-        )
-    if all(box_is_empty(b) for b in boxes):
-        raise GeometryError("the CSG object is empty: every term of its normal form is empty" +
-                            ("" if limit is None else " inside the bounding sphere"))
-    tasks = build_tasks(nf, boxes, r)
-    C = np.ascontiguousarray(nf.coefficients)
-    iterator = tasks
-    if progress:
-        from tqdm.auto import tqdm
+    reduce_radius = as_flag(reduce_radius, "reduce_radius")
+    refine = as_flag(refine, "refine")
+    trace = as_flag(trace, "trace")
+    progress = as_flag(progress, "progress")
+    max_terms = as_count(max_terms, "max_terms", 1)
+    if max_samples is not None:
+        max_samples = as_count(max_samples, "max_samples", 0)
+    if not isinstance(shape, NormalForm):
+        from csgnb.csg.graph import as_node
 
-        iterator = tqdm(tasks, desc="subdividing", unit="quadric")
-    leaves = [_subdivide(C, task, r, min_size * r, distortion == "sqrt3", refine, trace) for task in iterator]
-    return _emit_all(nf, C, tasks, leaves, r, reduce_radius, trace, t0)
+        shape = as_node(shape)
+    nf, frame, boxes = _normalised(shape, bounds, max_terms)
+    rn = r / frame.scale
+    if rn < tol.MIN_RADIUS:
+        raise GeometryError(
+            f"splat radius {r:.3g} is below {tol.MIN_RADIUS:g} of the model's size ({frame.scale:.3g}): samples "
+            "could not be placed that precisely (and would be far too many); pass a larger radius"
+        )
+    ts = build_task_set(nf, surface_boxes(nf, boxes, 1.0), boxes, rn, 1.0)
+    _check_estimate(_estimate_from_tasks(ts, rn), max_samples, False)
+    C = np.ascontiguousarray(nf.coefficients)
+    ts, leaves = _subdivide(C, ts, rn, min_size * rn, distortion == "sqrt3", refine, trace, progress, reduce_radius,
+                            max_samples)
+    _check_estimate(leaves.samples, max_samples, True)
+    return _emit(nf, C, ts, leaves, rn, reduce_radius, trace, frame, t0)
 
 
 class _Leaves:
-    """Pass-1 output of one task (see ``kernel.subdivide_quadric``)."""
+    """Pass-1 output (see ``kernel.subdivide_all``)."""
 
-    def __init__(self, LF, LI, LA, TT, TI, TP, TJ, counters) -> None:
+    def __init__(self, LF, LI, LA, TT, TI, TP, TJ, UR, counters) -> None:
         self.LF, self.LI, self.LA, self.TT, self.TI, self.TP, self.TJ = LF, LI, LA, TT, TI, TP, TJ
+        self.UR = UR
         self.counters = counters
         self.samples = int(LI[:, 3].sum())
 
 
-def _grown(a: np.ndarray, used: int) -> np.ndarray:
-    b = np.empty((4 * a.shape[0],) + a.shape[1:], dtype=a.dtype)
+def _grown(a: np.ndarray, used: int, limit: int | None = None) -> np.ndarray:
+    size = 4 * a.shape[0] if limit is None else max(min(4 * a.shape[0], limit), used + 1)
+    b = np.empty((size,) + a.shape[1:], dtype=a.dtype)
     b[:used] = a[:used]
     return b
 
 
-def _subdivide(C, task: QuadricTask, radius, min_size, sqrt3, refine, trace) -> _Leaves:
-    jobs = len(task.job_plane)
+def _pass(C, ts: TaskSet, radius, min_size, sqrt3, refine, trace, defer, job_range, bar, bufs, max_samples):
+    """Run ``kernel.subdivide_all`` over ``job_range`` (chunked for the progress bar), growing buffers."""
+    for start, end in job_range:
+        job = start
+        while True:
+            LF, LI, LA, TT, TI, TP, TJ, UR, counters, fill = bufs
+            nl, nla, nt, npt, nur = fill
+            nl, nla, nt, npt, nur, job, overflow = subdivide_all(
+                C, ts, radius, min_size, tol.MIN_REGION, tol.ON_SURFACE, sqrt3, refine, trace, defer,
+                LF, LI, LA, TT, TI, TP, TJ, UR, counters, job, int(end), nl, nla, nt, npt, nur,
+            )  # fmt: skip
+            fill = [nl, nla, nt, npt, nur]
+            if overflow == OVERFLOW["leaves"]:
+                if max_samples is not None and nl >= max_samples:  # every leaf has ≥ 1 sample
+                    _check_estimate(nl + 1, max_samples, True, "at least")
+                limit = None if max_samples is None else max_samples + 1024
+                LF, LI = _grown(LF, nl, limit), _grown(LI, nl, limit)
+            elif overflow == OVERFLOW["clip_lists"]:
+                LA = _grown(LA, nla)
+            elif overflow == OVERFLOW["trace_leaves"]:
+                TT, TI = _grown(TT, nt), _grown(TI, nt)
+            elif overflow == OVERFLOW["trace_points"]:
+                TP, TJ = _grown(TP, npt), _grown(TJ, npt)
+            elif overflow == OVERFLOW["unresolved"]:
+                UR = _grown(UR, nur)
+            bufs[:] = [LF, LI, LA, TT, TI, TP, TJ, UR, counters, fill]
+            if overflow == OVERFLOW["none"]:
+                break
+        if bar is not None:
+            bar.update(1)
+
+
+def _subdivide(C, ts: TaskSet, radius, min_size, sqrt3, refine, trace, progress, reduce_radius, max_samples=None):
+    """Pass 1 (with deferral of failed feature searches), the neighbour rule, pass 1b on the rest."""
+    jobs = len(ts.job_task)
     cap = 64 * jobs + 1024
-    LF, LI = np.empty((cap, 16)), np.empty((cap, 6), dtype=np.int64)
-    LA = np.empty(4 * cap, dtype=np.int64)
     tcap = 16 * jobs + 64 if trace else 1
-    TT, TI = np.empty((tcap, 6)), np.empty((tcap, 5), dtype=np.int64)
-    TP, TJ = np.empty((tcap, 3)), np.empty(tcap, dtype=np.int64)
-    counters = np.zeros(5, dtype=np.int64)
-    nl = nla = nt = npt = job = 0
-    while True:
-        nl, nla, nt, npt, job, overflow = subdivide_quadric(
-            C, task.own, task.own_box, task.other_ptr, task.other_idx, task.rcap,
-            task.origin, task.frame, task.alpha, task.flat,
-            task.job_plane, task.job_sheet, task.job_tri, task.job_uv, task.job_quadrant,
-            radius, min_size, MIN_REGION * radius, ON_SURFACE * task.scale, sqrt3, refine, trace,
-            LF, LI, LA, TT, TI, TP, TJ, counters, job, nl, nla, nt, npt,
-        )  # fmt: skip
-        if overflow == OVERFLOW["none"]:
-            break
-        if overflow == OVERFLOW["leaves"]:
-            LF, LI = _grown(LF, nl), _grown(LI, nl)
-        elif overflow == OVERFLOW["clip_lists"]:
-            LA = _grown(LA, nla)
-        elif overflow == OVERFLOW["trace_leaves"]:
-            TT, TI = _grown(TT, nt), _grown(TI, nt)
-        else:
-            TP, TJ = _grown(TP, npt), _grown(TJ, npt)
-    return _Leaves(LF[:nl], LI[:nl], LA[:nla], TT[:nt], TI[:nt], TP[:npt], TJ[:npt], counters)
+    bufs = [np.empty((cap, 16)), np.empty((cap, 6), dtype=np.int64), np.empty(4 * cap, dtype=np.int64),
+            np.empty((tcap, 6)), np.empty((tcap, 5), dtype=np.int64), np.empty((tcap, 3)),
+            np.empty(tcap, dtype=np.int64), np.empty((256, 14)), np.zeros(7, dtype=np.int64), [0, 0, 0, 0, 0]]
+    bar = None
+    ranges = [(0, jobs)]
+    if progress:
+        from tqdm.auto import tqdm
+
+        ends = ts.job_ptr[1:]
+        ranges = list(zip(ts.job_ptr[:-1], ends, strict=True))
+        bar = tqdm(total=len(ranges) + 1, desc="subdividing", unit="quadric")
+    _pass(C, ts, radius, min_size, sqrt3, refine, trace, True, ranges, bar, bufs, max_samples)
+    fill = bufs[9]
+    nl, nur = fill[0], fill[4]
+    UR = bufs[7][:nur].copy()
+    LF, LI = bufs[0][:nl], bufs[1][:nl]
+    covered = np.zeros(len(UR), dtype=np.bool_)
+    if len(UR):
+        cover_by_neighbours(ts, LF, LI, UR, radius, reduce_radius, covered)
+    deferred = UR[:, 12] == 1.0
+    redo = UR[deferred & ~covered]
+    done = UR[covered]
+    ts_all = ts
+    if len(redo):  # pass 1b: the deferred regions not covered by a neighbour, searched no more
+        ts_all = ts.with_regions(redo)
+        bufs[9][4] = 0
+        _pass(C, ts_all, radius, min_size, sqrt3, refine, trace, False, [(jobs, len(ts_all.job_task))], None, bufs,
+              max_samples)
+        fill = bufs[9]
+        nl, nur = fill[0], fill[4]
+        UR2 = bufs[7][:nur].copy()
+        covered2 = np.zeros(len(UR2), dtype=np.bool_)
+        if len(UR2):
+            cover_by_neighbours(ts_all, bufs[0][:nl], bufs[1][:nl], UR2, radius, reduce_radius, covered2)
+        UR = np.concatenate([UR[~deferred], UR2])
+        covered = np.concatenate([covered[~deferred], covered2])
+        done = np.concatenate([done, UR2[covered2]])
+    if bar is not None:
+        bar.update(1)
+        bar.close()
+    LF, LI, LA, TT, TI, TP, TJ, _, counters, fill = bufs
+    nl, nla, nt, npt, _ = fill
+    lv = _Leaves(LF[:nl], LI[:nl], LA[:nla], TT[:nt], TI[:nt], TP[:npt], TJ[:npt], UR, counters)
+    lv.unresolved = int(np.sum(~covered & (UR[:, 12] == 0.0))) if len(UR) else 0
+    lv.by_neighbours = len(done)
+    if trace:
+        _trace_neighbours(lv, done)
+    return ts_all, lv
 
 
-def _emit_all(nf: NormalForm, C, tasks, leaves, radius: float, reduce_radius: bool, trace: bool, t0: float):
-    counts = [lv.samples for lv in leaves]
-    n = int(sum(counts))
+def _trace_neighbours(lv: _Leaves, done: np.ndarray) -> None:
+    """Trace the regions the neighbour rule covered with status ``neighbour``."""
+    from csgnb.sampling.kernel import STATUS
+
+    rows = done[:, 13].astype(np.int64)
+    old = rows[rows >= 0]
+    lv.TI[old, 2] = STATUS["neighbour"]
+    new = done[rows < 0]
+    if len(new):
+        ti = np.zeros((len(new), 5), dtype=np.int64)
+        ti[:, 0] = new[:, 5].astype(np.int64)
+        ti[:, 2] = STATUS["neighbour"]
+        ti[:, 3] = -1  # depth not recorded for deferred regions
+        lv.TT = np.concatenate([lv.TT, new[:, 6:12]])
+        lv.TI = np.concatenate([lv.TI, ti])
+
+
+def _emit(nf: NormalForm, C, ts: TaskSet, lv: _Leaves, radius: float, reduce_radius: bool, trace: bool,
+          frame: ModelFrame, t0: float):
+    n = lv.samples
     if n == 0:
         raise GeometryError(
             "the CSG surface is empty (inside the bounds): no point of any quadric lies on it; "
@@ -200,82 +405,81 @@ def _emit_all(nf: NormalForm, C, tasks, leaves, radius: float, reduce_radius: bo
     positions = np.empty((n, 3))
     normals = np.empty((n, 3))
     radii = np.empty(n)
-    clip_count = np.empty(n, dtype=np.int32)
+    ptr = np.empty(n + 1, dtype=np.int64)
+    ptr[0] = 0
     ids = np.empty(n, dtype=np.int32)
     cidx = np.empty(1 << 16, dtype=np.int64)
-    at = nc = 0
-    for task, lv, c in zip(tasks, leaves, counts, strict=True):
-        if c == 0:
-            continue
-        leaf, end = 0, at
-        while True:
-            leaf, end, nc = emit_quadric(
-                C, task.index, task.origin, task.frame, task.alpha, task.job_plane, task.job_sheet,
-                lv.LF, lv.LI, lv.LA, radius, reduce_radius, positions, normals, radii, clip_count, cidx, leaf, end, nc,
-            )  # fmt: skip
-            if leaf >= len(lv.LI):
-                break
-            need = nc + int(lv.LI[leaf, 3] * lv.LI[leaf, 5])
-            grown = np.empty(max(4 * len(cidx), need), dtype=np.int64)
-            grown[:nc] = cidx[:nc]
-            cidx = grown
-        ids[at : at + c] = task.index
-        at += c
-    ptr = np.zeros(n + 1, dtype=np.int64)
-    np.cumsum(clip_count, out=ptr[1:])
-    start, count, buf = deduplicate_clip_sets(ptr, cidx[:nc])
-    counters = np.sum([lv.counters for lv in leaves], axis=0)
-    tr = _trace(tasks, leaves) if trace else None
+    leaf = at = nc = 0
+    while True:  # samples straight into world coordinates
+        leaf, at, nc = emit_all(C, ts, lv.LF, lv.LI, lv.LA, radius, reduce_radius, frame.center, frame.scale,
+                                positions, normals, radii, ptr, ids, cidx, leaf, at, nc)
+        if leaf >= len(lv.LI):
+            break
+        need = nc + int(lv.LI[leaf, 3] * lv.LI[leaf, 5])
+        grown = np.empty(max(4 * len(cidx), need), dtype=np.int64)
+        grown[:nc] = cidx[:nc]
+        cidx = grown
+    start, count, buf = _deduplicate(ptr, cidx[:nc])
+    world = nf.mapped(frame.inverse)
+    counters = lv.counters
+    tr = _trace(ts, lv, frame) if trace else None
     stats = SamplingStats(
         samples=n,
         distance_queries=int(counters[0]),
         clip_indices=len(buf),
         regions=int(counters[1]),
-        unresolved=int(counters[2]),
+        unresolved=lv.unresolved,
         quadrics=len(nf),
-        sampled_quadrics=len(tasks),
+        sampled_quadrics=len(ts.quadric),
         terms=nf.n_terms,
         seconds=time.perf_counter() - t0,
+        feature_points=int(counters[6]),
+        covered_by_neighbours=lv.by_neighbours,
     )
-    return SampleCloud(positions, normals, ids, radii, start, count, buf, radius, nf, stats, tr)
+    return SampleCloud(positions, normals, ids, radii, start, count, buf, radius * frame.scale, world, stats, tr,
+                       frame)
 
 
-def _trace(tasks, leaves) -> SamplingTrace:
-    cols: dict[str, list] = {k: [] for k in (
-        "lq", "lp", "ls", "lt", "la", "lquad", "lst", "ld", "pq", "pp", "ps", "pxy", "pw", "pd")}
+def _world_plane(ts: TaskSet, t: int, k: int, frame: ModelFrame):
+    """The sampling plane k of task t in world coordinates (lengths × scale)."""
+    from csgnb.quadric.frames import FORM_GRAPH, FORMS, SamplingPlane, plane_kind
+
+    s = frame.scale
+    ax, bx, ay, by, ac = ts.coef[t, k]
+    form = int(ts.form[t, k])
+    if form == FORM_GRAPH:  # t_w = s t(x_w / s)
+        c = np.array([ax / s, 0.0, ay / s, 0.0, ac * s])
+    else:  # t_w² = s² t²(x_w / s)
+        c = np.array([ax, bx * s, ay, by * s, ac * s * s])
+    F = ts.frame[t, k]
+    alpha = c[[0, 2, 4]] if form else np.full(3, np.nan)
+    return SamplingPlane(k, frame.to_world(ts.origin[t, k]), F[:, 0].copy(), F[:, 1].copy(), F[:, 2].copy(),
+                         alpha, plane_kind(form, c), c[[1, 3]], FORMS[form])
+
+
+def _trace(ts: TaskSet, lv: _Leaves, frame: ModelFrame) -> SamplingTrace:
+    s = frame.scale
+    job = lv.TI[:, 0]
+    pjob = lv.TJ
+    t_of = ts.job_task
+    pts = lv.TP
+    k = ts.job_plane[pjob]
+    task = t_of[pjob]
+    sheet = ts.job_sheet[pjob]
+    from csgnb.quadric.frames import plane_height
+
+    world = np.empty((len(pts), 3))
+    for i in range(len(pts)):
+        c = ts.coef[task[i], k[i]]
+        h = plane_height(int(ts.form[task[i], k[i]]), c[0], c[1], c[2], c[3], c[4], sheet[i], pts[i, 0], pts[i, 1])
+        world[i] = ts.origin[task[i], k[i]] + ts.frame[task[i], k[i]] @ np.array([pts[i, 0], pts[i, 1], h])
     planes = {}
-    for task, lv in zip(tasks, leaves, strict=True):
-        tri, info, pts, pjob = lv.TT.reshape(-1, 3, 2), lv.TI, lv.TP, lv.TJ
-        job = info[:, 0]
-        cols["lq"].append(np.full(len(info), task.index))
-        cols["lp"].append(info[:, 4])
-        cols["ls"].append(task.job_sheet[job])
-        cols["lt"].append(tri)
-        cols["la"].append(info[:, 1])
-        cols["lquad"].append(task.job_quadrant[job])
-        cols["lst"].append(info[:, 2])
-        cols["ld"].append(info[:, 3])
-        k = task.job_plane[pjob]
-        sheet = task.job_sheet[pjob]
-        cols["pq"].append(np.full(len(pts), task.index))
-        cols["pp"].append(k)
-        cols["ps"].append(sheet)
-        cols["pxy"].append(pts[:, :2])
-        cols["pd"].append(pts[:, 2])
-        al = task.alpha[k]
-        h2 = al[:, 0] * pts[:, 0] ** 2 + al[:, 1] * pts[:, 1] ** 2 + al[:, 2]
-        t = sheet * np.sqrt(np.maximum(h2, 0.0))
-        local = np.column_stack([pts[:, 0], pts[:, 1], t])
-        cols["pw"].append(task.origin[k] + np.einsum("nij,nj->ni", task.frame[k], local))
-        for p in range(3):
-            planes[(task.index, p)] = (task.origin[p], task.frame[p], task.alpha[p])
-
-    def cat(key, shape):
-        return np.concatenate(cols[key]) if cols[key] else np.empty(shape)
-
+    for t in range(len(ts.quadric)):
+        for kk in range(3):
+            planes[(int(ts.quadric[t]), kk)] = _world_plane(ts, t, kk, frame)
     return SamplingTrace(
-        cat("lq", 0).astype(np.int64), cat("lp", 0).astype(np.int64), cat("ls", 0), cat("lt", (0, 3, 2)),
-        cat("la", 0).astype(np.int64), cat("lquad", (0, 2)), cat("lst", 0).astype(np.int64),
-        cat("ld", 0).astype(np.int64), cat("pq", 0).astype(np.int64), cat("pp", 0).astype(np.int64),
-        cat("ps", 0), cat("pxy", (0, 2)), cat("pw", (0, 3)), cat("pd", 0), planes,
+        ts.quadric[t_of[job]].astype(np.int64), ts.job_plane[job].astype(np.int64), ts.job_sheet[job],
+        lv.TT.reshape(-1, 3, 2) * s, ts.job_uv[job].astype(np.int64), ts.job_quadrant[job],
+        lv.TI[:, 2].astype(np.int64), lv.TI[:, 3].astype(np.int64), ts.quadric[task].astype(np.int64),
+        k.astype(np.int64), sheet, pts[:, :2] * s, frame.to_world(world), pts[:, 2] * s, planes,
     )  # fmt: skip
