@@ -1,6 +1,6 @@
 """Rendering the sampling paper's Table 2 models: splats against the reference ray tracer, 1920×1080.
 
-The five models and three splat sizes of ``bench_sampling.py`` (the same builders, sampled with
+The five models and three splat sizes of ``bench_sampling.py`` (``csgnb.csg.gallery.TABLE2``; sampled with
 the sampler's defaults: distortion bounds, no reduced radii — ``--reduce-radius`` samples with
 them, but the sampler's reduced radii leave a one-pixel hole on the 80-quadric "large" row, which
 the comparison reports), seen by ``Camera.fit`` from azimuth -60°, elevation 35° (about screen
@@ -20,10 +20,7 @@ frame (render and JPEG encoding, as the notebook viewer does) of the 80-quadric 
 from __future__ import annotations
 
 import argparse
-import importlib.util
 import json
-import os
-import pathlib
 import sys
 import time
 
@@ -59,14 +56,8 @@ def main(argv=None) -> None:
     if args.threads:
         numba.set_num_threads(args.threads)
     threads = numba.get_num_threads()
-    # bench_sampling defaults NUMBA_NUM_THREADS to 1 on import: pin it to what numba runs with
-    os.environ["NUMBA_NUM_THREADS"] = str(numba.config.NUMBA_NUM_THREADS)
-    here = pathlib.Path(__file__).resolve().parent
-    spec = importlib.util.spec_from_file_location("bench_sampling", here / "bench_sampling.py")
-    bench_sampling = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(bench_sampling)
-
     import csgnb.csg as csg
+    from csgnb.csg.gallery import TABLE2
     from csgnb.render import Camera, SplatRenderer, Viewer, compare, raytrace
     from csgnb.sampling import sample_csg
 
@@ -76,7 +67,7 @@ def main(argv=None) -> None:
           "(figures under load are provisional)")
     print(f"{'model':18s} {'q':>3s} {'splat':6s} {'samples':>8s} {'splats ms':>9s} {'rt ms':>8s} {'ratio':>6s} "
           f"{'fragments':>10s} {'overdraw':>8s} {'disagree':>8s} {'holes':>5s} {'paper ms':>9s} {'paper rt':>8s}")
-    for name, (build, radii) in bench_sampling.MODELS.items():
+    for name, (build, radii) in TABLE2.items():
         if args.only and name not in args.only:
             continue
         shape = build()

@@ -27,80 +27,12 @@ os.environ.setdefault("NUMBA_NUM_THREADS", "1")
 import numpy as np  # noqa: E402
 
 import csgnb.csg as csg  # noqa: E402
-from csgnb.csg.solids import frame_to_axis  # noqa: E402
-from csgnb.quadric import elliptic_cone, elliptic_cylinder, parallel_planes  # noqa: E402
+from csgnb.csg.gallery import TABLE2, perforated_plate, spheres  # noqa: E402
 from csgnb.sampling import domain_cache_clear, sample_csg  # noqa: E402
 
-# -- the models -------------------------------------------------------------------------------
-
-
-def _hole(center, radius, axis=(0.0, 0.0, 1.0), name="hole"):
-    """A through hole: an infinite cylinder (one quadric; subtracting it keeps one term)."""
-    return csg.leaf(elliptic_cylinder((radius, radius)).transformed(frame_to_axis(center, axis)), name)
-
-
-def spheres() -> csg.Node:
-    """(A ∩ B) ∪ C of three spheres (Figure 2)."""
-    A, B, C = csg.sphere((0, 0, 0), 1, "A"), csg.sphere((0.8, 0, 0), 1, "B"), csg.sphere((0.4, 0.9, 0), 0.6, "C")
-    return (A & B) | C
-
-
-def slotted_cylinder() -> csg.Node:
-    """A capped cylinder cut by a slot (a slab: one quadric) with a spherical dimple: 5 quadrics."""
-    body = csg.cylinder((0, 0, 0), (0, 0, 2), 1.0, "body")
-    slot = csg.leaf(parallel_planes((1, 0, 0), -0.2, 0.2), "slot")
-    dimple = csg.sphere((0, 0.5, 2.1), 0.5, "dimple")
-    return csg.difference(body, slot, dimple)
-
-
-def bracket() -> csg.Node:
-    """A plate with a boss, a bore, eight holes and three spherical dimples: 21 quadrics."""
-    plate = csg.box((0, 0, 0), (6, 4, 0.6), "plate")
-    boss = csg.cylinder((3, 2, 0.6), (3, 2, 1.8), 1.0, "boss")
-    cuts = [_hole((3, 2, 0), 0.5, name="bore")]
-    for k, (x, y) in enumerate([(0.6, 0.6), (2.0, 0.6), (4.0, 0.6), (5.4, 0.6),
-                                (0.6, 3.4), (2.0, 3.4), (4.0, 3.4), (5.4, 3.4)]):
-        cuts.append(_hole((x, y, 0), 0.25, name=f"hole {k}"))
-    cuts += [csg.sphere((x, 2.0, 0.75), 0.35, f"dimple {k}") for k, x in enumerate((0.9, 1.6, 5.1))]
-    return csg.difference(plate | boss, *cuts)
-
-
-def block() -> csg.Node:
-    """A block rounded by a sphere, three axis bores, twelve holes, three bosses: 31 quadrics."""
-    body = csg.box((-1, -1, -1), (1, 1, 1), "block") & csg.sphere((0, 0, 0), 1.55, "round")
-    cuts = [_hole((0, 0, 0), 0.3, axis, f"bore {k}") for k, axis in enumerate(np.eye(3))]
-    for a in range(3):
-        for k, (u, w) in enumerate([(-0.6, -0.6), (-0.6, 0.6), (0.6, -0.6), (0.6, 0.6)]):
-            cuts.append(_hole(np.roll([0.0, u, w], a), 0.12, np.eye(3)[a], f"hole {a}{k}"))
-    bosses = [csg.cylinder(np.eye(3)[k] * 0.9, np.eye(3)[k] * 1.35, 0.45, f"boss {k}") for k in range(3)]
-    return csg.union(csg.difference(body, *cuts), *bosses)
-
-
-def perforated_plate() -> csg.Node:
-    """A plate with 72 holes (cylinders and countersink cones) and two cross bores: 80 quadrics."""
-    plate = csg.box((0, 0, 0), (10, 9, 1), "plate")
-    holes = []
-    for i in range(9):
-        for j in range(8):
-            c = np.array([0.6 + i * 1.1, 0.6 + j * 1.1, 0.0])
-            if (i + j) % 2 == 0:
-                holes.append(csg.leaf(elliptic_cylinder((0.3, 0.3)).translated(c), f"hole {i},{j}"))
-            else:
-                holes.append(csg.leaf(elliptic_cone((0.35, 0.35)).translated(c + [0, 0, -1.2]), f"cone {i},{j}"))
-    holes.append(_hole((0, 4.5, 0.5), 0.2, (1, 0, 0), "x bore"))
-    holes.append(_hole((5, 0, 0.5), 0.2, (0, 1, 0), "y bore"))
-    return csg.difference(plate, *holes)
-
-
-#: name → (builder, {splat: radius}); radii chosen so that sample counts come near the paper's
-#: Table 2 rows with the same number of quadrics
-MODELS = {
-    "spheres": (spheres, {"large": 0.106, "medium": 0.0427, "small": 0.0108}),
-    "slotted cylinder": (slotted_cylinder, {"large": 0.1075, "medium": 0.045, "small": 0.0124}),
-    "bracket": (bracket, {"large": 0.224, "medium": 0.0876, "small": 0.0429}),
-    "block": (block, {"large": 0.114, "medium": 0.0523, "small": 0.0335}),
-    "perforated plate": (perforated_plate, {"large": 1.0, "medium": 0.115, "small": 0.0456}),
-}
+#: name → (builder, {splat: radius}): the models live in csgnb.csg.gallery (one definition for the
+#: notebooks, the tests and the benchmarks)
+MODELS = TABLE2
 
 #: Table 2 of the paper: (quadrics, splat) → (samples, distance queries, clip indices, sampling ms).
 PAPER_TABLE2 = {

@@ -8,9 +8,9 @@ root where the graph's min/max classification turns from outside to inside.
 import numpy as np
 import pytest
 
+from csgnb.csg.gallery import figure2, figure15, moved, shared, tour_part
 from csgnb.errors import GeometryError
 from csgnb.render import Camera, edge_mask, raytrace
-from tests.render_models import figure2, figure15, moved, shared, tour_part
 from tests.test_csg_raycast import graph_value, world_leaves
 
 

@@ -6,10 +6,10 @@ import dataclasses
 import numpy as np
 import pytest
 
+from csgnb.csg.gallery import all_models, figure2, figure15, tour_part
 from csgnb.errors import GeometryError
 from csgnb.render import Camera, SplatRenderer, Viewer, compare, raytrace, render, verify
 from csgnb.sampling import sample_csg
-from tests.render_models import all_models, figure2, figure15, tour_part
 
 MODELS = all_models()
 #: (azimuth, elevation, projection) of the views every model is checked from
