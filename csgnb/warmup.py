@@ -66,6 +66,20 @@ def _bsp() -> None:
         extract_cells(tangent_plane_bsp(16), [-8192] * 3, [8192] * 3, naive=naive)
 
 
+def _octree() -> None:
+    from csgnb.mesh.hull import convex_hull
+    from csgnb.octree import Tool, Workpiece
+
+    w = Workpiece.box([-16, -16, -16], [16, 16, 16], threshold=16)
+    octahedron = convex_hull(np.array([[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]]) * 9)
+    w.difference(octahedron, track_volume=True)
+    w |= convex_hull(np.array([[0, 0, 0], [5, 0, 0], [0, 5, 0], [0, 0, 5]]))
+    w &= Tool.from_hull(octahedron).translated([3, 0, 0])
+    w.volume()
+    w.surface()
+    w.classify([[0, 0, 0]])
+
+
 def _quadric() -> None:
     import csgnb.quadric as cq
 
@@ -93,7 +107,7 @@ def _sampling() -> None:
 
 
 #: The parts :func:`warm_up` knows, in the order of the two pipelines.
-PARTS = {"exact": _exact, "mesh": _mesh, "bsp": _bsp, "quadric": _quadric, "sampling": _sampling}
+PARTS = {"exact": _exact, "mesh": _mesh, "bsp": _bsp, "octree": _octree, "quadric": _quadric, "sampling": _sampling}
 
 
 def warm_up(*parts: str, progress: bool = True) -> dict[str, float]:
