@@ -50,8 +50,9 @@ def merge_cells(m, a, b, b_offset, table, constant, stack, state, o, cells, no_p
     the output tree, with room for ``o.plane.shape[0]`` nodes); B's palette rows are
     ``b_offset`` + its rows. ``table[la, lb]`` is the merge function, ``constant[la]``
     its value when it does not depend on lb (else -1). ``state`` = (stack size, output
-    nodes, cells). Output leaves are recorded in ``cells`` as (output node, handle);
-    each cap face's ``OPP`` is the output node on its other side. Returns DONE,
+    nodes, cells, cells whose label differs from A's: 0 means the result is A). Output
+    leaves are recorded in ``cells`` as (output node, handle); each cap face's ``OPP`` is
+    the output node on its other side. Returns DONE,
     NEED_ROOM or FAILED.
     """
     while state[0] > 0:
@@ -64,7 +65,8 @@ def merge_cells(m, a, b, b_offset, table, constant, stack, state, o, cells, no_p
         plane = b.plane[node] if in_b else a.plane[node]
         if plane < 0:
             if in_b:
-                lab = table[stack[top, _ALABEL], b.label[node]]
+                la = stack[top, _ALABEL]
+                lab = table[la, b.label[node]]
             else:
                 la = a.label[node]
                 if constant[la] < 0:
@@ -73,6 +75,8 @@ def merge_cells(m, a, b, b_offset, table, constant, stack, state, o, cells, no_p
                     stack[top, _ALABEL] = la
                     continue
                 lab = constant[la]
+            if lab != la:
+                state[3] += 1  # an output cell whose label differs from A's there: A has changed
             if state[2] >= cells.shape[0]:
                 return NEED_ROOM
             o.plane[out] = -1
@@ -212,7 +216,7 @@ def merge(a: BSPTree, b: BSPTree, fn, lo, hi) -> MergeResult:
     constant = constant_labels(table, lb)
     stack = np.zeros((max(64, 2 * (a.depth() + b.depth()) + 8), 6), np.int64)
     stack[0] = (0, 0, 0, box, 6, 0)
-    state = np.array([1, 1, 0], np.int64)
+    state = np.array([1, 1, 0, 0], np.int64)
     cap = 4 * (a.n_nodes + b.n_nodes) + 64
     arrays = {"o": TreeArrays(*(np.full(cap, -1, np.int32) for _ in range(4))), "cells": np.zeros((cap, 2), np.int64),
               "stack": stack}

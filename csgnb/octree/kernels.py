@@ -466,7 +466,8 @@ def merge_and_simplify(pal, m, ta, tb, table, constant, box, ws, seed, need):
 
     Returns (kind, value, where): UNIFORM with its label, or BSP with the node count and
     ``where`` 0 = ``ws.to`` (the merged tree was smaller or had several materials) /
-    1 = ``ws.tr`` (rebuilt). (-1, 0, 0) when short of room.
+    1 = ``ws.tr`` (rebuilt) / 2 = unchanged (the result is A: nothing to write). (-1, 0, 0)
+    when short of room.
     """
     if not mesh_room(m, 8):
         need[0] = R_MESH
@@ -484,6 +485,7 @@ def merge_and_simplify(pal, m, ta, tb, table, constant, box, ws, seed, need):
     st[0] = 1
     st[1] = 1
     st[2] = 0
+    st[3] = 0
     status = merge_cells(m, ta, tb, 0, table, constant, ms, st, ws.to, ws.cells, ws.path)
     if status == NEED_ROOM:
         need[0] = R_MERGE
@@ -491,6 +493,10 @@ def merge_and_simplify(pal, m, ta, tb, table, constant, box, ws, seed, need):
     if status != DONE:
         need[0] = 0
         return -1, 0, 0
+    if st[3] == 0:
+        # Every output cell kept A's label: the solid is A's, so A's tree stays (no redundancy
+        # removal). A tool sliding along a wall it cut before (a drill's lands) hits this often.
+        return BSP, 0, 2
     n_o = st[1]
     lab = uniform_label(ws.to, n_o)
     if lab >= 0:
@@ -673,6 +679,9 @@ def boolean_cell(pal, oc, pool, amap, node, tool_kind, tool, cand, table, consta
     kind, value, where = merge_and_simplify(pal, ws.m, ws.ta, ws.tb, table, constant, ws.box, ws, seed + node, need)
     if kind < 0:
         return 0
+    if where == 2:
+        oc.counts[S_UNCHANGED] += 1
+        return 1
     if not write_cell(oc, pool, node, kind, value, ws.tr if where == 1 else ws.to):
         need[0] = R_POOL
         return 0

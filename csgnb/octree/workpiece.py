@@ -64,6 +64,7 @@ from csgnb.octree.layout import (
     S_PATHOLOGICAL,
     S_RELABELS,
     S_SPLITS,
+    S_UNCHANGED,
     UNIFORM,
     AxisMap,
     OctArrays,
@@ -96,8 +97,10 @@ class OpReport:
     """What one Boolean did.
 
     ``cells`` touched, ``merges`` (cells merged with the tool's local BSP), ``relabels`` (cells
-    the tool covers or misses), ``splits`` / ``combines`` of octree cells, ``seconds``, and with
-    ``track_volume=True`` the exact ``volume_change`` (grid units cubed; negative for a removal).
+    the tool covers or misses), ``splits`` / ``combines`` of octree cells, ``seconds``, with
+    ``track_volume=True`` the exact ``volume_change`` (grid units cubed; negative for a removal),
+    and ``unchanged``: cells the tool reached whose solid it left as it was (nothing written;
+    a merge that changed nothing skips redundancy removal).
     """
 
     cells: int
@@ -107,6 +110,7 @@ class OpReport:
     combines: int
     seconds: float
     volume_change: Fraction | None = None
+    unchanged: int = 0
 
     @property
     def removed(self) -> Fraction | None:
@@ -346,7 +350,7 @@ class Workpiece:
         self._maybe_compact()
         c = self.oc.counts - counts_before
         report = OpReport(int(leaves.shape[0]), int(c[S_MERGES]), int(c[S_RELABELS]), int(c[S_SPLITS]),
-                          int(c[S_COMBINES]), 0.0)
+                          int(c[S_COMBINES]), 0.0, unchanged=int(c[S_UNCHANGED]))
         if track_volume:
             report.volume_change = self._total_volume() - before
         report.seconds = time.perf_counter() - t0
