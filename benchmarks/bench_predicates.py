@@ -33,14 +33,12 @@ import argparse
 import json
 import math
 import pathlib
-import time
 from fractions import Fraction
-from functools import partial
 
 import numpy as np
+from _clock import bare_jit, best_cpu_time, measure_clock_ghz, nominal_clock_ghz  # benchmarks/ is on sys.path
 
 from csgnb import exact
-from csgnb._jit import jit
 from csgnb.exact import predicates as K
 from csgnb.exact.budgets import budget
 from csgnb.exact.intrinsics import (
@@ -64,10 +62,7 @@ API_TARGET = 1.5
 
 
 # ---------------------------------------------------------------------------
-# bare kernels: the operation alone, no checks (what Table 1 times). Not cached: numba keys a
-# cache outside the package on this file alone and would keep serving kernels compiled
-# against an older csgnb.
-bare_jit = partial(jit, cache=False)
+# bare kernels: the operation alone, no checks (what Table 1 times); not cached (see _clock.bare_jit).
 
 
 @bare_jit
@@ -113,46 +108,6 @@ def _bare_intersect(P, Q, R, out):
 def _bare_classify(X, S, out):
     for t in range(out.shape[0]):
         out[t] = classify_at(X, t, S, t)
-
-
-@bare_jit
-def _clock_chain(n, m):
-    x = m
-    for i in range(n):
-        x = x * m + i  # imul (3 cycles) + add (1), loop-carried: not vectorizable, not foldable
-    return x
-
-
-def measure_clock_ghz(steps: int = 100_000_000) -> float:
-    _clock_chain(10, 3)
-    best = math.inf
-    for _ in range(5):
-        t0 = time.process_time()
-        _clock_chain(steps, 3)
-        best = min(best, time.process_time() - t0)
-    return 4 * steps / best / 1e9
-
-
-def nominal_clock_ghz() -> float | None:
-    try:
-        for line in pathlib.Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("cpu MHz"):
-                return float(line.split(":")[1]) / 1000
-    except OSError:
-        pass
-    return None
-
-
-def best_time(fn, repeat: int, inner: int = 1) -> float:
-    """Best CPU seconds per call of ``fn`` over ``repeat`` runs of ``inner`` calls (after a warm-up)."""
-    fn()
-    best = math.inf
-    for _ in range(repeat):
-        t0 = time.process_time()
-        for _ in range(inner):
-            fn()
-        best = min(best, (time.process_time() - t0) / inner)
-    return best
 
 
 # ---------------------------------------------------------------------------
@@ -293,16 +248,16 @@ def main(argv=None) -> dict:
             for op in ops:
                 if layout == "narrow" and op not in READS_PLANES:
                     continue
-                call = best_time(bare_empty[op], args.repeat, inner)
-                hot_c = (best_time(bare_hot[op], args.repeat, inner) - call) / hot_n * 1e9 * clock
-                stream_c = best_time(bare[op], args.repeat) / n * 1e9 * clock
-                api_c = best_time(api[op], args.repeat) / n * 1e9 * clock
+                call = best_cpu_time(bare_empty[op], args.repeat, inner)
+                hot_c = (best_cpu_time(bare_hot[op], args.repeat, inner) - call) / hot_n * 1e9 * clock
+                stream_c = best_cpu_time(bare[op], args.repeat) / n * 1e9 * clock
+                api_c = best_cpu_time(api[op], args.repeat) / n * 1e9 * clock
                 result["ops"][op][f"{width}/{layout}"] = {"hot": hot_c, "call_us": call * 1e6, "stream": stream_c,
                                                           "api": api_c,
                                                           "api_over_stream": api_c / stream_c}
         if width == 256:
             for op, fn in python_runs(big).items():
-                result["ops"][op]["python_int"] = best_time(fn, 1) / n * 1e9 * clock
+                result["ops"][op]["python_int"] = best_cpu_time(fn, 1) / n * 1e9 * clock
     stats = {}
     exact.to_double_position(big["points"], stats=stats)
     result["to_double_exact_fallbacks"] = stats["exact"]

@@ -105,6 +105,20 @@ def test_random_booleans_long_fuzz():
     print(f"long fuzz: {pairs} BSP pairs x {len(OPS)} operations, {cases} point classifications checked")
 
 
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_naive_cut_merges_like_edge_descent(seed):
+    # The benchmarks' baseline: the naive cut must build the same output tree and the same solid.
+    rng = np.random.default_rng(seed)
+    na, nb = (int(x) for x in rng.integers(5, 40, 2))
+    a = random_bsp(na, seed=seed, extent=EXTENT, max_normal=7)
+    b = random_bsp(nb, seed=seed + 100, extent=EXTENT, max_normal=7)
+    for fn in OPS.values():
+        edge, naive = merge(a, b, fn, LO, HI), merge(a, b, fn, LO, HI, naive=True)
+        for name in ("plane", "neg", "pos", "label"):
+            np.testing.assert_array_equal(getattr(naive.tree, name), getattr(edge.tree, name))
+        assert naive.surface().exact_volume() == edge.surface().exact_volume() == volume(edge.tree)
+
+
 def test_multi_material_merge_function():
     a = random_bsp(8, seed=3, extent=EXTENT, max_normal=4, materials=3, p_in=0.8)
     b = random_bsp(8, seed=4, extent=EXTENT, max_normal=4, materials=2, p_in=0.8)

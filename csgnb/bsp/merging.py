@@ -32,7 +32,7 @@ from csgnb.bsp.tree import OUT, BSPTree
 from csgnb.errors import GeometryError
 from csgnb.exact.integral import exact_int
 from csgnb.exact.wide import width_of
-from csgnb.mesh.cutting import CUT_PROPER, cut_cell
+from csgnb.mesh.cutting import CUT_PROPER, cut_cell, cut_cell_naive
 from csgnb.mesh.halfedge import MeshStore, grown_mesh_arrays, room_for_cut
 
 __all__ = ["MergeResult", "merge", "merge_table", "remove_redundancy"]
@@ -43,7 +43,7 @@ _TREE, _NODE, _ALABEL, _HANDLE, _BOUND, _OUT = 0, 1, 2, 3, 4, 5
 
 
 @jit(inline="always")
-def merge_cells(m, a, b, b_offset, table, constant, stack, state, o, cells, no_path):
+def merge_cells(m, a, b, b_offset, table, constant, stack, state, o, cells, no_path, work, naive):
     """Merge A and B cell by cell (§3.5); resumable (see :mod:`csgnb._resumable`).
 
     ``a``, ``b``, ``o`` are :class:`~csgnb.bsp.extract.TreeArrays` (``o`` is filled:
@@ -52,7 +52,9 @@ def merge_cells(m, a, b, b_offset, table, constant, stack, state, o, cells, no_p
     its value when it does not depend on lb (else -1). ``state`` = (stack size, output
     nodes, cells, cells whose label differs from A's: 0 means the result is A). Output
     leaves are recorded in ``cells`` as (output node, handle); each cap face's ``OPP`` is
-    the output node on its other side. Returns DONE,
+    the output node on its other side. ``naive`` cuts with the classify-every-vertex
+    baseline (the benchmarks' reference), which needs ``work`` (int32) as long as ``m.he``;
+    otherwise ``work`` is not read. Returns DONE,
     NEED_ROOM or FAILED.
     """
     while state[0] > 0:
@@ -93,7 +95,12 @@ def merge_cells(m, a, b, b_offset, table, constant, stack, state, o, cells, no_p
         row = plane + b_offset if in_b else plane
         n1 = state[1]
         n2 = n1 + 1
-        status, ca, cb = cut_cell(m, h, row, n2, n1, no_path)
+        if naive:
+            if work.shape[0] < m.he.shape[0]:
+                return NEED_ROOM
+            status, ca, cb = cut_cell_naive(m, work, h, row, n2, n1)
+        else:
+            status, ca, cb = cut_cell(m, h, row, n2, n1, no_path)
         if status == CUT_PROPER:
             state[1] += 2
             o.plane[out] = row
@@ -124,10 +131,10 @@ def merge_cells(m, a, b, b_offset, table, constant, stack, state, o, cells, no_p
 
 
 @jit
-def _merge_kernel(m, a, b, b_offset, table, constant, stack, state, o, cells, no_path):
+def _merge_kernel(m, a, b, b_offset, table, constant, stack, state, o, cells, no_path, work, naive):
     m, a, b, o = unmanaged_tuple(m), unmanaged_tuple(a), unmanaged_tuple(b), unmanaged_tuple(o)
     return merge_cells(m, a, b, b_offset, unmanaged(table), unmanaged(constant), unmanaged(stack), unmanaged(state),
-                       o, unmanaged(cells), unmanaged(no_path))
+                       o, unmanaged(cells), unmanaged(no_path), unmanaged(work), naive)
 
 
 def merge_table(fn, labels_a, labels_b) -> np.ndarray:
@@ -193,12 +200,14 @@ def constant_labels(table: np.ndarray, labels_b: np.ndarray) -> np.ndarray:
     return constant
 
 
-def merge(a: BSPTree, b: BSPTree, fn, lo, hi) -> MergeResult:
+def merge(a: BSPTree, b: BSPTree, fn, lo, hi, *, naive: bool = False) -> MergeResult:
     """Merge BSPs ``a`` and ``b`` with the leaf-label function ``fn(la, lb)`` inside the box ``[lo, hi]``.
 
     Union is ``lambda a, b: max(a, b)`` for in/out labels, intersection ``min``; any function
     of two labels (materials included) works. Both trees must have the same width, and their
-    planes together with the box planes must fit its budget (checked).
+    planes together with the box planes must fit its budget (checked). ``naive=True`` cuts
+    with the classify-every-vertex baseline instead of edge descent (same result, slower:
+    the benchmarks' reference).
 
     Returns
     -------
@@ -219,13 +228,13 @@ def merge(a: BSPTree, b: BSPTree, fn, lo, hi) -> MergeResult:
     state = np.array([1, 1, 0, 0], np.int64)
     cap = 4 * (a.n_nodes + b.n_nodes) + 64
     arrays = {"o": TreeArrays(*(np.full(cap, -1, np.int32) for _ in range(4))), "cells": np.zeros((cap, 2), np.int64),
-              "stack": stack}
+              "stack": stack, "work": np.empty(store.he.shape[0] if naive else 0, np.int32)}
     ta, tb = tree_arrays(a), tree_arrays(b)
     no_path = np.zeros(1, np.int64)
 
     def step():
         return _merge_kernel(store.m, ta, tb, a.palette.shape[0], table, constant, arrays["stack"], state,
-                             arrays["o"], arrays["cells"], no_path)
+                             arrays["o"], arrays["cells"], no_path, arrays["work"], naive)
 
     def grow():
         top = int(state[0]) - 1
@@ -237,6 +246,8 @@ def merge(a: BSPTree, b: BSPTree, fn, lo, hi) -> MergeResult:
             arrays["o"] = TreeArrays(*(grown(x, fill=-1) for x in arrays["o"]))
         if state[2] >= arrays["cells"].shape[0]:
             arrays["cells"] = grown(arrays["cells"])
+        if naive and arrays["work"].shape[0] < store.he.shape[0]:
+            arrays["work"] = np.empty(store.he.shape[0], np.int32)
 
     run_resumable(step, grow, "BSP merge")
     n = int(state[1])
