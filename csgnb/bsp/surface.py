@@ -210,22 +210,25 @@ class BoundarySurface:
 
     def save(self, path, manifold: bool = False, transform: Callable[[np.ndarray], np.ndarray] | None = None,
              file_format: str | None = None) -> Path:
-        """Write the triangulated surface to ``path`` through meshio (STL, OBJ, PLY, or any format it writes).
+        """Write the triangulated surface (:meth:`to_mesh`) to ``path`` through meshio; return the path.
 
-        The format follows the file extension unless ``file_format`` names one (meshio's names,
-        e.g. ``"stl"``, ``"obj"``, ``"ply"``). Positions are correctly rounded doubles (STL stores
-        them as float32); PLY also stores each triangle's ``label``. Returns the path.
+        The format follows the extension (``.stl`` binary, ``.obj``, ``.ply`` binary, or anything
+        else meshio writes) unless ``file_format`` names one in meshio's terms. Positions are the
+        correctly rounded doubles (binary STL stores them as float32). Labels are not written:
+        these formats keep no per-face data through meshio (use :meth:`triangulate` for them).
         """
         import meshio
 
         path = Path(path)
         vertices, triangles = self.to_mesh(manifold, transform)
         fmt = file_format or {".stl": "stl", ".obj": "obj", ".ply": "ply"}.get(path.suffix.lower())
-        cell_data = {}
-        if fmt == "ply":
-            cell_data = {"label": [self.labels[self.triangulate(manifold).polygon].astype(np.int32)]}
-        mesh = meshio.Mesh(vertices, [("triangle", triangles)], cell_data=cell_data)
-        meshio.write(path, mesh, file_format=fmt)
+        if triangles.shape[0] and triangles.max() < 2**31:
+            triangles = triangles.astype(np.int32)  # PLY has no 64-bit integers (meshio would warn and cast)
+        mesh = meshio.Mesh(vertices, [("triangle", triangles)])
+        if fmt == "stl":
+            meshio.write(path, mesh, file_format=fmt, binary=True)
+        else:
+            meshio.write(path, mesh, file_format=fmt)
         return path
 
     def to_polydata(self, triangulate: bool = True, manifold: bool = False):

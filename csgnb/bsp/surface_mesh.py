@@ -370,7 +370,7 @@ def _manifold_kernel(offsets, indices, labels, support, edge_planes, vertices, p
         for j in range(a, b):
             h = members[j]
             if indices[h] == hi:  # against d: the solid follows, up to the next face, which must run along d
-                nx = members[j + 1] if j + 1 < b else members[a]
+                nx = members[j - 1] if j > a else members[b - 1]
                 if indices[nx] != lo:
                     status[0] = _NOT_ALTERNATING
                     status[1] = h
