@@ -168,6 +168,36 @@ def test_any_homogeneous_representative_gives_the_same_surface(n_inner, seed):
     assert np.array_equal(a.indices, b.indices) and np.array_equal(a.offsets, b.offsets)
 
 
+def test_wide_plane_tests_agree_with_narrow_ones(monkeypatch):
+    # The w-bit on-plane test runs only where a bound proves it exact; the 2w+64-bit one always is.
+    from csgnb.bsp import surface as surface_module
+    from csgnb.bsp import surface_mesh
+
+    tree = random_bsp(30, seed=11, extent=E, max_normal=5, materials=2)
+    args = pieces_of(tree)
+    narrow = assemble_surface(*args)
+    narrow_mesh = narrow.triangulate()
+    monkeypatch.setattr(surface_module.K, "narrow_tests_exact", lambda points, planes: False)
+    monkeypatch.setattr(surface_mesh, "narrow_tests_exact", lambda points, planes: False)
+    wide = assemble_surface(*args)
+    assert np.array_equal(wide.indices, narrow.indices) and np.array_equal(wide.offsets, narrow.offsets)
+    assert np.array_equal(wide.triangulate().triangles, narrow_mesh.triangles)
+    palette, vx, edge, polys = args
+    moved = from_wide(vx)
+    moved[0, 0] += 1
+    with pytest.raises(GeometryError, match="does not lie on palette plane"):
+        assemble_surface(palette, to_wide(moved, 128), edge, polys)
+
+
+def test_narrow_tests_are_used_only_within_their_bound():
+    from csgnb.bsp.surface_kernels import narrow_tests_exact
+
+    palette, vx, _, _ = small_pieces()
+    assert narrow_tests_exact(vx, palette)
+    big = to_wide([[1 << 126, 1 << 126, 0, 1]], 128)  # each entry fits 128 bits; x·s need not
+    assert not narrow_tests_exact(big, palette)
+
+
 def slab_tree(planes: list[list[int]], labels: list[int], width: int = 128, base: bool = False) -> BSPTree:
     """A chain of parallel cuts ``planes`` (cells between consecutive ones get ``labels``).
 

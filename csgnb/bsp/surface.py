@@ -373,7 +373,7 @@ def assemble_surface(palette: np.ndarray, vx: np.ndarray, edge_plane: np.ndarray
     pair_of_edge = np.zeros(n, np.int64)
     pair_planes = np.empty((n, 2), np.int64)
     npairs = K.edge_pairs_kernel(K.PieceArrays(palette, vx, limbs, edge_plane, polys), vid, pair_of_edge, pair_planes,
-                                 status)
+                                 status, K.narrow_tests_exact(vx, palette))
     if npairs < 0:
         _raise_status(status, polys)
     pair_planes = pair_planes[:npairs].copy()

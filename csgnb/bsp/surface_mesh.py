@@ -39,14 +39,15 @@ from typing import NamedTuple
 import numpy as np
 
 from csgnb._jit import jit
+from csgnb._views import unmanaged
 from csgnb.bsp.surface_intrinsics import (
     binet_cauchy_sign_at,
     collinear_at,
     compare_coordinate_at,
     line_direction_into,
     normals_dot_sign_at,
-    on_plane_at,
 )
+from csgnb.bsp.surface_kernels import narrow_tests_exact, on_plane
 from csgnb.errors import GeometryError, InternalError
 from csgnb.exact.intrinsics import wide_sign_at
 
@@ -93,12 +94,17 @@ class ManifoldSplit(NamedTuple):
 
 
 @jit
-def _triangulate_kernel(offsets, geo, loop, vertices, palette, edge_planes, use_planes, tris, tri_poly, status):
+def _triangulate_kernel(offsets, geo, loop, vertices, palette, edge_planes, use_planes, narrow, tris, tri_poly,
+                        status):
     """Triangles of every polygon (exact flat-vertex test, ear clipping next to flats, then a fan).
 
     ``geo`` are the polygon loops over ``vertices`` (used for the geometry), ``loop`` the ids
     written into ``tris`` ((sum(k) - 2 * polygons, 3) int64); ``tri_poly`` gets each triangle's polygon.
     """
+    offsets, geo, loop, vertices, palette = unmanaged(offsets), unmanaged(geo), unmanaged(loop), unmanaged(vertices), \
+        unmanaged(palette)
+    edge_planes, tris, tri_poly, status = unmanaged(edge_planes), unmanaged(tris), unmanaged(tri_poly), \
+        unmanaged(status)
     largest = 3
     for p in range(offsets.shape[0] - 1):
         largest = max(largest, offsets[p + 1] - offsets[p])
@@ -120,7 +126,7 @@ def _triangulate_kernel(offsets, geo, loop, vertices, palette, edge_planes, use_
             prv[i] = (i + n - 1) % n
             nxt[i] = (i + 1) % n
             if use_planes:
-                flat[i] = on_plane_at(vertices, geo[after], palette, edge_planes[before])
+                flat[i] = on_plane(narrow, vertices, geo[after], palette, edge_planes[before])
             else:
                 flat[i] = collinear_at(vertices, geo[before], geo[a + i], geo[after])
             if flat[i]:
@@ -202,7 +208,8 @@ def triangulate(surface, manifold: bool = False) -> TriangleMesh:
         planes = surface.edge_planes
         use_planes = planes is not None
         planes = np.ascontiguousarray(planes if use_planes else np.zeros(0, np.int64), np.int64)
-        _triangulate_kernel(offsets, geo, loop, surface.vertices, surface.palette, planes, use_planes, tris,
+        narrow = use_planes and narrow_tests_exact(surface.vertices, surface.palette)
+        _triangulate_kernel(offsets, geo, loop, surface.vertices, surface.palette, planes, use_planes, narrow, tris,
                             tri_poly, status)
         _raise_triangulation(status, surface)
     positions = surface.positions()
@@ -370,25 +377,37 @@ def _manifold_kernel(offsets, indices, labels, support, edge_planes, vertices, p
         for j in range(a, b):
             h = members[j]
             if indices[h] == hi:  # against d: the solid follows, up to the next face, which must run along d
-                nx = members[j - 1] if j > a else members[b - 1]
+                nx = members[j + 1] if j + 1 < b else members[a]
                 if indices[nx] != lo:
                     status[0] = _NOT_ALTERNATING
                     status[1] = h
                     return 0
                 partner[h] = nx
                 partner[nx] = h
-    # Corners (a half-edge stands for the corner at its tail) joined across paired edges.
-    parent = np.arange(h_count)
     for h in range(h_count):
-        q = partner[h]
-        if q < 0:
+        if partner[h] < 0:
             status[0] = _NO_PROGRESS
             status[1] = h
             return 0
+    return _number_fans(indices, nexth, partner, np.arange(h_count), np.full(h_count, -1, np.int64),
+                        np.zeros(n_vertices, np.bool_), new_indices, source)
+
+
+@jit
+def _number_fans(indices, nexth, partner, parent, owner, taken, new_indices, source):
+    """Join corners across paired edges (union-find over ``parent``) and number each vertex's fans.
+
+    A half-edge stands for the corner at its tail. The first fan of vertex v keeps id v, later
+    fans get ids from n on. Returns the number of new vertices.
+    """
+    indices, nexth, partner, parent = unmanaged(indices), unmanaged(nexth), unmanaged(partner), unmanaged(parent)
+    owner, taken, new_indices, source = unmanaged(owner), unmanaged(taken), unmanaged(new_indices), unmanaged(source)
+    h_count = indices.shape[0]
+    n_vertices = taken.shape[0]
+    for h in range(h_count):
+        q = partner[h]
         _union(parent, h, nexth[q])
         _union(parent, nexth[h], q)
-    owner = np.full(h_count, -1, np.int64)
-    taken = np.zeros(n_vertices, np.bool_)
     for v in range(n_vertices):
         source[v] = v
     count = n_vertices
