@@ -28,7 +28,7 @@ from csgnb.bsp.extract import (
     new_clip_scratch,
     new_pieces,
 )
-from csgnb.mesh.halfedge import MeshArrays, grown_mesh_arrays, new_mesh_arrays
+from csgnb.mesh.halfedge import STAMP, MeshArrays, grown_mesh_arrays, new_mesh_arrays
 from csgnb.octree.layout import (
     R_BUILD,
     R_BUILD_IN,
@@ -176,8 +176,11 @@ def with_palette(ws: Workspace, palette: np.ndarray) -> Workspace:
 
 
 def _grown_mesh(m: MeshArrays) -> MeshArrays:
+    """Larger, emptied mesh arrays; the stamp counter is kept (like ``mesh_reset``): the marks keep old stamps."""
     v = m.vx.shape[0]
-    return grown_mesh_arrays(m._replace(counts=np.zeros_like(m.counts)), 2 * v, 8 * v, 4 * v, loop=2 * m.loop.shape[0])
+    counts = np.zeros_like(m.counts)
+    counts[STAMP] = m.counts[STAMP]
+    return grown_mesh_arrays(m._replace(counts=counts), 2 * v, 8 * v, 4 * v, loop=2 * m.loop.shape[0])
 
 
 def grow(ws: Workspace, resource: int) -> Workspace:
