@@ -228,8 +228,13 @@ def slab_tree(planes: list[list[int]], labels: list[int], width: int = 128, base
     order = [root] + [i for i in range(len(plane)) if i != root]
     where = {old: new for new, old in enumerate(order)}
     fix = lambda arr: [where[x] if x >= 0 else -1 for x in arr]  # noqa: E731
-    return BSPTree(to_wide(rows, width), np.array([plane[i] for i in order]), np.array(fix([neg[i] for i in order])),
-                   np.array(fix([pos[i] for i in order])), np.array([label[i] for i in order]))
+    return BSPTree(
+        to_wide(rows, width),
+        np.array([plane[i] for i in order]),
+        np.array(fix([neg[i] for i in order])),
+        np.array(fix([pos[i] for i in order])),
+        np.array([label[i] for i in order]),
+    )
 
 
 def test_long_lines_with_many_t_junctions():
@@ -265,8 +270,19 @@ def octant_tree(labels=(1, 1)) -> BSPTree:
     """Two cells meeting at the origin only: x, y, z < 0 (labels[0]) and x, y, z > 0 (labels[1])."""
     rows = [[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0]]
     # node: (plane, neg, pos, label)
-    nodes = [(0, 1, 2, -1), (1, 3, 4, -1), (1, 5, 6, -1), (2, 7, 8, -1), (-1, -1, -1, 0), (-1, -1, -1, 0),
-             (2, 9, 10, -1), (-1, -1, -1, labels[0]), (-1, -1, -1, 0), (-1, -1, -1, 0), (-1, -1, -1, labels[1])]
+    nodes = [
+        (0, 1, 2, -1),
+        (1, 3, 4, -1),
+        (1, 5, 6, -1),
+        (2, 7, 8, -1),
+        (-1, -1, -1, 0),
+        (-1, -1, -1, 0),
+        (2, 9, 10, -1),
+        (-1, -1, -1, labels[0]),
+        (-1, -1, -1, 0),
+        (-1, -1, -1, 0),
+        (-1, -1, -1, labels[1]),
+    ]
     cols = [np.array(c) for c in zip(*nodes, strict=True)]
     return BSPTree(to_wide(rows, 128), *cols)
 
@@ -297,8 +313,14 @@ def test_edge_use_predicates_match_the_edge_counts(n_inner, seed):
 def without_last_polygon(s):
     k = s.n_polygons - 1
     end = s.offsets[k]
-    return dataclasses.replace(s, offsets=s.offsets[:-1], support=s.support[:k], labels=s.labels[:k],
-                               indices=s.indices[:end], edge_planes=s.edge_planes[:end])
+    return dataclasses.replace(
+        s,
+        offsets=s.offsets[:-1],
+        support=s.support[:k],
+        labels=s.labels[:k],
+        indices=s.indices[:end],
+        edge_planes=s.edge_planes[:end],
+    )
 
 
 # ---------------------------------------------------------------------------
@@ -319,8 +341,10 @@ def check_triangulation(s, manifold=False):
     for p in range(s.n_polygons):
         loop = [pos[v] for v in s.polygon(p)]
         area = [sum(cross(loop[i], loop[(i + 1) % len(loop)])[k] for i in range(len(loop))) for k in range(3)]
-        tri = [sum(cross(sub(b, a), sub(c, a))[k] for a, b, c in
-                   (exact[j] for j in np.flatnonzero(mesh.polygon == p))) for k in range(3)]
+        tri = [
+            sum(cross(sub(b, a), sub(c, a))[k] for a, b, c in (exact[j] for j in np.flatnonzero(mesh.polygon == p)))
+            for k in range(3)
+        ]
         assert area == tri
     epos = [pos[v] for v in src]
     assert triangle_volume(mesh.triangles, epos) == s.exact_volume()
@@ -353,7 +377,7 @@ def test_manifold_split_separates_cells_touching_along_an_edge():
     s = extract_boundary(quadrant_tree(), LO, HI).surface
     split = s.manifold_split()
     # The z axis runs from (0, 0, -E) to (0, 0, E); its vertices (and only they) are duplicated.
-    dup = split.source[s.n_vertices:]
+    dup = split.source[s.n_vertices :]
     assert sorted(np.abs(s.positions()[dup]).tolist()) == [[0, 0, E], [0, 0, E]]
     assert np.array_equal(split.source[: s.n_vertices], np.arange(s.n_vertices))
     mesh = check_triangulation(s, manifold=True)
@@ -408,7 +432,7 @@ def test_manifold_split_gives_each_label_its_own_shell():
 def test_manifold_split_on_random_bsps(n_inner, seed, materials):
     s = extract_boundary(random_bsp(n_inner, seed=seed, extent=E, max_normal=3, materials=materials), LO, HI).surface
     split = s.manifold_split()
-    use = edge_counts([split.indices[s.offsets[i]:s.offsets[i + 1]] for i in range(s.n_polygons)])
+    use = edge_counts([split.indices[s.offsets[i] : s.offsets[i + 1]] for i in range(s.n_polygons)])
     assert all(n == 1 and use.get((b, a)) == 1 for (a, b), n in use.items())
     assert np.array_equal(split.source[: s.n_vertices], np.arange(s.n_vertices))
     assert np.array_equal(split.source[split.indices], s.indices)
@@ -426,7 +450,7 @@ def wedge_points_of_split_edges(s, split):
     one that contains no other face of the edge is the one the pairing claims is solid.
     """
     pos = s.positions()
-    loops = [split.indices[s.offsets[i]:s.offsets[i + 1]] for i in range(s.n_polygons)]
+    loops = [split.indices[s.offsets[i] : s.offsets[i + 1]] for i in range(s.n_polygons)]
     uses: dict[tuple[int, int, int], list[tuple[int, int, int]]] = {}  # (label, lo, hi) -> (face, a', b')
     for f, (orig, new) in enumerate(zip(s.polygons(), loops, strict=True)):
         for i in range(len(orig)):
@@ -575,8 +599,8 @@ def test_zero_length_edge_is_an_error():
     start, n = int(polys[0, 0]), int(polys[0, 1])
     rows = from_wide(vx)
     # Polygon 0 with its first vertex doubled: the extra edge lies on the incoming edge's plane.
-    new_rows = np.concatenate([rows[start:start + 1], rows[start:start + n]])
-    new_edge = np.concatenate([[edge[start + n - 1]], edge[start:start + n]])
+    new_rows = np.concatenate([rows[start : start + 1], rows[start : start + n]])
+    new_edge = np.concatenate([[edge[start + n - 1]], edge[start : start + n]])
     poly = polys[:1].copy()
     poly[0, :2] = (0, n + 1)
     with pytest.raises(GeometryError, match="same point"):

@@ -45,6 +45,7 @@ from csgnb.exact.wide import from_wide, to_wide, width_of
 
 __all__ = ["BoundarySurface", "ManifoldSplit", "TriangleMesh", "assemble_surface"]
 
+
 @dataclass(frozen=True)
 class BoundarySurface:
     """A closed surface of exact convex polygons, outward, sharing exact vertices.
@@ -181,8 +182,9 @@ class BoundarySurface:
         """
         return triangulate(self, manifold)
 
-    def to_mesh(self, manifold: bool = False, transform: Callable[[np.ndarray], np.ndarray] | None = None
-                ) -> tuple[np.ndarray, np.ndarray]:
+    def to_mesh(
+        self, manifold: bool = False, transform: Callable[[np.ndarray], np.ndarray] | None = None
+    ) -> tuple[np.ndarray, np.ndarray]:
         """Return float vertices ``(n, 3)`` (correctly rounded) and outward triangles ``(m, 3) int64``.
 
         ``transform`` maps the positions (e.g. ``grid.to_model`` for model units); ``manifold``
@@ -201,15 +203,22 @@ class BoundarySurface:
         try:
             import trimesh
         except ImportError as err:
-            raise ImportError("BoundarySurface.to_trimesh needs trimesh: pip install trimesh "
-                              "(or use to_mesh() for plain arrays)") from err
+            raise ImportError(
+                "BoundarySurface.to_trimesh needs trimesh: pip install trimesh (or use to_mesh() for plain arrays)"
+            ) from err
         mesh = self.triangulate(manifold)
         vertices = mesh.vertices if transform is None else np.asarray(transform(mesh.vertices), np.float64)
-        return trimesh.Trimesh(vertices, mesh.triangles, process=False,
-                               face_attributes={"label": self.labels[mesh.polygon]})
+        return trimesh.Trimesh(
+            vertices, mesh.triangles, process=False, face_attributes={"label": self.labels[mesh.polygon]}
+        )
 
-    def save(self, path, manifold: bool = False, transform: Callable[[np.ndarray], np.ndarray] | None = None,
-             file_format: str | None = None) -> Path:
+    def save(
+        self,
+        path,
+        manifold: bool = False,
+        transform: Callable[[np.ndarray], np.ndarray] | None = None,
+        file_format: str | None = None,
+    ) -> Path:
         """Write the triangulated surface (:meth:`to_mesh`) to ``path`` through meshio; return the path.
 
         The format follows the extension (``.stl`` binary, ``.obj``, ``.ply`` binary, or anything
@@ -273,8 +282,9 @@ def _axis_planes(width: int) -> np.ndarray:
 
 def _empty_surface(palette: np.ndarray, dtype) -> BoundarySurface:
     z = np.zeros(0, np.int64)
-    return BoundarySurface(palette, np.zeros((0, 4), dtype), np.zeros(1, np.int64), z, z.copy(), z.copy(), z.copy(),
-                           np.zeros((0, 3)))
+    return BoundarySurface(
+        palette, np.zeros((0, 4), dtype), np.zeros(1, np.int64), z, z.copy(), z.copy(), z.copy(), np.zeros((0, 3))
+    )
 
 
 def _checked_pieces(palette, vx, edge_plane, polys):
@@ -298,9 +308,12 @@ def _checked_pieces(palette, vx, edge_plane, polys):
     m, n = palette.shape[0], vx.shape[0]
     start, count, support = polys[:, 0], polys[:, 1], polys[:, 2]
     row = np.where(support >= 0, support, ~support)
-    problems = [(count < 3, "has fewer than 3 vertices"), (start < 0, "starts before row 0"),
-                (start + count > n, f"runs past the last vertex row ({n - 1})"),
-                (row >= m, f"has a support row outside the palette (m = {m})")]
+    problems = [
+        (count < 3, "has fewer than 3 vertices"),
+        (start < 0, "starts before row 0"),
+        (start + count > n, f"runs past the last vertex row ({n - 1})"),
+        (row >= m, f"has a support row outside the palette (m = {m})"),
+    ]
     for bad, what in problems:
         if np.any(bad):
             p = int(np.argmax(bad))
@@ -317,12 +330,16 @@ def _raise_status(status: np.ndarray, polys: np.ndarray) -> None:
     if code == K.E_INFINITE:
         raise GeometryError(f"vertex row {a} has x4 = 0 (a point at infinity): boundary pieces need finite vertices")
     if code == K.E_OFF_PLANE:
-        raise GeometryError(f"vertex row {a} of polygon {c} does not lie on palette plane {b} (its polygon's support "
-                            "or the plane of an edge at it): the pieces are inconsistent (extraction's pieces "
-                            "always satisfy this)")
+        raise GeometryError(
+            f"vertex row {a} of polygon {c} does not lie on palette plane {b} (its polygon's support "
+            "or the plane of an edge at it): the pieces are inconsistent (extraction's pieces "
+            "always satisfy this)"
+        )
     if code == K.E_NO_LINE:
-        raise GeometryError(f"edge row {a}: its planes {b} and {c} are equal or parallel, so they do not meet in "
-                            "a line (a palette with duplicate planes?)")
+        raise GeometryError(
+            f"edge row {a}: its planes {b} and {c} are equal or parallel, so they do not meet in "
+            "a line (a palette with duplicate planes?)"
+        )
     if code == K.E_ZERO_EDGE:
         raise GeometryError(f"edge row {a} of polygon {b} has both endpoints at the same point (a zero-length edge)")
     raise InternalError(f"surface assembly returned status {code} (a bug in csgnb: please report it)")
@@ -372,8 +389,14 @@ def assemble_surface(palette: np.ndarray, vx: np.ndarray, edge_plane: np.ndarray
         _raise_status(status, polys)
     pair_of_edge = np.zeros(n, np.int64)
     pair_planes = np.empty((n, 2), np.int64)
-    npairs = K.edge_pairs_kernel(K.PieceArrays(palette, vx, limbs, edge_plane, polys), vid, pair_of_edge, pair_planes,
-                                 status, K.narrow_tests_exact(vx, palette))
+    npairs = K.edge_pairs_kernel(
+        K.PieceArrays(palette, vx, limbs, edge_plane, polys),
+        vid,
+        pair_of_edge,
+        pair_planes,
+        status,
+        K.narrow_tests_exact(vx, palette),
+    )
     if npairs < 0:
         _raise_status(status, polys)
     pair_planes = pair_planes[:npairs].copy()
@@ -383,19 +406,38 @@ def assemble_surface(palette: np.ndarray, vx: np.ndarray, edge_plane: np.ndarray
     line_of_pair = np.empty(npairs, np.int64)
     line_planes = np.empty((npairs, 2), np.int64)
     line_axis = np.empty(npairs, np.int64)
-    nlines = K.pair_lines_kernel(palette, pair_planes, _axis_planes(width_of(palette)), dirs, points, keys,
-                                 keys.view(np.int64), line_of_pair, line_planes, line_axis, status)
+    nlines = K.pair_lines_kernel(
+        palette,
+        pair_planes,
+        _axis_planes(width_of(palette)),
+        dirs,
+        points,
+        keys,
+        keys.view(np.int64),
+        line_of_pair,
+        line_planes,
+        line_axis,
+        status,
+    )
     if nlines < 0:
         q = int(status[1])
         status[1] = int(np.argmax(pair_of_edge == q))
         _raise_status(status, polys)
     vertices = vertices[:count].copy()
     pos = pos[:count].copy()
-    offsets, indices, planes = K.assemble_loops_kernel(polys, vid, line_of_pair[pair_of_edge],
-                                                       line_axis[:nlines].copy(), vertices, pos, edge_plane)
-    return BoundarySurface(palette=palette, vertices=vertices, offsets=offsets, indices=indices,
-                           support=polys[:, 2].copy(), labels=polys[:, 3].copy(), edge_planes=planes, _positions=pos)
-
+    offsets, indices, planes = K.assemble_loops_kernel(
+        polys, vid, line_of_pair[pair_of_edge], line_axis[:nlines].copy(), vertices, pos, edge_plane
+    )
+    return BoundarySurface(
+        palette=palette,
+        vertices=vertices,
+        offsets=offsets,
+        indices=indices,
+        support=polys[:, 2].copy(),
+        labels=polys[:, 3].copy(),
+        edge_planes=planes,
+        _positions=pos,
+    )
 
 
 def _primitive(x: list[int]) -> tuple[int, int, int, int]:
@@ -417,8 +459,9 @@ def _line_key(p: list[int], q: list[int]) -> tuple[int, ...]:
     return tuple(v // g for v in key)
 
 
-def _assemble_surface_reference(palette: np.ndarray, vx: np.ndarray, edge_plane: np.ndarray,
-                                polys: np.ndarray) -> BoundarySurface:
+def _assemble_surface_reference(
+    palette: np.ndarray, vx: np.ndarray, edge_plane: np.ndarray, polys: np.ndarray
+) -> BoundarySurface:
     """The first, pure-Python :func:`assemble_surface` (Python ints, gcds, Fractions): the reference for tests.
 
     Vertices are the gcd-reduced primitive representatives; lines are keyed by reduced

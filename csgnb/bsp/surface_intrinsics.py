@@ -18,18 +18,19 @@ from __future__ import annotations
 
 from llvmlite import ir
 from numba import types
+from numba.core.errors import TypingError
 from numba.extending import intrinsic
 
+# Only the loaders and sign helpers come from csgnb.exact.intrinsics (the names it keeps for other
+# packages' intrinsics); the integer arithmetic below is local, so it does not follow that module's layout.
 from csgnb.exact.intrinsics import (
     _abs,
-    _det2,
-    _dot,
     _element_pointer,
     _load,
     _load_row,
     _row_pointer,
-    _same_width,
     _sign,
+    _wide_width,
 )
 
 __all__ = [
@@ -42,6 +43,28 @@ __all__ = [
     "copy_normalized_into",
     "collinear_at",
 ]
+
+
+def _same_width(name: str, *atys) -> int:
+    """The common width of wide arrays ``atys``; a typing error if they differ."""
+    widths = {_wide_width(a, name) for a in atys}
+    if len(widths) != 1:
+        raise TypingError(f"{name}: operands have different widths {sorted(widths)}")
+    return widths.pop()
+
+
+def _det2(builder, a, b, c, d):
+    """a*d - b*c, at the operands' type."""
+    return builder.sub(builder.mul(a, d), builder.mul(b, c))
+
+
+def _dot(builder, xs, ys):
+    """Σ x_k y_k, at the operands' type."""
+    acc = builder.mul(xs[0], ys[0])
+    for x, y in zip(xs[1:], ys[1:], strict=True):
+        acc = builder.add(acc, builder.mul(x, y))
+    return acc
+
 
 _I8 = ir.IntType(8)
 _I64 = ir.IntType(64)
@@ -116,8 +139,11 @@ def normals_det_sign_at(typingctx, P, i, j, k):
     def codegen(context, builder, sig, args):
         n = [_load_row(context, builder, sig.args[0], args[0], args[c], sig.args[c], T, 3) for c in (1, 2, 3)]
         (a1, b1, c1), (a2, b2, c2), (a3, b3, c3) = n
-        det = _dot(builder, [a1, b1, c1],
-                   [_det2(builder, b2, c2, b3, c3), _det2(builder, c2, a2, c3, a3), _det2(builder, a2, b2, a3, b3)])
+        det = _dot(
+            builder,
+            [a1, b1, c1],
+            [_det2(builder, b2, c2, b3, c3), _det2(builder, c2, a2, c3, a3), _det2(builder, a2, b2, a3, b3)],
+        )
         return _sign(builder, det)
 
     return types.int8(P, i, j, k), codegen
@@ -154,12 +180,15 @@ def binet_cauchy_sign_at(typingctx, P, a, b, s, t):
 
     def codegen(context, builder, sig, args):
         def normal(c):
-            return [builder.sext(v, T2) for v in _load_row(context, builder, sig.args[0], args[0], args[c],
-                                                           sig.args[c], T, 3)]
+            return [
+                builder.sext(v, T2)
+                for v in _load_row(context, builder, sig.args[0], args[0], args[c], sig.args[c], T, 3)
+            ]
 
         na, nb, ns, nt = normal(1), normal(2), normal(3), normal(4)
-        value = _det2(builder, _dot(builder, na, ns), _dot(builder, na, nt), _dot(builder, nb, ns),
-                      _dot(builder, nb, nt))
+        value = _det2(
+            builder, _dot(builder, na, ns), _dot(builder, na, nt), _dot(builder, nb, ns), _dot(builder, nb, nt)
+        )
         return _sign(builder, value)
 
     return types.int8(P, a, b, s, t), codegen
@@ -182,8 +211,10 @@ def compare_coordinate_at(typingctx, X, i, Y, j, c):
         by = _row_pointer(context, builder, sig.args[2], args[2], args[3], sig.args[3])
         xc, x4 = _load(builder, bx, col, T), _load(builder, bx, 3, T)
         yc, y4 = _load(builder, by, col, T), _load(builder, by, 3, T)
-        diff = builder.sub(builder.mul(builder.sext(xc, T2), builder.sext(y4, T2)),
-                           builder.mul(builder.sext(yc, T2), builder.sext(x4, T2)))
+        diff = builder.sub(
+            builder.mul(builder.sext(xc, T2), builder.sext(y4, T2)),
+            builder.mul(builder.sext(yc, T2), builder.sext(x4, T2)),
+        )
         return builder.mul(builder.mul(_sign(builder, diff), _sign(builder, x4)), _sign(builder, y4))
 
     return types.int8(X, i, Y, j, c), codegen
@@ -213,8 +244,11 @@ def copy_normalized_into(typingctx, X, i, out, o):
 def _det3(builder, m):
     """Determinant of the 3x3 matrix ``m`` (rows of LLVM values), by the first row."""
     (a1, b1, c1), (a2, b2, c2), (a3, b3, c3) = m
-    return _dot(builder, [a1, b1, c1],
-                [_det2(builder, b2, c2, b3, c3), _det2(builder, c2, a2, c3, a3), _det2(builder, a2, b2, a3, b3)])
+    return _dot(
+        builder,
+        [a1, b1, c1],
+        [_det2(builder, b2, c2, b3, c3), _det2(builder, c2, a2, c3, a3), _det2(builder, a2, b2, a3, b3)],
+    )
 
 
 @intrinsic
@@ -230,8 +264,10 @@ def collinear_at(typingctx, X, a, b, c):
     W = ir.IntType(3 * bits + 64)
 
     def codegen(context, builder, sig, args):
-        rows = [[builder.sext(v, W) for v in _load_row(context, builder, sig.args[0], args[0], args[k], sig.args[k],
-                                                        T, 4)] for k in (1, 2, 3)]
+        rows = [
+            [builder.sext(v, W) for v in _load_row(context, builder, sig.args[0], args[0], args[k], sig.args[k], T, 4)]
+            for k in (1, 2, 3)
+        ]
         zero = ir.Constant(W, 0)
         result = ir.Constant(ir.IntType(1), 1)
         for cols in ((0, 1, 2), (0, 1, 3), (0, 2, 3), (1, 2, 3)):

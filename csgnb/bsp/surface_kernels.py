@@ -237,8 +237,13 @@ def _merge_rows(vx, limbs, vid, vertices, pos, pos_bits, status, rows, points, f
         hit = -1
         while points[i, 0] >= 0:
             p = points[i, 0]
-            if (points[i, 1] == hk and pos_bits[p, 0] == pos_bits[count, 0] and pos_bits[p, 1] == pos_bits[count, 1]
-                    and pos_bits[p, 2] == pos_bits[count, 2] and points_equal_at(vx, r, vx, first[p])):
+            if (
+                points[i, 1] == hk
+                and pos_bits[p, 0] == pos_bits[count, 0]
+                and pos_bits[p, 1] == pos_bits[count, 1]
+                and pos_bits[p, 2] == pos_bits[count, 2]
+                and points_equal_at(vx, r, vx, first[p])
+            ):
                 hit = p
                 break
             i = (i + 1) & pmask
@@ -287,8 +292,12 @@ def merge_vertices_kernel(vx, limbs, vid, vertices, pos, pos_bits, status):
 def _pairs_from(pc, vid, pair_of_edge, pair_planes, status, narrow, table, state):
     """Check and number edges from polygon ``state[0]`` on (state: next polygon, pairs); see the kernel."""
     pc = unmanaged_tuple(pc)
-    vid, pair_of_edge, pair_planes, status = unmanaged(vid), unmanaged(pair_of_edge), unmanaged(pair_planes), \
-        unmanaged(status)
+    vid, pair_of_edge, pair_planes, status = (
+        unmanaged(vid),
+        unmanaged(pair_of_edge),
+        unmanaged(pair_planes),
+        unmanaged(status),
+    )
     table, state = unmanaged(table), unmanaged(state)
     m = pc.palette.shape[0]
     mask = table.shape[0] - 1
@@ -376,8 +385,9 @@ def edge_pairs_kernel(pc, vid, pair_of_edge, pair_planes, status, narrow):
 
 
 @jit
-def pair_lines_kernel(palette, pair_planes, axes, dirs, points, keys, key_bits, line_of_pair, line_planes,
-                      line_axis, status):
+def pair_lines_kernel(
+    palette, pair_planes, axes, dirs, points, keys, key_bits, line_of_pair, line_planes, line_axis, status
+):
     """Merge plane pairs that meet in the same line; return the number of lines (-1: bad input).
 
     For pair (s, t): u = n_s x n_t and k = argmax |u_k| (:func:`line_direction_into`, into
@@ -393,10 +403,19 @@ def pair_lines_kernel(palette, pair_planes, axes, dirs, points, keys, key_bits, 
     Output: ``line_of_pair`` (p,), ``line_planes`` (p, 2) (the first pair of each line),
     ``line_axis`` (p,) k per line.
     """
-    palette, pair_planes, axes, dirs, points = (unmanaged(palette), unmanaged(pair_planes), unmanaged(axes),
-                                                unmanaged(dirs), unmanaged(points))
-    keys, key_bits, line_of_pair, line_planes = unmanaged(keys), unmanaged(key_bits), unmanaged(line_of_pair), \
-        unmanaged(line_planes)
+    palette, pair_planes, axes, dirs, points = (
+        unmanaged(palette),
+        unmanaged(pair_planes),
+        unmanaged(axes),
+        unmanaged(dirs),
+        unmanaged(points),
+    )
+    keys, key_bits, line_of_pair, line_planes = (
+        unmanaged(keys),
+        unmanaged(key_bits),
+        unmanaged(line_of_pair),
+        unmanaged(line_planes),
+    )
     line_axis, status = unmanaged(line_axis), unmanaged(status)
     npairs = pair_planes.shape[0]
     mask = _table_mask(npairs)
@@ -426,13 +445,21 @@ def pair_lines_kernel(palette, pair_planes, axes, dirs, points, keys, key_bits, 
         hit = -1
         while table[i] >= 0:
             g = table[i]
-            if (line_axis[g] == k and key_bits[g, 0] == key_bits[count, 0] and key_bits[g, 1] == key_bits[count, 1]
-                    and key_bits[g, 2] == key_bits[count, 2] and key_bits[g, 3] == key_bits[count, 3]):
+            if (
+                line_axis[g] == k
+                and key_bits[g, 0] == key_bits[count, 0]
+                and key_bits[g, 1] == key_bits[count, 1]
+                and key_bits[g, 2] == key_bits[count, 2]
+                and key_bits[g, 3] == key_bits[count, 3]
+            ):
                 s2 = line_planes[g, 0]
                 t2 = line_planes[g, 1]
-                if (on_plane_at(points, g, palette, s) and on_plane_at(points, g, palette, t)
-                        and normals_det_sign_at(palette, s2, t2, s) == 0
-                        and normals_det_sign_at(palette, s2, t2, t) == 0):
+                if (
+                    on_plane_at(points, g, palette, s)
+                    and on_plane_at(points, g, palette, t)
+                    and normals_det_sign_at(palette, s2, t2, s) == 0
+                    and normals_det_sign_at(palette, s2, t2, t) == 0
+                ):
                     hit = g
                     break
             i = (i + 1) & mask
@@ -462,8 +489,12 @@ def _before(vertices, pos, v, w, k):
 def _entries_from(polys, vid, line_of_edge, npts, table, ent_line, ent_vert, edge_ent, state):
     """Number the distinct (line, point) entries of edge endpoints from polygon ``state[0]`` on (state: polygon, n)."""
     polys, vid, line_of_edge, table = unmanaged(polys), unmanaged(vid), unmanaged(line_of_edge), unmanaged(table)
-    ent_line, ent_vert, edge_ent, state = unmanaged(ent_line), unmanaged(ent_vert), unmanaged(edge_ent), \
-        unmanaged(state)
+    ent_line, ent_vert, edge_ent, state = (
+        unmanaged(ent_line),
+        unmanaged(ent_vert),
+        unmanaged(edge_ent),
+        unmanaged(state),
+    )
     mask = table.shape[0] - 1
     ne = state[1]
     for p in range(state[0], polys.shape[0]):
@@ -480,8 +511,9 @@ def _entries_from(polys, vid, line_of_edge, npts, table, ent_line, ent_vert, edg
                 v = vid[r] if side == 0 else vid[start + (e + 1) % size]
                 hk = _key(_mix(_SEED ^ np.uint64(g * npts + v)))
                 i = hk & mask
-                while table[i, 0] >= 0 and not (table[i, 1] == hk and ent_line[table[i, 0]] == g
-                                                and ent_vert[table[i, 0]] == v):
+                while table[i, 0] >= 0 and not (
+                    table[i, 1] == hk and ent_line[table[i, 0]] == g and ent_vert[table[i, 0]] == v
+                ):
                     i = (i + 1) & mask
                 if table[i, 0] < 0:
                     table[i, 0] = ne
@@ -526,10 +558,19 @@ def _sort_lines(members, verts, first, line_axis, vertices, pos, scratch_keys, r
 @jit
 def _emit_loops(polys, vid, line_of_edge, edge_plane, edge_ent, rank, first, members, verts, offsets, indices, planes):
     """Write each polygon's loop: every edge's tail, then the vertices strictly between its endpoints."""
-    polys, vid, line_of_edge, edge_plane = unmanaged(polys), unmanaged(vid), unmanaged(line_of_edge), \
-        unmanaged(edge_plane)
-    edge_ent, rank, first, members, verts = unmanaged(edge_ent), unmanaged(rank), unmanaged(first), \
-        unmanaged(members), unmanaged(verts)
+    polys, vid, line_of_edge, edge_plane = (
+        unmanaged(polys),
+        unmanaged(vid),
+        unmanaged(line_of_edge),
+        unmanaged(edge_plane),
+    )
+    edge_ent, rank, first, members, verts = (
+        unmanaged(edge_ent),
+        unmanaged(rank),
+        unmanaged(first),
+        unmanaged(members),
+        unmanaged(verts),
+    )
     offsets, indices, planes = unmanaged(offsets), unmanaged(indices), unmanaged(planes)
     out = 0
     for p in range(polys.shape[0]):
@@ -567,8 +608,10 @@ def assemble_loops_kernel(polys, vid, line_of_edge, line_axis, vertices, pos, ed
     ent_vert = np.empty(2 * n, np.int64)
     edge_ent = np.empty((n, 2), np.int64)
     state = np.zeros(2, np.int64)
-    while _entries_from(polys, vid, line_of_edge, vertices.shape[0], table, ent_line, ent_vert, edge_ent,
-                        state) == _GROW_FIRST:
+    while (
+        _entries_from(polys, vid, line_of_edge, vertices.shape[0], table, ent_line, ent_vert, edge_ent, state)
+        == _GROW_FIRST
+    ):
         table = _doubled(table)
     ne = state[1]
     # 2. Entries grouped by line (counting sort), each group sorted along its line.
@@ -594,6 +637,7 @@ def assemble_loops_kernel(polys, vid, line_of_edge, line_axis, vertices, pos, ed
     offsets = np.empty(polys.shape[0] + 1, np.int64)
     indices = np.empty(total, np.int64)
     planes = np.empty(total, np.int64)
-    _emit_loops(polys, vid, line_of_edge, edge_plane, edge_ent, rank, first, members, ent_vert, offsets, indices,
-                planes)
+    _emit_loops(
+        polys, vid, line_of_edge, edge_plane, edge_ent, rank, first, members, ent_vert, offsets, indices, planes
+    )
     return offsets, indices, planes

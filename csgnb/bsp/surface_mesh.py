@@ -94,17 +94,25 @@ class ManifoldSplit(NamedTuple):
 
 
 @jit
-def _triangulate_kernel(offsets, geo, loop, vertices, palette, edge_planes, use_planes, narrow, tris, tri_poly,
-                        status):
+def _triangulate_kernel(offsets, geo, loop, vertices, palette, edge_planes, use_planes, narrow, tris, tri_poly, status):
     """Triangles of every polygon (exact flat-vertex test, ear clipping next to flats, then a fan).
 
     ``geo`` are the polygon loops over ``vertices`` (used for the geometry), ``loop`` the ids
     written into ``tris`` ((sum(k) - 2 * polygons, 3) int64); ``tri_poly`` gets each triangle's polygon.
     """
-    offsets, geo, loop, vertices, palette = unmanaged(offsets), unmanaged(geo), unmanaged(loop), unmanaged(vertices), \
-        unmanaged(palette)
-    edge_planes, tris, tri_poly, status = unmanaged(edge_planes), unmanaged(tris), unmanaged(tri_poly), \
-        unmanaged(status)
+    offsets, geo, loop, vertices, palette = (
+        unmanaged(offsets),
+        unmanaged(geo),
+        unmanaged(loop),
+        unmanaged(vertices),
+        unmanaged(palette),
+    )
+    edge_planes, tris, tri_poly, status = (
+        unmanaged(edge_planes),
+        unmanaged(tris),
+        unmanaged(tri_poly),
+        unmanaged(status),
+    )
     largest = 3
     for p in range(offsets.shape[0] - 1):
         largest = max(largest, offsets[p + 1] - offsets[p])
@@ -183,8 +191,9 @@ def _raise_triangulation(status: np.ndarray, surface) -> None:
     if code == _SHORT:
         raise GeometryError(f"polygon {p} has fewer than 3 vertices: it cannot be triangulated")
     if code == _ZERO_AREA:
-        raise GeometryError(f"polygon {p} ({surface.polygon(p).tolist()}) has all its vertices on one line: "
-                            "it has no area")
+        raise GeometryError(
+            f"polygon {p} ({surface.polygon(p).tolist()}) has all its vertices on one line: it has no area"
+        )
     raise InternalError(f"triangulating polygon {p} made no progress (a bug in csgnb: please report it)")
 
 
@@ -209,8 +218,9 @@ def triangulate(surface, manifold: bool = False) -> TriangleMesh:
         use_planes = planes is not None
         planes = np.ascontiguousarray(planes if use_planes else np.zeros(0, np.int64), np.int64)
         narrow = use_planes and narrow_tests_exact(surface.vertices, surface.palette)
-        _triangulate_kernel(offsets, geo, loop, surface.vertices, surface.palette, planes, use_planes, narrow, tris,
-                            tri_poly, status)
+        _triangulate_kernel(
+            offsets, geo, loop, surface.vertices, surface.palette, planes, use_planes, narrow, tris, tri_poly, status
+        )
         _raise_triangulation(status, surface)
     positions = surface.positions()
     return TriangleMesh(positions[source] if manifold else positions, tris, tri_poly, source)
@@ -250,8 +260,9 @@ def _angle_sign(palette, rows, signs, sigma, a, b, s, t):
 
 
 @jit
-def _manifold_kernel(offsets, indices, labels, support, edge_planes, vertices, palette, n_vertices, scratch,
-                     new_indices, source, status):
+def _manifold_kernel(
+    offsets, indices, labels, support, edge_planes, vertices, palette, n_vertices, scratch, new_indices, source, status
+):
     """Pair the uses of every edge (per label, by angle where more than two), join corners, number the fans.
 
     Writes ``new_indices`` (h,) and ``source`` (n_vertices + h,) and returns the number of new vertices.
@@ -389,8 +400,16 @@ def _manifold_kernel(offsets, indices, labels, support, edge_planes, vertices, p
             status[0] = _NO_PROGRESS
             status[1] = h
             return 0
-    return _number_fans(indices, nexth, partner, np.arange(h_count), np.full(h_count, -1, np.int64),
-                        np.zeros(n_vertices, np.bool_), new_indices, source)
+    return _number_fans(
+        indices,
+        nexth,
+        partner,
+        np.arange(h_count),
+        np.full(h_count, -1, np.int64),
+        np.zeros(n_vertices, np.bool_),
+        new_indices,
+        source,
+    )
 
 
 @jit
@@ -434,28 +453,43 @@ def manifold_split(surface) -> ManifoldSplit:
     edge planes (every surface :func:`~csgnb.bsp.surface.assemble_surface` builds has them).
     """
     if surface.edge_planes is None:
-        raise ValueError("manifold_split needs the surface's edge planes (BoundarySurface.edge_planes); "
-                         "build the surface with csgnb.bsp.surface.assemble_surface")
+        raise ValueError(
+            "manifold_split needs the surface's edge planes (BoundarySurface.edge_planes); "
+            "build the surface with csgnb.bsp.surface.assemble_surface"
+        )
     indices = np.ascontiguousarray(surface.indices, np.int64)
     n = surface.n_vertices
     new_indices = np.empty_like(indices)
     source = np.empty(n + indices.shape[0], np.int64)
     status = np.zeros(2, np.int64)
     scratch = np.empty((1, 4), surface.vertices.dtype)
-    count = _manifold_kernel(np.ascontiguousarray(surface.offsets, np.int64), indices,
-                             np.ascontiguousarray(surface.labels, np.int64),
-                             np.ascontiguousarray(surface.support, np.int64),
-                             np.ascontiguousarray(surface.edge_planes, np.int64), surface.vertices, surface.palette,
-                             n, scratch, new_indices, source, status)
+    count = _manifold_kernel(
+        np.ascontiguousarray(surface.offsets, np.int64),
+        indices,
+        np.ascontiguousarray(surface.labels, np.int64),
+        np.ascontiguousarray(surface.support, np.int64),
+        np.ascontiguousarray(surface.edge_planes, np.int64),
+        surface.vertices,
+        surface.palette,
+        n,
+        scratch,
+        new_indices,
+        source,
+        status,
+    )
     code, h = int(status[0]), int(status[1])
     if code == _NO_PROGRESS:
         raise InternalError(f"manifold_split left half-edge {h} unpaired (a bug in csgnb: please report it)")
     if code != _OK:
         p = int(np.searchsorted(surface.offsets, h, side="right") - 1)
-        what = {_OPEN: "is not used equally often in both directions by the polygons of its label: the surface "
-                       "is not closed",
-                _COINCIDENT: "has two faces of one label on the same half-plane",
-                _NOT_ALTERNATING: "has faces of one label that do not alternate between solid and empty wedges"}[code]
-        raise GeometryError(f"the edge at index {h} (polygon {p}, label {int(surface.labels[p])}) {what}; "
-                            "manifold_split needs a closed boundary such as extraction produces")
+        what = {
+            _OPEN: "is not used equally often in both directions by the polygons of its label: the surface "
+            "is not closed",
+            _COINCIDENT: "has two faces of one label on the same half-plane",
+            _NOT_ALTERNATING: "has faces of one label that do not alternate between solid and empty wedges",
+        }[code]
+        raise GeometryError(
+            f"the edge at index {h} (polygon {p}, label {int(surface.labels[p])}) {what}; "
+            "manifold_split needs a closed boundary such as extraction produces"
+        )
     return ManifoldSplit(source[:count].copy(), new_indices)
