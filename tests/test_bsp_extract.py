@@ -187,22 +187,3 @@ def test_bad_input():
                 np.array([-1, 1, 0]))
     cells = extract_cells(BSPTree.leaf(tree.palette, 0), LO, HI)[1]
     assert cells.shape == (0, 2)
-
-
-def test_grown_mesh_arrays_start_new_marks_at_zero():
-    # Traversals read hmark and classification reads vmark before writing them: rows added by
-    # growth must hold no stamp (uninitialised memory often holds an earlier mesh's stamps, and
-    # then extraction skipped half-edges and returned open surfaces).
-    from csgnb.mesh.halfedge import STAMP, grown_mesh_arrays, new_mesh_arrays
-    from csgnb.octree.workspace import _grown_mesh
-
-    m = new_mesh_arrays(to_wide([[1, 0, 0, 0]], 128), 64)
-    m.hmark[:] = 7
-    m.vmark[:] = 7 * 4 + 1
-    m.counts[STAMP] = 7
-    g = grown_mesh_arrays(m, 4 * m.vx.shape[0], 4 * m.he.shape[0], 0)
-    assert g.hmark.shape[0] > m.hmark.shape[0] and g.vmark.shape[0] > m.vmark.shape[0]
-    assert np.all(g.hmark[: m.hmark.shape[0]] == 7) and not np.any(g.hmark[m.hmark.shape[0] :])
-    assert np.all(g.vmark[: m.vmark.shape[0]] == 29) and not np.any(g.vmark[m.vmark.shape[0] :])
-    # The octree workspace empties the mesh when it grows it, but keeps the stamp counter: old marks stay stale.
-    assert int(_grown_mesh(m).counts[STAMP]) == 7

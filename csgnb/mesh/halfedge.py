@@ -101,10 +101,7 @@ def grown_mesh_arrays(m: MeshArrays, vertices: int, halfedges: int, faces: int, 
     """``m`` with room for at least this many *more* vertices, half-edges, faces, loop rows and palette rows.
 
     Arrays that are large enough are kept (the same objects); the others are copied into
-    geometrically larger ones. New rows of ``vmark`` and ``hmark`` are zero, as in
-    :func:`new_mesh_arrays` (no stamp is 0): kernels read those marks before writing them, so
-    uninitialised memory (often an earlier mesh's marks) could pass for a current stamp and a
-    traversal would skip half-edges or reuse a stale classification.
+    geometrically larger ones.
     """
     c = m.counts
     pal, vx, vdot, vmark, free_v = m.palette, m.vx, m.vdot, m.vmark, m.free_v
@@ -113,13 +110,16 @@ def grown_mesh_arrays(m: MeshArrays, vertices: int, halfedges: int, faces: int, 
         pal = _grown(pal, max(2 * pal.shape[0], int(c[NP]) + planes))
     if c[NV] - c[FREE_V] + vertices > vx.shape[0]:
         size = max(2 * vx.shape[0], int(c[NV] - c[FREE_V]) + vertices)
-        vx, vdot, vmark, free_v = _grown(vx, size), _grown(vdot, size), _grown(vmark, size, 0), _grown(free_v, size)
+        # New rows of the stamp arrays must hold no stamp: a traversal or classification cache that
+        # met a leftover value equal to a future stamp would skip a half-edge or reuse a stale side.
+        vx, vdot, vmark = _grown(vx, size, 0), _grown(vdot, size, 0), _grown(vmark, size, 0)
+        free_v = _grown(free_v, size)
     if c[NH] - c[FREE_H] + halfedges > he.shape[0]:
         size = max(2 * he.shape[0], int(c[NH] - c[FREE_H]) + halfedges)
-        he, hmark, free_h = _grown(he, size), _grown(hmark, size, 0), _grown(free_h, size)
+        he, hmark, free_h = _grown(he, size, -1), _grown(hmark, size, 0), _grown(free_h, size)
     if c[NF] - c[FREE_F] + faces > fc.shape[0]:
         size = max(2 * fc.shape[0], int(c[NF] - c[FREE_F]) + faces)
-        fc, free_f = _grown(fc, size), _grown(free_f, size)
+        fc, free_f = _grown(fc, size, -1), _grown(free_f, size)
     if loop > lp.shape[0]:
         lp = np.empty((max(2 * lp.shape[0], loop), 5), np.int64)
     return MeshArrays(pal, vx, vdot, vmark, he, hmark, fc, c, free_v, free_h, free_f, lp)
@@ -610,11 +610,10 @@ def _classify_rows(vx, rows, palette, plane) -> np.ndarray:
     return out.astype(np.int64)
 
 
-def _grown(arr: np.ndarray, rows: int, fill: int | None = None) -> np.ndarray:
-    """A copy of ``arr`` with ``rows`` rows, the new rows set to ``fill`` (None: uninitialised, for arrays whose
-    rows kernels write before reading them)."""
-    out = np.empty((rows,) + arr.shape[1:], arr.dtype)
+def _grown(arr: np.ndarray, rows: int, fill=None) -> np.ndarray:
+    """A copy of ``arr`` with ``rows`` rows; the new rows hold ``fill``, or are uninitialised when it is None
+    (free lists only: they are written before they are read)."""
+    shape = (rows,) + arr.shape[1:]
+    out = np.empty(shape, arr.dtype) if fill is None else np.full(shape, fill, arr.dtype)
     out[: arr.shape[0]] = arr
-    if fill is not None:
-        out[arr.shape[0] :] = fill
     return out

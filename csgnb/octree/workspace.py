@@ -176,7 +176,11 @@ def with_palette(ws: Workspace, palette: np.ndarray) -> Workspace:
 
 
 def _grown_mesh(m: MeshArrays) -> MeshArrays:
-    """Larger, emptied mesh arrays; the stamp counter is kept (like ``mesh_reset``): the marks keep old stamps."""
+    """A larger, empty mesh store (the kernel empties it before each cell anyway).
+
+    The stamp counter is carried over: the copied rows hold stamps up to its value, and a
+    counter started again from zero would meet them (a skipped half-edge, a stale side).
+    """
     v = m.vx.shape[0]
     counts = np.zeros_like(m.counts)
     counts[STAMP] = m.counts[STAMP]
