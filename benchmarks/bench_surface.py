@@ -149,8 +149,8 @@ def main() -> None:
         "--hulls",
         type=int,
         nargs="*",
-        default=[250, 1000, 2500],
-        help="hulls subtracted from the workpiece block (1000 give about 74k faces, 2500 about 252k)",
+        default=[250, 800, 2500],
+        help="hulls subtracted from the workpiece block (800 give about 54k faces, 2500 about 252k)",
     )
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--no-reference", action="store_true", help="skip the slow Python reference")
@@ -188,23 +188,26 @@ def main() -> None:
             f"{r['stl_bytes'] / 1e6:>8.2f} {_opt(r['product_s'])}"
         )
     print("(product: Workpiece.to_polydata() end to end, global tree included)")
-    # The target is judged per source on its smallest input of at least TARGET_FACES faces.
+    # The target is judged per source on its smallest input of at least TARGET_FACES faces: on what a user
+    # calls where there is such a call (Workpiece.to_polydata), else on extract + assemble + to_mesh.
     at_target = {}
     for r in rows:
         source = r["input"].split()[0]
         if r["faces"] >= TARGET_FACES and (source not in at_target or r["faces"] < at_target[source]["faces"]):
             at_target[source] = r
-    worst = max((r["export_s"] for r in at_target.values()), default=None)
-    if worst is None:
-        print(f"\nno input reached {TARGET_FACES} faces: the target is not measured")
-    for r in at_target.values():
-        verdict = "met" if r["export_s"] <= TARGET_EXPORT_S else "NOT met"
-        print(
-            f"\n{r['input']} ({r['faces']} faces): export (extract + assemble + to_mesh) {r['export_s']:.3f} s, "
-            f"assembly alone {r['assemble_s']:.3f} s; target <= {TARGET_EXPORT_S} s: {verdict}",
-            end="",
-        )
+    judged = {name: r["export_s"] if r["product_s"] is None else r["product_s"] for name, r in at_target.items()}
+    worst = max(judged.values(), default=None)
     print()
+    if worst is None:
+        print(f"no input reached {TARGET_FACES} faces: the target is not measured")
+    for name, r in at_target.items():
+        what = "export (extract + assemble + to_mesh)" if r["product_s"] is None else "Workpiece.to_polydata()"
+        verdict = "met" if judged[name] <= TARGET_EXPORT_S else "NOT met"
+        print(
+            f"{r['input']} ({r['faces']} faces): {what} {judged[name]:.3f} s, assembly alone "
+            f"{r['assemble_s']:.3f} s (Python reference {r.get('reference_s', float('nan')):.3f} s); "
+            f"target <= {TARGET_EXPORT_S} s: {verdict}"
+        )
     if not all(r["closed"] for r in rows):
         print(
             "WARNING: extraction returned open surfaces: the assembly figures stand, but those inputs are not "
