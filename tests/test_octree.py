@@ -90,6 +90,31 @@ def test_surface_is_closed_conforming_and_measures_the_volume():
     assert w.n_cells > 8  # the threshold split cells: faces cross cell walls
 
 
+
+def test_exports_in_model_units_and_the_manifold_option(tmp_path):
+    import meshio
+
+    grid = Grid.fit([-4, -4, -4], [4, 4, 4], width=128)
+    w = Workpiece.box([-2, -2, -2], [2, 2, 2], grid=grid, threshold=20)
+    # two boxes that touch the block's corner region along an edge: edges shared by four faces
+    w -= convex_hull(grid.to_grid(np.array([[0, 0, -3], [3, 0, -3], [0, 3, -3], [3, 3, -3],
+                                            [0, 0, 3], [3, 0, 3], [0, 3, 3], [3, 3, 3]], float)))
+    w -= convex_hull(grid.to_grid(np.array([[-3, -3, -3], [0, -3, -3], [-3, 0, -3], [0, 0, -3],
+                                            [-3, -3, 3], [0, -3, 3], [-3, 0, 3], [0, 0, 3]], float)))
+    vertices, triangles = w.to_mesh()
+    assert vertices.min() >= -2 and vertices.max() <= 2  # model units, not grid units
+    signed = np.einsum("ij,ij->i", vertices[triangles[:, 0]],
+                       np.cross(vertices[triangles[:, 1]], vertices[triangles[:, 2]])).sum() / 6
+    assert abs(signed - float(w.model_volume())) < 1e-9 * float(w.model_volume())  # outward, closed
+    v2, t2 = w.to_mesh(manifold=True)
+    edges = np.sort(np.concatenate([t2[:, [0, 1]], t2[:, [1, 2]], t2[:, [2, 0]]]), axis=1)
+    _, uses = np.unique(edges, axis=0, return_counts=True)
+    assert np.all(uses == 2) and len(v2) > len(vertices)  # every edge has two faces; the shared edge was split
+    path = w.save_mesh(tmp_path / "part.stl")
+    back = meshio.read(path)
+    assert back.cells_dict["triangle"].shape == triangles.shape
+    assert w.to_polydata().n_cells == triangles.shape[0]
+
 def test_split_then_combine_keeps_every_point():
     rng = np.random.default_rng(3)
     w = Workpiece.box([0, 0, 0], [24, 24, 24], threshold=16)

@@ -716,11 +716,30 @@ class Workpiece:
         ex = extract_boundary(self.global_tree(), self.root_lo, self.root_lo + self.root_size, keep_cells=False)
         return ex.surface
 
-    def to_polydata(self):
-        """The boundary as a triangulated pyvista ``PolyData`` in model units (positions correctly rounded)."""
-        mesh = self.surface().to_polydata()
+    def to_polydata(self, manifold: bool = False):
+        """The boundary as a triangulated pyvista ``PolyData`` in model units (positions correctly rounded).
+
+        ``manifold=True`` duplicates vertices along edges shared by four faces, so every edge has
+        exactly two triangles (what manifold3d and other 2-manifold consumers need).
+        """
+        mesh = self.surface().to_polydata(manifold=manifold)
         mesh.points = self.grid.to_model(mesh.points)
         return mesh
+
+    def to_mesh(self, manifold: bool = False) -> tuple[np.ndarray, np.ndarray]:
+        """Float vertices ``(n, 3)`` in model units and outward triangles ``(m, 3) int64`` of the boundary."""
+        return self.surface().to_mesh(manifold, transform=self.grid.to_model)
+
+    def to_trimesh(self, manifold: bool = False):
+        """The boundary as a ``trimesh.Trimesh`` in model units (trimesh is optional: ``pip install trimesh``)."""
+        return self.surface().to_trimesh(manifold, transform=self.grid.to_model)
+
+    def save_mesh(self, path, *, manifold: bool = False, file_format: str | None = None):
+        """Write the boundary in model units through meshio (``.stl``, ``.obj``, ``.ply``, ...); return the path.
+
+        ``save`` / ``load`` keep the exact workpiece; this writes the float triangles other tools read.
+        """
+        return self.surface().save(path, manifold, self.grid.to_model, file_format)
 
     def __repr__(self) -> str:
         return (f"Workpiece({self.n_cells} cells, {self.n_bsp_nodes} BSP nodes, {self.width}-bit, "
