@@ -645,13 +645,21 @@ class Workpiece:
                 "nodes": np.where(self.oc.kind[leaves] == BSP, self.oc.length[leaves], 0)}
 
     def cell_bsp(self, node: int) -> BSPTree:
-        """The BSP of leaf ``node`` (its palette is the workpiece's, unreduced)."""
+        """The BSP of leaf ``node`` over a palette of only the planes it uses (a copy).
+
+        The workpiece's palette holds every plane any cell ever used (hundreds of thousands
+        after a long run); a cell's extraction copies its tree's palette, so it gets its own.
+        """
         if self.oc.child[node] >= 0 or self.oc.kind[node] != BSP:
             raise GeometryError(f"octree node {node} is not a leaf with a BSP")
         s, n = int(self.oc.start[node]), int(self.oc.length[node])
         p = self.pool
-        return BSPTree(self.palette[: int(self.oc.counts[N_PAL])].copy(), p.plane[s:s + n], p.neg[s:s + n],
-                       p.pos[s:s + n], p.label[s:s + n], validate=False)
+        plane = p.plane[s:s + n]
+        used, local = np.unique(plane[plane >= 0], return_inverse=True)
+        rows = plane.copy()
+        rows[plane >= 0] = local.astype(np.int32)
+        return BSPTree(self.palette[used], rows, p.neg[s:s + n].copy(), p.pos[s:s + n].copy(),
+                       p.label[s:s + n].copy(), validate=False)
 
     def global_tree(self) -> BSPTree:
         """The whole workpiece as one BSP (octree axis-BSPs over the cells' BSPs), in the root box."""
