@@ -319,7 +319,8 @@ def test_a_ball_mill_cut_matches_an_independent_halfspace_intersection(W):
         assert float(removed) == pytest.approx(reference, rel=1e-9)
 
 
-def test_octree_and_reference_agree_move_for_move():
+@pytest.mark.parametrize("chord_tolerance", [pytest.param(0.5, marks=pytest.mark.slow), 1.5])
+def test_octree_and_reference_agree_move_for_move(chord_tolerance):
     """A ball end mill (arcs in two planes) and a non-convex gear: the same exact volume for every move."""
     ball = tools.ball_end_mill(3, 6, segments=8, rings=2).on(GRID)
     gear = tools.spur_gear(teeth=5, module=1, thickness=1, flank_points=2).on(GRID)
@@ -329,6 +330,7 @@ G1 Z-1.5 F100
 G2 X12 Y10 I-4 J0 F400
 G18 G3 X6 Z-1 R4
 G17 T2 M6
+G0 Z2
 G0 X20 Y20 Z1
 G1 Z-1 F100
 G1 X23 Y21 F100
@@ -336,7 +338,8 @@ G1 X23 Y21 F100
     results = []
     for cls in (Octree, BSPWorkpiece):
         w = cls.box(*STOCK, grid=GRID)
-        results.append(milling.simulate(w, program, {None: ball, 2: gear}, progress=False, chord_tolerance=0.5))
+        results.append(milling.simulate(w, program, {None: ball, 2: gear}, progress=False,
+                                        chord_tolerance=chord_tolerance))
     octree, ref = results
     assert [r.removed for r in octree.records] == [r.removed for r in ref.records]
     assert sum(r.removed > 0 for r in octree.records) >= 5

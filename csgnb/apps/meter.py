@@ -22,8 +22,15 @@ never rewritten), so Booleans the meter does not see and pool compactions cannot
 cached volume stale. The meter reads the octree's arrays (``oc``, ``pool``, ``palette``) and its
 ``_leaves_meeting`` query: the workpiece has no public per-cell query yet.
 
-Workpieces other than the octree (the single-BSP stand-in) are measured with their own
-``track_volume=True``.
+The same cached cell volumes give the whole part's exact volume (:meth:`VolumeMeter.volume`,
+:func:`exact_volume`), summed pairwise after grouping equal denominators: the sum's
+denominator is the common multiple of the cells' (154,000 digits after 1,500 carved
+dodecahedra), so a running sum costs O(cells²) digit operations, a pairwise one about
+O(cells log cells). For 9,000 cells: 4.5 s for the cell volumes and 0.5 s for the sum,
+against 57 s and 5 s for ``Workpiece.volume()``, whose cell BSPs carry the whole palette.
+
+Workpieces other than the octree (the single-BSP reference) are measured with their own
+``track_volume=True`` and ``volume()``.
 """
 
 from __future__ import annotations
@@ -46,7 +53,7 @@ from csgnb.octree import Workpiece as OctreeWorkpiece
 from csgnb.octree.layout import BSP as BSP_CELL
 from csgnb.octree.layout import N_PAL
 
-__all__ = ["VolumeMeter", "as_tool"]
+__all__ = ["VolumeMeter", "as_tool", "cells_volume", "exact_volume", "sum_fractions"]
 
 
 def as_tool(workpiece, tool):
@@ -96,6 +103,17 @@ class VolumeMeter:
         """Add ``tool``; return (exact volume added, the workpiece's report)."""
         return self._apply(tool, UNION, "union")
 
+    def volume(self) -> Fraction:
+        """The workpiece's exact volume (grid units cubed), from the cached cell volumes, summed pairwise."""
+        w = self.workpiece
+        if not self.octree:
+            return w.volume()
+        leaves = w._leaves().tolist()
+        live = {self._key(n) for n in leaves}
+        for key in [k for k in self._cache if k not in live]:  # contents replaced by Booleans the meter missed
+            del self._cache[key]
+        return sum_fractions(self._volume(n) for n in leaves)
+
     # -- measuring ---------------------------------------------------------------------
 
     def _apply(self, tool, fn, name: str) -> tuple[Fraction, object]:
@@ -128,22 +146,37 @@ class VolumeMeter:
 
     def _convex_change(self, tool, fn) -> Fraction:
         """The change a convex tool H will make, measured before the Boolean: per leaf b meeting H's box,
-        ``vol(S_b ∩ H)`` (removed by a difference) or ``vol(H ∩ b) - vol(S_b ∩ H)`` (added by a union)."""
+        ``vol(S_b ∩ H)`` (removed by a difference) or ``vol(H ∩ b) - vol(S_b ∩ H)`` (added by a union).
+
+        Leaves whose box lies certainly outside one of H's planes add nothing, leaves certainly inside
+        all of them add their whole solid (:func:`_boxes_against_planes`, a float test that decides
+        only where rounding cannot matter); only the rest are clipped by H and measured."""
         w = self.workpiece
         oc = w.oc
-        chain = _chain(tool.planes_wide(w.width))
-        total = Fraction(0)
-        for b in w._leaves_meeting(tool.lo, tool.hi).tolist():
-            lo = oc.lo[b]
-            hi = lo + oc.size[b]
+        leaves = w._leaves_meeting(tool.lo, tool.hi)
+        outside, inside = _boxes_against_planes(tool.planes, oc.lo[leaves], oc.size[leaves])
+        chain = None
+        terms = []
+        for b, out, inn in zip(leaves.tolist(), outside.tolist(), inside.tolist(), strict=True):
+            if out:
+                continue
+            size = int(oc.size[b])
             uniform_in = oc.kind[b] != BSP_CELL and oc.label[b] > 0
+            if inn:
+                sb = self._volume(b)
+                terms.append(-sb if fn is DIFFERENCE else Fraction(size**3) - sb)
+                continue
+            if chain is None:
+                chain = _chain(tool.planes_wide(w.width))
+            lo = oc.lo[b]
+            hi = lo + size
             hb = _bsp_volume(w, -1, lo, hi, chain) if (uniform_in or fn is not DIFFERENCE) else None
             if oc.kind[b] == BSP_CELL:
                 sb = _bsp_volume(w, b, lo, hi, chain)
             else:
                 sb = hb if uniform_in else Fraction(0)
-            total += -sb if fn is DIFFERENCE else hb - sb
-        return total
+            terms.append(-sb if fn is DIFFERENCE else hb - sb)
+        return sum_fractions(terms)
 
     def _key(self, node: int):
         """A leaf's content: its box and a digest of its BSP's node arrays (None for a uniform leaf).
@@ -179,6 +212,50 @@ class VolumeMeter:
         if whole:
             self._cache[key] = v
         return v
+
+
+def exact_volume(workpiece) -> Fraction:
+    """``workpiece``'s exact volume in grid units cubed (:meth:`VolumeMeter.volume`: fast for large octree parts)."""
+    return VolumeMeter(workpiece).volume()
+
+
+def sum_fractions(values) -> Fraction:
+    """The exact sum of Fractions: numerators of equal denominators added first, then the groups pairwise."""
+    groups: dict[int, int] = {}
+    for v in values:
+        groups[v.denominator] = groups.get(v.denominator, 0) + v.numerator
+    terms = [Fraction(n, d) for d, n in groups.items()]
+    if not terms:
+        return Fraction(0)
+    while len(terms) > 1:
+        pairs = [terms[i] + terms[i + 1] for i in range(0, len(terms) - 1, 2)]
+        terms = pairs + terms[-1:] if len(terms) % 2 else pairs
+    return terms[0]
+
+
+_ROUNDING = 1e-12
+"""Relative size, against the sum of the absolute terms, below which a float plane value decides nothing (the
+rounding of the int-to-float conversions, products and sums is below 1e-15 of it)."""
+
+
+def _boxes_against_planes(planes, lo, size) -> tuple[np.ndarray, np.ndarray]:
+    """For boxes ``[lo, lo + size]`` (``(m, 3)``, ``(m,)``) and a convex solid's outward planes ``(k, 4)`` (ints):
+    ``outside`` (m,) -- certainly beyond one plane; ``inside`` (m,) -- certainly strictly behind every plane.
+
+    Computed in float64 and trusted only where the value is farther from zero than its rounding
+    bound, so both answers are exact when True (False means: not decided here)."""
+    m = lo.shape[0]
+    if m == 0:
+        return np.zeros(0, bool), np.zeros(0, bool)
+    P = np.array([[float(x) for x in row] for row in planes], np.float64).reshape(-1, 4)
+    n, d = P[:, :3], P[:, 3]
+    L = lo.astype(np.float64)
+    s = size.astype(np.float64)[:, None]
+    base = L @ n.T + d[None, :]
+    low = base + s * np.minimum(n, 0).sum(axis=1)[None, :]
+    high = base + s * np.maximum(n, 0).sum(axis=1)[None, :]
+    err = _ROUNDING * ((np.abs(L) + s) @ np.abs(n).T + np.abs(d)[None, :])
+    return np.any(low > err, axis=1), np.all(high < -err, axis=1)
 
 
 def _chain(planes: np.ndarray):

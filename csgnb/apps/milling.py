@@ -27,13 +27,14 @@ import tempfile
 import time
 from dataclasses import asdict, dataclass
 from fractions import Fraction
+from functools import cached_property
 from pathlib import Path
 
 import numpy as np
 
 from csgnb.apps.export import export_stl
 from csgnb.apps.gcode import Move, Program
-from csgnb.apps.meter import VolumeMeter
+from csgnb.apps.meter import VolumeMeter, exact_volume
 from csgnb.apps.sweep import straight_sweep
 from csgnb.apps.tools import GridTool
 from csgnb.errors import GeometryError
@@ -103,6 +104,11 @@ class MillingResult:
     def removed(self) -> Fraction:
         """Total exact removed volume (mm³)."""
         return sum((r.removed for r in self.records), Fraction(0))
+
+    @cached_property
+    def part_volume(self) -> Fraction:
+        """Exact volume of the part (mm³), computed once (:func:`csgnb.apps.meter.exact_volume`)."""
+        return _mm3(exact_volume(self.workpiece), self.workpiece.grid)
 
     @property
     def collisions(self) -> list[MoveRecord]:
@@ -260,7 +266,7 @@ def simulate(workpiece, program: Program, tools, *, chord_tolerance: float = CHO
             raise GeometryError(f"tool {t.name!r} lies on {t.grid}, the workpiece on {grid}: build the tool with "
                                 "shape.on(workpiece.grid)")
     records: list[MoveRecord] = []
-    stock = _mm3(workpiece.volume(), grid)
+    stock = _mm3(exact_volume(workpiece), grid)
     key = _program_key(program, tools, chord_tolerance)
     path = Path(checkpoint) if checkpoint is not None else None
     if path is not None and path.exists():
@@ -307,8 +313,7 @@ def _exact_text(v: Fraction) -> str:
 
 def summary_table(result: MillingResult) -> str:
     """A plain-text summary: totals, the exact volume identity, collisions, the slowest moves."""
-    wp = result.workpiece
-    final = _mm3(wp.volume(), wp.grid)
+    final = result.part_volume
     lines = [
         f"moves            {len(result.records)}",
         f"cut time         {result.cut_time_s / 60:.2f} min (rapids at the rapid rate)",
