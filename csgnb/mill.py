@@ -11,8 +11,10 @@ other move. The grid is fitted to the stock, the tool path and the tools (the fi
 the 128-bit budget) unless ``--resolution`` is given. Progress goes to stderr; a summary
 table to stdout.
 
-The workpiece is ``csgnb.octree.Workpiece`` when that package is available, else the
-single-BSP stand-in (:class:`csgnb.apps._bsp_workpiece.BSPWorkpiece`, exact but slow).
+The workpiece is :class:`csgnb.octree.Workpiece` (``--reference`` runs the slow
+single-BSP :class:`csgnb.apps._bsp_workpiece.BSPWorkpiece` instead, for comparison).
+A PROGRAM that is not a file but the name of a shipped example (``pocket.nc``,
+``relief.nc``: :mod:`csgnb.apps.examples`) runs that example.
 """
 
 from __future__ import annotations
@@ -26,16 +28,19 @@ from pathlib import Path
 import numpy as np
 
 from csgnb.apps import gcode, milling, tools
+from csgnb.apps.examples import EXAMPLES, example_path
 from csgnb.errors import CsgnbError
 from csgnb.exact import Grid
 
 
-def workpiece_type():
-    """``csgnb.octree.Workpiece`` if it exists, else the stand-in ``BSPWorkpiece``."""
-    try:
-        from csgnb.octree import Workpiece  # noqa: PLC0415 - optional until the octree lands
-    except ImportError:
-        from csgnb.apps._bsp_workpiece import BSPWorkpiece as Workpiece
+def workpiece_type(reference: bool = False):
+    """The workpiece class: ``csgnb.octree.Workpiece``, or with ``reference`` the single-BSP ``BSPWorkpiece``."""
+    if reference:
+        from csgnb.apps._bsp_workpiece import BSPWorkpiece
+
+        return BSPWorkpiece
+    from csgnb.octree import Workpiece
+
     return Workpiece
 
 
@@ -58,7 +63,7 @@ def build_parser() -> argparse.ArgumentParser:
     """The argument parser of ``python -m csgnb.mill``."""
     p = argparse.ArgumentParser(prog="python -m csgnb.mill", description=__doc__.split("\n\n")[0],
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("program", type=Path, help="G-code file (.nc, .ngc, .gcode)")
+    p.add_argument("program", type=Path, help="G-code file (.nc, .ngc, .gcode), or pocket.nc / relief.nc (shipped)")
     p.add_argument("--stock", type=float, nargs=3, metavar=("X", "Y", "Z"), required=True,
                    help="stock size in mm: the box [0,X] x [0,Y] x [-Z,0]")
     p.add_argument("--stock-origin", type=float, nargs=3, metavar=("X0", "Y0", "Z0"), default=None,
@@ -78,6 +83,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--checkpoint-every", type=int, default=50)
     p.add_argument("--json", type=Path, default=None, help="write per-move records as JSON")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument("--reference", action="store_true",
+                   help="simulate on the single-BSP reference workpiece (exact, slow) instead of the octree")
     return p
 
 
@@ -99,7 +106,10 @@ def _run(args) -> int:
     hi = lo + size
     shapes = _tool_specs(args.tool or ["flat:6"], args.segments)
     start = np.array([lo[0], lo[1], hi[2] + 10.0]) if args.start is None else np.asarray(args.start, float)
-    program = gcode.parse_file(args.program, start=start,
+    path = args.program
+    if not path.exists() and path.name == str(path) and path.name in EXAMPLES:
+        path = example_path(path.name)
+    program = gcode.parse_file(path, start=start,
                                on_unsupported="warn" if args.skip_unsupported else "error")
     if not program.moves:
         raise ValueError(f"{args.program} has no moves")
@@ -112,7 +122,7 @@ def _run(args) -> int:
     else:
         grid = Grid.from_resolution(args.resolution, origin=(box_lo + box_hi) / 2)
     placed = {k: s.on(grid) for k, s in shapes.items()}
-    Workpiece = workpiece_type()
+    Workpiece = workpiece_type(args.reference)
     w = Workpiece.box(lo, hi, grid=grid)
     print(f"{args.program}: {len(program.moves)} moves; stock {size.tolist()} mm at {lo.tolist()}; grid "
           f"{grid.resolution:g} mm ({grid.width}-bit); workpiece {Workpiece.__name__}", file=sys.stderr)
@@ -135,7 +145,8 @@ def _run(args) -> int:
             "stock_mm3": float(result.stock_volume), "removed_mm3": float(result.removed),
             "records": [dict(index=r.index, line=r.line, kind=r.kind, removed_mm3=float(r.removed),
                              removed_exact=f"{r.removed.numerator}/{r.removed.denominator}", time_s=r.time_s,
-                             wall_s=r.wall_s, collision=r.collision) for r in result.records]}, indent=1))
+                             wall_s=r.wall_s, boolean_s=r.boolean_s, cells=r.cells, collision=r.collision)
+                        for r in result.records]}, indent=1))
     return 1 if result.collisions else 0
 
 

@@ -11,6 +11,7 @@ from csgnb import GeometryError
 from csgnb.apps import carving
 from csgnb.apps._bsp_workpiece import BSPWorkpiece
 from csgnb.exact import Grid
+from csgnb.octree import Workpiece
 
 
 def test_dodecahedron_is_regular_and_its_hull_exact():
@@ -58,14 +59,22 @@ def test_mesh_target_samples_on_the_mesh_with_outward_normals():
 
 
 def test_carve_removes_exact_volumes_from_a_block():
+    """On the octree (small cells, so dodecahedra cross cells that split and combine) and on the single-BSP
+    reference: the same exact volume per dodecahedron, summing to stock - part."""
     g = Grid.fit([-6] * 3, [6] * 3)
-    w = BSPWorkpiece.box((-4, -4, -4), (4, 4, 4), grid=g)
-    before = w.model_volume()
     c = carving.carving_placements(carving.sphere_target(radius=3.0), 12, 0.8, grid=g, seed=1)
-    removed, seconds = carving.carve(w, c, progress=False)
-    assert len(removed) == 12 == len(seconds) and all(isinstance(r, Fraction) for r in removed)
-    assert sum(r > 0 for r in removed) >= 10
-    assert before - sum(removed) == w.model_volume()
+    runs = []
+    for w in (Workpiece.box((-4, -4, -4), (4, 4, 4), grid=g, threshold=24), BSPWorkpiece.box((-4, -4, -4),
+                                                                                             (4, 4, 4), grid=g)):
+        before = w.model_volume()
+        removed, seconds = carving.carve(w, c, progress=False)
+        assert len(removed) == 12 == len(seconds) and all(isinstance(r, Fraction) for r in removed)
+        assert sum(r > 0 for r in removed) >= 10
+        assert before - sum(removed) == w.model_volume()
+        runs.append((removed, w.volume()))
+    assert runs[0] == runs[1]
+    w = Workpiece.box((-4, -4, -4), (4, 4, 4), grid=g)
+    assert carving.carve(w, c, progress=False, track_volume=False)[0] is None and w.volume() == runs[0][1]
     with pytest.raises(GeometryError, match="budget box"):
         carving.carving_placements(carving.sphere_target(radius=20.0), 5, 0.5, grid=g)
     with pytest.raises(GeometryError, match="different grids"):

@@ -241,6 +241,63 @@ def test_translation_is_exact():
         h.translated(np.array([0.5, 0, 0]))
 
 
+axis_heavy = st.one_of(point, st.tuples(coords, st.just(0), st.just(0)), st.tuples(st.just(0), coords, coords),
+                       st.tuples(coords, coords, st.just(0)))
+
+
+@given(point_sets(), axis_heavy, point)
+def test_swept_hull_is_the_hull_of_both_poses(P, t, u):
+    """hull.swept(t) (facets and silhouette edges, no hull search) is exactly convex_hull of the points at both
+    poses: the same planes in the same order, the same box, faces and volume -- also for moves parallel to facets
+    and edges (axis moves of a box-like set), where facets with n·t = 0 are stretched, not duplicated; and with an
+    offset, the sweep of the translated hull."""
+    if not full_dimensional(P):
+        return
+    h = convex_hull(P)
+    t = np.array(t, np.int64)
+    swept = h.swept(t)
+    ref = convex_hull(np.vstack([P, P + t]))
+    assert np.array_equal(swept.planes, ref.planes)
+    assert np.array_equal(swept.lo, ref.lo) and np.array_equal(swept.hi, ref.hi)
+    assert np.array_equal(swept.points, ref.points)
+    assert swept.volume() == ref.volume()  # (convex_hull itself is checked against brute force above)
+    u = np.array(u, np.int64)
+    moved = h.swept(t, offset=u)
+    assert np.array_equal(moved.planes, convex_hull(np.vstack([P + u, P + u + t])).planes)
+    assert np.array_equal(moved.planes, h.translated(u).swept(t).planes)
+
+
+def test_swept_tools_equal_hulls_of_both_poses_and_refuse_bad_input():
+    from csgnb.apps import tools
+    from csgnb.exact import Grid
+
+    g = Grid.from_resolution(1 / 64)
+    rng = np.random.default_rng(3)
+    for shape in (tools.flat_end_mill(6, 12, segments=12), tools.ball_end_mill(4, 8, segments=16),
+                  tools.bull_nose(6, 1, 10, segments=10), tools.v_bit(6, 90, segments=8)):
+        tool = shape.on(g)
+        for t in ([640, 0, 0], [0, 0, -128], [300, -300, 0], list(rng.integers(-900, 900, 3))):
+            a = rng.uniform(-5, 5, 3)
+            b = a + np.array(t) / g.scale
+            fast = tool.hull_at(a, b)
+            ref = convex_hull(np.vstack([tool.at(a), tool.at(b)]), width=g.width, grid=g)
+            assert np.array_equal(fast.planes, ref.planes) and fast.grid is g
+            assert fast.volume() == ref.volume()
+    # A move longer than the budget box's half width: the budget holds for the poses, not for the move vector.
+    tool = tools.flat_end_mill(6, 12, segments=12).on(g)
+    a, b = (-34.4, 0, 0), (34.4, 0, 0)
+    assert int(np.abs(tool.tip(b) - tool.tip(a)).max() + np.abs(tool.offsets).max()) > g.max_coordinate
+    ref = convex_hull(np.vstack([tool.at(a), tool.at(b)]), width=g.width, grid=g)
+    assert np.array_equal(tool.hull_at(a, b).planes, ref.planes)
+    h = convex_hull(rng.integers(-9, 9, (12, 3)))
+    assert h.swept(np.zeros(3, np.int64)) is h
+    with pytest.raises(TypeError):
+        h.swept(np.array([0.5, 0, 0]))
+    V = budget(128).max_mesh_coordinate
+    with pytest.raises(PrecisionError):
+        h.swept(np.array([V, 0, 0]))
+
+
 def test_mesh_output_is_a_valid_closed_mesh():
     from csgnb.bsp.build import validate_mesh
 

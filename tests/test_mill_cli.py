@@ -1,7 +1,7 @@
 """``python -m csgnb.mill``: a program, a stock and a tool in, a summary table and an STL out.
 
-The shipped example programs run in full only under ``-m slow`` (minutes on the single-BSP
-stand-in); here they are parsed, and a small program runs end to end.
+The shipped example programs (package data, :mod:`csgnb.apps.examples`) run in full only under
+``-m slow``; here they are parsed, and a small program runs end to end on the octree workpiece.
 """
 
 from __future__ import annotations
@@ -9,16 +9,12 @@ from __future__ import annotations
 import json
 import subprocess
 import sys
-from pathlib import Path
 
 import meshio
 import pytest
 
-from csgnb.apps import gcode
-from csgnb.mill import main
-
-ROOT = Path(__file__).resolve().parents[1]
-EXAMPLES = ROOT / "examples" / "gcode"
+from csgnb.apps.examples import EXAMPLES, example_path, example_program, make_relief
+from csgnb.mill import build_parser, main
 
 
 def test_a_small_program_end_to_end(tmp_path, capsys):
@@ -50,28 +46,43 @@ def test_collisions_set_the_exit_status_and_bad_input_is_reported(tmp_path, caps
 
 @pytest.mark.parametrize("name", ["pocket.nc", "relief.nc"])
 def test_shipped_programs_parse(name):
-    p = gcode.parse_file(EXAMPLES / name)
+    p = example_program(name)
     assert len(p) > 40 and p.end_line is not None and not p.warnings
     assert {m.tool for m in p if m.kind != "rapid"} == {1}
+    assert example_path(name.removesuffix(".nc")) == example_path(name) == EXAMPLES[name].path
+    assert example_path(name).parent.parent.name == "apps"  # package data, not a path from the repository root
+    with pytest.raises(KeyError, match="pocket.nc"):
+        example_path("nope.nc")
 
 
 def test_relief_program_is_what_its_generator_writes():
-    sys.path.insert(0, str(EXAMPLES))
-    try:
-        import make_relief
-    finally:
-        sys.path.pop(0)
-    assert (EXAMPLES / "relief.nc").read_text() == make_relief.program()
+    assert example_path("relief.nc").read_text() == make_relief.program()
+
+
+def test_a_shipped_example_runs_by_name(tmp_path, capsys, monkeypatch):
+    """A bare example name that is not a file in the working directory runs the shipped program (here its first
+    moves, standing in for it)."""
+    import csgnb.mill
+
+    short = tmp_path / "short.nc"
+    short.write_text("\n".join(example_path("pocket.nc").read_text().splitlines()[:14]) + "\n")
+    asked = []
+    monkeypatch.setattr(csgnb.mill, "example_path", lambda name: asked.append(name) or short)
+    monkeypatch.chdir(tmp_path)
+    assert main(["pocket.nc", "--stock", "50", "40", "10", "--tool", "flat:6", "--segments", "8",
+                 "--no-progress"]) == 0
+    assert asked == ["pocket.nc"]
+    assert "stock - removed == part: True (exact)" in capsys.readouterr().out
+    args = build_parser().parse_args(EXAMPLES["relief.nc"].cli_args())
+    assert args.program == example_path("relief.nc") and args.segments == 16 and args.tool == ["ball:4"]
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("name, stock, tool", [("pocket.nc", ["50", "40", "10"], "flat:6"),
-                                               ("relief.nc", ["40", "30", "8"], "ball:4")])
-def test_shipped_programs_simulate_exactly(tmp_path, name, stock, tool):
+@pytest.mark.parametrize("name", ["pocket.nc", "relief.nc"])
+def test_shipped_programs_simulate_exactly(tmp_path, name):
     out = tmp_path / "part.stl"
-    run = subprocess.run([sys.executable, "-m", "csgnb.mill", str(EXAMPLES / name), "--stock", *stock, "--tool",
-                          tool, "--segments", "16", "--out", str(out), "--no-progress"],
-                         capture_output=True, text=True, cwd=ROOT, timeout=1800)
+    run = subprocess.run([sys.executable, "-m", "csgnb.mill", name, *EXAMPLES[name].cli_args()[1:], "--out", str(out),
+                          "--no-progress"], capture_output=True, text=True, cwd=tmp_path, timeout=1800)
     assert run.returncode == 0, run.stderr
     assert "stock - removed == part: True (exact)" in run.stdout
     assert out.stat().st_size > 0

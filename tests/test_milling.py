@@ -1,9 +1,12 @@
-"""Milling simulation on the single-BSP stand-in workpiece: exact removed volumes, collisions, checkpoints, STL.
+"""Milling simulation: exact removed volumes, collisions, checkpoints, STL -- on the octree workpiece and on the
+single-BSP reference workpiece, which must agree exactly.
 
 The reference for straight cuts of a flat end mill is independent of the hull and BSP code:
 a plunge removes area(P) x depth, a horizontal move then removes width(P across the move) x
 depth more, where P is the tool's grid polygon (shoelace area and projections with Python
-ints). Volumes are in mm³ as exact Fractions (the grid scale is a power of two).
+ints). Volumes are in mm³ as exact Fractions (the grid scale is a power of two). The
+per-move volumes on the octree are measured locally (:mod:`csgnb.apps.meter`); tests here
+check them against whole-workpiece volumes and against the reference engine.
 """
 
 from __future__ import annotations
@@ -17,8 +20,10 @@ import pytest
 from csgnb import GeometryError
 from csgnb.apps import gcode, milling, sweep, tools
 from csgnb.apps._bsp_workpiece import BSPWorkpiece
+from csgnb.apps.meter import VolumeMeter
 from csgnb.exact import Grid
 from csgnb.mesh.hull import convex_hull
+from csgnb.octree import Workpiece
 from tests.test_apps_sweep import polygon_area2
 
 SCALE = 32
@@ -46,13 +51,29 @@ def flat():
     return tools.flat_end_mill(4, 8, segments=10).on(GRID)
 
 
+class Octree:
+    """The octree workpiece with a small BSP threshold, so these small parts split and combine cells."""
+
+    @staticmethod
+    def box(lo, hi, *, grid):
+        return Workpiece.box(lo, hi, grid=grid, threshold=24)
+
+    load = staticmethod(Workpiece.load)
+
+
+@pytest.fixture(params=[Octree, BSPWorkpiece], ids=["octree", "bsp"])
+def W(request):
+    """The workpiece class under test (both give the same exact numbers)."""
+    return request.param
+
+
 def width_across(tool, v) -> int:
     proj = [int(x) for x in tool.offsets[:, :2] @ np.array([-v[1], v[0]])]
     return max(proj) - min(proj)
 
 
-def test_flat_end_mill_slots_remove_the_exact_prism_volumes(flat, tmp_path):
-    w = BSPWorkpiece.box(*STOCK, grid=GRID)
+def test_flat_end_mill_slots_remove_the_exact_prism_volumes(W, flat, tmp_path):
+    w = W.box(*STOCK, grid=GRID)
     stock = w.model_volume()
     assert stock == 40 * 30 * 10
     result = milling.simulate(w, gcode.parse(SLOTS), flat, progress=False)
@@ -76,6 +97,7 @@ def test_flat_end_mill_slots_remove_the_exact_prism_volumes(flat, tmp_path):
     assert result.records[2].time_s == pytest.approx(60 * 7 / 100)
     assert result.records[3].time_s == pytest.approx(60 * 22 / 300)
     assert "stock - removed == part: True" in result.table()
+    assert w.surface().is_closed()
     # STL through meshio: a closed triangle mesh whose float volume is the exact one, rounded.
     import meshio
 
@@ -90,7 +112,7 @@ def test_flat_end_mill_slots_remove_the_exact_prism_volumes(flat, tmp_path):
     assert vol == pytest.approx(float(w.model_volume()), rel=1e-6)
 
 
-def test_rapid_through_the_stock_is_a_collision_and_above_it_is_not(flat):
+def test_rapid_through_the_stock_is_a_collision_and_above_it_is_not(W, flat):
     program = gcode.parse("""G0 Z5
 G0 X10 Y10
 G0 Z-2
@@ -100,7 +122,7 @@ G0 X35 Y25 Z0.5
 M5
 G1 X35 Y5 Z-1 F200
 """)
-    w = BSPWorkpiece.box(*STOCK, grid=GRID)
+    w = W.box(*STOCK, grid=GRID)
     result = milling.simulate(w, program, flat, progress=False)
     hits = {r.line: r.collision for r in result.collisions}
     assert hits == {3: "rapid move (G0) cuts material", 8: "cut with the spindle stopped"}
@@ -108,7 +130,7 @@ G1 X35 Y5 Z-1 F200
     assert "line 3: rapid move (G0) cuts material" in result.table()
 
 
-def test_ball_end_mill_arcs_keep_the_volume_identity():
+def test_ball_end_mill_arcs_keep_the_volume_identity(W):
     ball = tools.ball_end_mill(3, 6, segments=8, rings=2).on(GRID)
     program = gcode.parse("""G0 X20 Y15 Z2
 M3
@@ -116,7 +138,7 @@ G1 Z-1 F100
 G2 X20 Y15 I-5 J0 F400
 G18 G3 X10 Z-1 R5
 """, start=(20, 15, 5))
-    w = BSPWorkpiece.box(*STOCK, grid=GRID)
+    w = W.box(*STOCK, grid=GRID)
     result = milling.simulate(w, program, ball, progress=False, chord_tolerance=0.5)
     full_circle, zx_arc = result.records[2], result.records[3]
     assert full_circle.pieces == gcode.Arc.points(program[2], 0.5).shape[0] - 1
@@ -124,10 +146,10 @@ G18 G3 X10 Z-1 R5
     assert result.stock_volume - result.removed == w.model_volume()
 
 
-def test_non_convex_tool_moves_subtract_prisms_and_the_end_pose():
+def test_non_convex_tool_moves_subtract_prisms_and_the_end_pose(W):
     gear = tools.spur_gear(teeth=5, module=1, thickness=1, flank_points=2).on(GRID)
     assert not gear.convex
-    w = BSPWorkpiece.box((0, 0, -3), (8, 8, 0), grid=GRID)
+    w = W.box((0, 0, -3), (8, 8, 0), grid=GRID)
     program = gcode.parse("M3\nG1 X4 Y4 Z-1 F100\nG1 X5 F100\n", start=(4, 4, -1))
     result = milling.simulate(w, program, gear, progress=False)
     r = result.records[-1]
@@ -135,9 +157,9 @@ def test_non_convex_tool_moves_subtract_prisms_and_the_end_pose():
     assert result.stock_volume - result.removed == w.model_volume()
 
 
-def test_checkpoints_resume_after_a_crash_with_an_identical_result(flat, tmp_path):
+def test_checkpoints_resume_after_a_crash_with_an_identical_result(W, flat, tmp_path):
     program = gcode.parse(SLOTS)
-    ref = milling.simulate(BSPWorkpiece.box(*STOCK, grid=GRID), program, flat, progress=False)
+    ref = milling.simulate(W.box(*STOCK, grid=GRID), program, flat, progress=False)
 
     class Crash(Exception):
         pass
@@ -148,11 +170,11 @@ def test_checkpoints_resume_after_a_crash_with_an_identical_result(flat, tmp_pat
 
     ckpt = tmp_path / "run.ckpt"
     with pytest.raises(Crash):
-        milling.simulate(BSPWorkpiece.box(*STOCK, grid=GRID), program, flat, progress=False, checkpoint=ckpt,
+        milling.simulate(W.box(*STOCK, grid=GRID), program, flat, progress=False, checkpoint=ckpt,
                          checkpoint_every=3, on_move=crash_at_7)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["run.ckpt", "run.ckpt.6.wp"]
     seen = []
-    resumed = milling.simulate(BSPWorkpiece.box(*STOCK, grid=GRID), program, flat, progress=False,
+    resumed = milling.simulate(W.box(*STOCK, grid=GRID), program, flat, progress=False,
                                checkpoint=ckpt, checkpoint_every=3, on_move=lambda r, w: seen.append(r.index))
     assert seen == [6, 7, 8]
     assert [(r.line, r.removed, r.collision) for r in resumed.records] == \
@@ -160,38 +182,83 @@ def test_checkpoints_resume_after_a_crash_with_an_identical_result(flat, tmp_pat
     assert resumed.workpiece.volume() == ref.workpiece.volume()
     other = gcode.parse(SLOTS.replace("X30", "X31"))
     with pytest.raises(ValueError, match="another program"):
-        milling.simulate(BSPWorkpiece.box(*STOCK, grid=GRID), other, flat, progress=False, checkpoint=ckpt)
+        milling.simulate(W.box(*STOCK, grid=GRID), other, flat, progress=False, checkpoint=ckpt)
 
 
-def test_tools_on_another_grid_and_bad_tools_are_refused(flat):
-    w = BSPWorkpiece.box(*STOCK, grid=GRID)
+def test_tools_on_another_grid_and_bad_tools_are_refused(W, flat):
+    w = W.box(*STOCK, grid=GRID)
     other = tools.flat_end_mill(4, 8, segments=10).on(Grid.from_resolution(1 / 16))
     with pytest.raises(GeometryError, match="one grid|workpiece.grid"):
         milling.simulate(w, gcode.parse("G0 X1"), other, progress=False)
     with pytest.raises(GeometryError, match="one grid"):
         w.difference(other.hull_at((0, 0, 0)))
+    with pytest.raises(GeometryError, match="one grid"):
+        VolumeMeter(w).difference(other.hull_at((0, 0, 0)))
     with pytest.raises(TypeError):
         w.difference(np.zeros((3, 3)))
+    with pytest.raises(TypeError, match="quantize"):
+        VolumeMeter(w).difference((flat.offsets.astype(float), flat.faces))
     with pytest.raises(GeometryError, match="no tool 2"):
         milling.simulate(w, gcode.parse("T2 M6\nG0 X1"), {1: flat}, progress=False)
     assert w.model_volume() == 40 * 30 * 10
 
 
-def test_workpiece_booleans_return_exact_volume_changes():
+@pytest.mark.parametrize("cls", [Workpiece, BSPWorkpiece], ids=["octree", "bsp"])
+def test_workpiece_booleans_return_exact_volume_changes(cls):
     g = Grid.from_resolution(1.0)
-    w = BSPWorkpiece.empty(g)
+    w = cls.empty(g)
+    meter = VolumeMeter(w)
     assert w.volume() == 0
     a = convex_hull(np.array([[0, 0, 0], [4, 0, 0], [0, 4, 0], [0, 0, 4]]), grid=g)
     b = convex_hull(np.array([[10, 0, 0], [12, 0, 0], [10, 3, 0], [10, 0, 6], [12, 3, 6]]), grid=g)
-    assert w.union(a) == a.volume() == Fraction(64, 6)
-    assert w.union(b) == b.volume()
-    assert w.union(a) == 0
+    assert meter.union(a)[0] == a.volume() == Fraction(64, 6)
+    assert meter.union(b)[0] == b.volume()
+    assert meter.union(a)[0] == 0
     box = convex_hull(np.array([[x, y, z] for x in (-1, 5) for y in (-1, 5) for z in (-1, 5)]), grid=g)
-    assert w.intersection(box) == b.volume()
+    assert w.intersection(box, track_volume=True).volume_change == -b.volume()
     assert w.volume() == a.volume()
-    assert w.difference(a) == a.volume() and w.volume() == 0
-    V, T = w.to_mesh()
-    assert V.shape == (0, 3)
+    assert meter.difference(a)[0] == a.volume() and w.volume() == 0
+    assert w.surface().n_polygons == 0
+
+
+def tetra(a, s):
+    a = np.asarray(a)
+    return (np.array([a, a + [s, 0, 0], a + [0, s, 0], a + [0, 0, s]]),
+            np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]]))
+
+
+@pytest.mark.parametrize("threshold", [12, 40])
+def test_the_meter_equals_whole_volume_differences_through_splits_and_combines(threshold):
+    """Random hulls and meshes cut and filled back: every measured change is the exact difference of the
+    whole workpiece's volumes, and the reference engine measures the same numbers."""
+    rng = np.random.default_rng(threshold)
+    g = Grid.from_resolution(1.0)
+    w = Workpiece.box([0, 0, 0], [32, 32, 32], grid=g, threshold=threshold)
+    ref = BSPWorkpiece.box([0, 0, 0], [32, 32, 32], grid=g)
+    meter, ref_meter = VolumeMeter(w), VolumeMeter(ref)
+    before = w.volume()
+    ops = []
+    for i in range(14):
+        if i % 5 == 4:  # a non-convex tool as a mesh
+            tool = tetra(rng.integers(0, 24, size=3), int(rng.integers(6, 12)))
+        else:
+            tool = convex_hull(rng.integers(0, 32, size=3) + rng.integers(-6, 7, size=(9, 3)), grid=g)
+        ops.append(("difference", tool))
+    ops.append(("union", convex_hull(np.array([[x, y, z] for x in (0, 32) for y in (0, 16) for z in (0, 32)]),
+                                     grid=g)))
+    for op, tool in ops:
+        change, report = getattr(meter, op)(tool)
+        after = w.volume()
+        assert change == (before - after if op == "difference" else after - before)
+        assert getattr(ref_meter, op)(tool)[0] == change
+        before = after
+    assert w.stats.splits > 0 and w.stats.combines > 0
+    assert w.volume() == ref.volume()
+    # Booleans the meter did not see (here a plain one) do not fool it.
+    w -= convex_hull(np.array([[4, 20, 4], [20, 20, 4], [4, 30, 4], [4, 20, 20]]), grid=g)
+    v = w.volume()
+    cut = convex_hull(np.array([[2, 2, 2], [30, 4, 2], [4, 30, 6], [6, 6, 30]]), grid=g)
+    assert meter.difference(cut)[0] == v - w.volume()
 
 
 def test_save_and_load_are_bit_exact_and_refuse_damaged_files(flat, tmp_path, monkeypatch):
@@ -228,7 +295,7 @@ def test_save_and_load_are_bit_exact_and_refuse_damaged_files(flat, tmp_path, mo
     assert sorted(p.name for p in tmp_path.iterdir()) == ["bad.npz", "short.npz", "w.npz"]
 
 
-def test_a_ball_mill_cut_matches_an_independent_halfspace_intersection():
+def test_a_ball_mill_cut_matches_an_independent_halfspace_intersection(W):
     """The first cut of a tilted ball-mill move is vol(hull ∩ stock), a convex polytope: scipy's float64
     halfspace intersection (qhull, independent of csgnb) agrees with the exact volume to float rounding."""
     from scipy.spatial import ConvexHull as Qhull
@@ -239,9 +306,9 @@ def test_a_ball_mill_cut_matches_an_independent_halfspace_intersection():
     for _ in range(4):
         a = np.r_[rng.uniform(5, 35), rng.uniform(5, 25), 3.0]
         b = np.r_[rng.uniform(5, 35), rng.uniform(5, 25), rng.uniform(-4, -1)]
-        w = BSPWorkpiece.box(*STOCK, grid=GRID)
+        w = W.box(*STOCK, grid=GRID)
         (hull,) = sweep.straight_sweep(ball, a, b).hulls
-        removed = w.difference(hull)
+        removed, _ = VolumeMeter(w).difference(hull)
         g = GRID.to_grid(np.array(STOCK, float)).astype(float)
         box = np.array([[-1, 0, 0, g[0, 0]], [1, 0, 0, -g[1, 0]], [0, -1, 0, g[0, 1]], [0, 1, 0, -g[1, 1]],
                         [0, 0, -1, g[0, 2]], [0, 0, 1, -g[1, 2]]])
@@ -250,3 +317,31 @@ def test_a_ball_mill_cut_matches_an_independent_halfspace_intersection():
         assert np.all(H[:, :3] @ tip + H[:, 3] < 0)
         reference = Qhull(HalfspaceIntersection(H, tip).intersections).volume
         assert float(removed) == pytest.approx(reference, rel=1e-9)
+
+
+@pytest.mark.parametrize("chord_tolerance", [pytest.param(0.5, marks=pytest.mark.slow), 1.5])
+def test_octree_and_reference_agree_move_for_move(chord_tolerance):
+    """A ball end mill (arcs in two planes) and a non-convex gear: the same exact volume for every move."""
+    ball = tools.ball_end_mill(3, 6, segments=8, rings=2).on(GRID)
+    gear = tools.spur_gear(teeth=5, module=1, thickness=1, flank_points=2).on(GRID)
+    program = gcode.parse("""G0 X12 Y10 Z2
+M3
+G1 Z-1.5 F100
+G2 X12 Y10 I-4 J0 F400
+G18 G3 X6 Z-1 R4
+G17 T2 M6
+G0 Z2
+G0 X20 Y20 Z1
+G1 Z-1 F100
+G1 X23 Y21 F100
+""", start=(12, 10, 5))
+    results = []
+    for cls in (Octree, BSPWorkpiece):
+        w = cls.box(*STOCK, grid=GRID)
+        results.append(milling.simulate(w, program, {None: ball, 2: gear}, progress=False,
+                                        chord_tolerance=chord_tolerance))
+    octree, ref = results
+    assert [r.removed for r in octree.records] == [r.removed for r in ref.records]
+    assert sum(r.removed > 0 for r in octree.records) >= 5
+    assert octree.workpiece.volume() == ref.workpiece.volume()
+    assert octree.workpiece.surface().is_closed()

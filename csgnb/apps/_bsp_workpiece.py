@@ -1,24 +1,24 @@
-"""STAND-IN workpiece on one whole-workpiece :class:`csgnb.bsp.BSP` -- exact, complete, and slow.
+"""Reference workpiece on one whole-workpiece :class:`csgnb.bsp.BSP` -- exact, complete, and slow.
 
-This is **not** the product's workpiece. It implements the workpiece interface the
-applications are written against (the interface ``csgnb.octree.Workpiece`` provides, see
-:mod:`csgnb.apps.milling`) on today's single-BSP engine, so the applications run and are
-tested before the octree exists. Every Boolean here re-does the whole workpiece (a merge,
-redundancy removal and a boundary extraction for the exact volume), so the cost per
-operation grows with the part: fine for tests and small example programs, 10-100x too
-slow for real ones. Replace it with ``csgnb.octree.Workpiece`` wherever speed matters.
+:class:`BSPWorkpiece` has the API of :class:`csgnb.octree.Workpiece` that the applications
+use, built on the single-BSP engine: every Boolean re-does the whole workpiece (a merge and
+redundancy removal; a boundary extraction for the exact volume), so its cost grows with the
+part. It is not the product's workpiece (``csgnb.mill`` and the notebooks use the octree);
+the tests keep it as an independent reference -- the octree's exact volumes and
+classifications must agree with it on the same tool sweeps.
 
-Interface (all volumes exact :class:`fractions.Fraction` in **grid units cubed**;
+Interface (volumes exact :class:`fractions.Fraction` in **grid units cubed**;
 ``grid.scale ** 3`` grid units make one cubic model unit):
 
-* ``Workpiece.box(lo, hi, *, grid)`` -- model-unit corners, quantized by ``grid``;
-  ``Workpiece.from_mesh(vertices, faces, *, grid)`` -- a closed float mesh in model units;
-  ``Workpiece.empty(grid)`` -- nothing (a start for unions such as the gear sweep);
-* ``w.grid``; ``w.difference(tool)``, ``w.union(tool)``, ``w.intersection(tool)`` with a
-  :class:`~csgnb.mesh.hull.ConvexHull` or a :class:`~csgnb.bsp.BSP` in grid coordinates,
-  returning the exact volume removed (difference, intersection) or added (union);
-* ``w.volume()``, ``w.to_mesh()`` (float model vertices ``(n, 3)``, triangles ``(m, 3)``),
-  ``w.to_polydata()``, ``w.save(path)``, ``Workpiece.load(path)``.
+* ``BSPWorkpiece.box(lo, hi, *, grid)`` -- model-unit corners, quantized by ``grid``;
+  ``from_mesh(vertices, faces, *, grid)`` -- a closed float mesh in model units;
+  ``empty(grid)`` -- nothing (a start for unions);
+* ``w.grid``; ``w.difference(tool, track_volume=False)``, ``union``, ``intersection`` with a
+  :class:`~csgnb.mesh.hull.ConvexHull`, a :class:`~csgnb.bsp.BSP` or an integer mesh
+  ``(vertices, faces)`` in grid coordinates, returning a :class:`csgnb.octree.OpReport`
+  (``volume_change`` with ``track_volume=True``);
+* ``w.volume()``, ``w.model_volume()``, ``w.surface()``, ``w.to_polydata()``,
+  ``w.save(path)``, ``BSPWorkpiece.load(path)``.
 """
 
 from __future__ import annotations
@@ -27,6 +27,7 @@ import hashlib
 import json
 import os
 import tempfile
+import time
 import zipfile
 from fractions import Fraction
 from pathlib import Path
@@ -34,52 +35,18 @@ from pathlib import Path
 import numpy as np
 
 from csgnb.bsp.solid import BSP
+from csgnb.bsp.surface import BoundarySurface
 from csgnb.bsp.tree import BSPTree
 from csgnb.errors import GeometryError
 from csgnb.exact.quantization import Grid
-from csgnb.exact.wide import from_wide, wide_dtype
+from csgnb.exact.wide import wide_dtype
 from csgnb.mesh.hull import ConvexHull
+from csgnb.octree import OpReport
 
 __all__ = ["BSPWorkpiece"]
 
 _FORMAT = "csgnb-bsp-workpiece"
 _VERSION = 1
-
-
-def _collinear(a, b, c) -> bool:
-    """Whether three homogeneous integer points are collinear: every 3x3 minor of [a; b; c] is zero (exact)."""
-    for skip in range(4):
-        cols = [k for k in range(4) if k != skip]
-        (a0, a1, a2), (b0, b1, b2), (c0, c1, c2) = ([p[k] for k in cols] for p in (a, b, c))
-        if a0 * (b1 * c2 - b2 * c1) - a1 * (b0 * c2 - b2 * c0) + a2 * (b0 * c1 - b1 * c0):
-            return False
-    return True
-
-
-def _ear_triangles(poly: list[int], X) -> list[tuple[int, int, int]]:
-    """Triangles of a convex polygon whose edges carry extra (T-junction) vertices, none of zero area.
-
-    A fan would join vertices on one edge into flat triangles. Instead, while a flat vertex
-    (collinear with its neighbours, decided exactly) remains, the ear at a strict corner next
-    to one is clipped -- which turns that flat vertex into a corner and keeps the rest a
-    convex polygon with area -- and the flat-free rest is fanned.
-    """
-    poly = list(poly)
-    out = []
-    while len(poly) > 3:
-        k = len(poly)
-        flat = [_collinear(X[poly[i - 1]], X[poly[i]], X[poly[(i + 1) % k]]) for i in range(k)]
-        if not any(flat):
-            break
-        for i in range(k):
-            if not flat[i] and (flat[i - 1] or flat[(i + 1) % k]):
-                out.append((poly[i - 1], poly[i], poly[(i + 1) % k]))
-                del poly[i]
-                break
-        else:  # all flat: a zero-area polygon (not on a solid's boundary)
-            return out
-    out += [(poly[0], poly[i], poly[i + 1]) for i in range(1, len(poly) - 1)]
-    return out
 
 
 class BSPWorkpiece:
@@ -127,6 +94,15 @@ class BSPWorkpiece:
 
     def _tool(self, tool) -> BSP:
         # A hull's linear BSP is cheap to build; building it first keeps every check in one place.
+        if isinstance(tool, tuple) and len(tool) == 2:
+            V, F = np.asarray(tool[0]), np.asarray(tool[1])
+            if V.dtype.kind not in "iu":
+                raise TypeError("a tool mesh must have integer grid coordinates; quantize it with the workpiece's "
+                                "grid first (w.grid.to_grid(vertices))")
+            if np.abs(V).max() > self.grid.max_coordinate:
+                raise GeometryError(f"the tool mesh leaves the grid's budget box |coordinate| <= "
+                                    f"{self.grid.max_coordinate}")
+            return BSP.from_mesh(V, F, width=self.grid.width)
         if isinstance(tool, ConvexHull):
             if tool.grid is not None and not tool.grid.same_as(self.grid):
                 raise GeometryError(f"the tool lies on {tool.grid}, the workpiece on {self.grid}: quantize both on "
@@ -140,34 +116,40 @@ class BSPWorkpiece:
             if tool.tree.width != self.grid.width:
                 raise GeometryError(f"the tool BSP is {tool.tree.width}-bit, the workpiece {self.grid.width}-bit")
             return tool
-        raise TypeError(f"a tool must be a ConvexHull or a csgnb.bsp.BSP, got {type(tool).__name__}")
+        raise TypeError(f"a tool must be a ConvexHull, a csgnb.bsp.BSP or (vertices, faces), got {type(tool).__name__}")
 
-    def _disjoint(self, tool) -> bool:
-        lo, hi = (tool.lo, tool.hi) if isinstance(tool, ConvexHull) else (np.array(tool.lo), np.array(tool.hi))
-        return bool(np.any(np.asarray(hi) <= np.array(self.bsp.lo)) or np.any(np.asarray(lo) >= np.array(self.bsp.hi)))
+    def _disjoint(self, tool: BSP) -> bool:
+        return bool(np.any(np.asarray(tool.hi) <= np.array(self.bsp.lo)) or
+                    np.any(np.asarray(tool.lo) >= np.array(self.bsp.hi)))
 
-    def _apply(self, tool, op: str) -> Fraction:
+    def _apply(self, tool, op: str, track_volume: bool) -> OpReport:
+        t0 = time.perf_counter()
         b = self._tool(tool)  # refuses a bad tool before anything else
-        before = self.volume()
-        if op == "difference" and (before == 0 or self._disjoint(tool)):
-            return Fraction(0)
-        result = getattr(self.bsp, op)(b)
-        self.bsp = result
-        self._volume = None
-        after = self.volume()
-        return after - before if op == "union" else before - after
+        before = self.volume() if track_volume else None
+        if not (op == "difference" and (self._is_empty() or self._disjoint(b))):
+            self.bsp = getattr(self.bsp, op)(b)
+            self._volume = None
+        report = OpReport(1, 1, 0, 0, 0, 0.0)
+        if track_volume:
+            report.volume_change = self.volume() - before
+        report.seconds = time.perf_counter() - t0
+        return report
 
-    def difference(self, tool) -> Fraction:
-        """Subtract ``tool``; return the exact volume removed (grid units cubed)."""
-        return self._apply(tool, "difference")
+    def _is_empty(self) -> bool:
+        tree = self.bsp.tree
+        return tree.n_inner == 0 and int(tree.label[0]) == 0
 
-    def union(self, tool) -> Fraction:
-        """Add ``tool``; return the exact volume added."""
-        return self._apply(tool, "union")
+    def difference(self, tool, *, track_volume: bool = False) -> OpReport:
+        """Subtract ``tool``; with ``track_volume`` the report's ``removed`` is the exact volume removed."""
+        return self._apply(tool, "difference", track_volume)
 
-    def intersection(self, tool) -> Fraction:
-        """Keep what lies in ``tool``; return the exact volume removed."""
-        return self._apply(tool, "intersection")
+    def union(self, tool, *, track_volume: bool = False) -> OpReport:
+        """Add ``tool``; with ``track_volume`` the report's ``volume_change`` is the exact volume added."""
+        return self._apply(tool, "union", track_volume)
+
+    def intersection(self, tool, *, track_volume: bool = False) -> OpReport:
+        """Keep what lies in ``tool``."""
+        return self._apply(tool, "intersection", track_volume)
 
     def __isub__(self, tool):
         self.difference(tool)
@@ -186,8 +168,7 @@ class BSPWorkpiece:
     def volume(self) -> Fraction:
         """Exact volume (grid units cubed)."""
         if self._volume is None:
-            tree = self.bsp.tree
-            self._volume = Fraction(0) if tree.n_inner == 0 and int(tree.label[0]) == 0 else self.bsp.volume()
+            self._volume = Fraction(0) if self._is_empty() else self.bsp.volume()
         return self._volume
 
     def model_volume(self) -> Fraction:
@@ -199,14 +180,15 @@ class BSPWorkpiece:
         """BSP nodes of the whole workpiece (what makes the stand-in slow as it grows)."""
         return self.bsp.n_nodes
 
+    def surface(self) -> BoundarySurface:
+        """The exact, closed boundary (grid coordinates)."""
+        return self.bsp.surface()
+
     def to_mesh(self) -> tuple[np.ndarray, np.ndarray]:
         """The exact boundary as float model vertices ``(n, 3)`` and outward triangles ``(m, 3) int64``."""
-        if self.volume() == 0:
-            return np.zeros((0, 3)), np.zeros((0, 3), np.int64)
-        s = self.bsp.surface()
-        X = [tuple(int(x) for x in row) for row in from_wide(s.vertices)]
-        tris = [t for f in s.polygons() for t in _ear_triangles([int(i) for i in f], X)]
-        return self.grid.to_model(s.positions()), np.array(tris, np.int64).reshape(-1, 3)
+        from csgnb.apps.export import part_mesh
+
+        return part_mesh(self)
 
     def to_polydata(self):
         """The boundary as a pyvista ``PolyData`` in model units."""

@@ -6,7 +6,7 @@ each, its centre ``offset`` along the outward normal, so that together they carv
 block down towards the target. Each dodecahedron is quantized onto the grid and becomes an
 exact :class:`~csgnb.mesh.hull.ConvexHull` (rounding may split a pentagon into coplanar-free
 pieces; the hull of the grid vertices is still exact). :func:`carve` subtracts them from a
-workpiece one by one, with per-step removed volume and time.
+workpiece one by one, with per-step exact removed volume (optional) and time.
 """
 
 from __future__ import annotations
@@ -183,25 +183,40 @@ def carving_placements(target: Target, n: int, radius: float, *, grid: Grid, off
     return Carving(centers, random_rotations(int(n), rng), r, grid)
 
 
-def carve(workpiece, carving: Carving, *, progress: bool = True, limit: int | None = None):
+def carve(workpiece, carving: Carving, *, progress: bool = True, limit: int | None = None,
+          track_volume: bool = True):
     """Subtract the carving's dodecahedra from ``workpiece`` in order; return per-step (removed mm³, seconds).
+
+    Parameters
+    ----------
+    track_volume : bool
+        Measure each step's exact removed volume (on the octree cells the dodecahedron
+        reaches, :class:`csgnb.apps.meter.VolumeMeter`); without it ``removed`` is None and
+        the steps cost only the Booleans.
 
     Returns
     -------
-    removed : list of Fraction
+    removed : list of Fraction, or None
         Exact removed volume per dodecahedron (mm³).
     seconds : list of float
-        Wall time per subtraction (hull construction included).
+        Wall time per subtraction (hull construction and volume measurement included).
     """
     from tqdm.auto import tqdm
+
+    from csgnb.apps.meter import VolumeMeter
 
     if not carving.grid.same_as(workpiece.grid):
         raise GeometryError("the carving and the workpiece lie on different grids")
     k = len(carving) if limit is None else min(int(limit), len(carving))
     unit = Fraction(carving.grid.scale) ** 3
-    removed, seconds = [], []
+    meter = VolumeMeter(workpiece) if track_volume else None
+    removed, seconds = ([] if track_volume else None), []
     for i in tqdm(range(k), disable=not progress, desc="carving", unit="solid"):
         t0 = time.perf_counter()
-        removed.append(workpiece.difference(carving.hull(i)) / unit)
+        hull = carving.hull(i)
+        if meter is None:
+            workpiece.difference(hull)
+        else:
+            removed.append(meter.difference(hull)[0] / unit)
         seconds.append(time.perf_counter() - t0)
     return removed, seconds

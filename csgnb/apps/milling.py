@@ -8,11 +8,14 @@ rapid (``G0``) -- or a feed move with the spindle stopped -- removed material. P
 goes to a ``tqdm.auto`` bar; ``checkpoint=PATH`` saves the workpiece and the records every
 ``checkpoint_every`` moves and resumes from them after a crash.
 
-The workpiece is duck-typed, written against the interface of ``csgnb.octree.Workpiece``
-(documented in :mod:`csgnb.apps._bsp_workpiece`, whose :class:`BSPWorkpiece` is the slow
-single-BSP stand-in the tests use): ``grid``, ``difference(tool) -> Fraction``,
-``volume()``, ``to_mesh()``, ``save(path)``, ``type(w).load(path)``. Programmed positions
-are the tool tip (the lowest point of its axis).
+The workpiece is a :class:`csgnb.octree.Workpiece` (or anything with its API: ``grid``,
+``difference(tool, track_volume=...) -> OpReport``, ``volume()``, ``surface()``,
+``save(path)``, ``type(w).load(path)``; the tests run the single-BSP reference
+:class:`csgnb.apps._bsp_workpiece.BSPWorkpiece` too). Each move's exact removed volume is
+measured on the octree cells its sweep reaches (:class:`csgnb.apps.meter.VolumeMeter`), so
+it costs the same at move 10 as at move 10,000. Non-convex tools are sent as meshes (the
+octree clips them per cell). Programmed positions are the tool tip (the lowest point of its
+axis).
 """
 
 from __future__ import annotations
@@ -24,11 +27,14 @@ import tempfile
 import time
 from dataclasses import asdict, dataclass
 from fractions import Fraction
+from functools import cached_property
 from pathlib import Path
 
 import numpy as np
 
+from csgnb.apps.export import export_stl
 from csgnb.apps.gcode import Move, Program
+from csgnb.apps.meter import VolumeMeter, exact_volume
 from csgnb.apps.sweep import straight_sweep
 from csgnb.apps.tools import GridTool
 from csgnb.errors import GeometryError
@@ -65,7 +71,11 @@ class MoveRecord:
     collision : str or None
         Why the move is a collision, if it is one.
     wall_s : float
-        Simulation time spent on the move.
+        Simulation time spent on the move (sweeps, Booleans and volume measurement).
+    boolean_s : float
+        Of which in the workpiece's Booleans (the ``OpReport`` seconds).
+    cells : int
+        Octree cells the move's Booleans touched.
     """
 
     index: int
@@ -78,6 +88,8 @@ class MoveRecord:
     pieces: int
     collision: str | None
     wall_s: float
+    boolean_s: float = 0.0
+    cells: int = 0
 
 
 @dataclass
@@ -92,6 +104,11 @@ class MillingResult:
     def removed(self) -> Fraction:
         """Total exact removed volume (mm³)."""
         return sum((r.removed for r in self.records), Fraction(0))
+
+    @cached_property
+    def part_volume(self) -> Fraction:
+        """Exact volume of the part (mm³), computed once (:func:`csgnb.apps.meter.exact_volume`)."""
+        return _mm3(exact_volume(self.workpiece), self.workpiece.grid)
 
     @property
     def collisions(self) -> list[MoveRecord]:
@@ -136,16 +153,16 @@ def move_pieces(move: Move, tool: GridTool, chord_tolerance: float = CHORD_TOLER
     return out
 
 
-def _subtract(workpiece, tool: GridTool, move: Move, chord_tolerance: float) -> tuple[Fraction, int]:
-    from csgnb.bsp.solid import BSP
-
-    removed, pieces = Fraction(0), 0
+def _subtract(meter: VolumeMeter, tool: GridTool, move: Move, chord_tolerance: float):
+    """Subtract one move's pieces; return (exact removed grid units³, pieces, Boolean seconds, cells touched)."""
+    removed, pieces, seconds, cells = Fraction(0), 0, 0.0, 0
     for piece in move_pieces(move, tool, chord_tolerance):
-        if isinstance(piece, tuple):
-            piece = BSP.from_mesh(piece[0], piece[1], width=tool.grid.width)
-        removed += workpiece.difference(piece)
+        r, report = meter.difference(piece)
+        removed += r
         pieces += 1
-    return removed, pieces
+        seconds += report.seconds
+        cells += report.cells
+    return removed, pieces, seconds, cells
 
 
 def _tool_for(move: Move, tools) -> GridTool:
@@ -223,7 +240,8 @@ def simulate(workpiece, program: Program, tools, *, chord_tolerance: float = CHO
     Parameters
     ----------
     workpiece : Workpiece
-        ``csgnb.octree.Workpiece`` or the stand-in :class:`csgnb.apps._bsp_workpiece.BSPWorkpiece`.
+        A :class:`csgnb.octree.Workpiece` (or the reference
+        :class:`csgnb.apps._bsp_workpiece.BSPWorkpiece`).
     program : Program
         From :func:`csgnb.apps.gcode.parse`.
     tools : GridTool or dict
@@ -248,13 +266,14 @@ def simulate(workpiece, program: Program, tools, *, chord_tolerance: float = CHO
             raise GeometryError(f"tool {t.name!r} lies on {t.grid}, the workpiece on {grid}: build the tool with "
                                 "shape.on(workpiece.grid)")
     records: list[MoveRecord] = []
-    stock = _mm3(workpiece.volume(), grid)
+    stock = _mm3(exact_volume(workpiece), grid)
     key = _program_key(program, tools, chord_tolerance)
     path = Path(checkpoint) if checkpoint is not None else None
     if path is not None and path.exists():
         workpiece, records, stock = _resume(path, type(workpiece), key)
+    meter = VolumeMeter(workpiece)
     bar = tqdm(total=len(program.moves), initial=len(records), disable=not progress, unit="move", desc="milling")
-    total = sum((r.removed for r in records), Fraction(0))
+    total = float(sum(r.removed for r in records))  # for the bar only: an exact running sum grows with the part
     try:
         for i in range(len(records), len(program.moves)):
             move = program.moves[i]
@@ -262,7 +281,8 @@ def simulate(workpiece, program: Program, tools, *, chord_tolerance: float = CHO
             tool = _tool_for(move, tools)
             points = move.points(chord_tolerance)
             length = float(np.sum(np.linalg.norm(np.diff(points, axis=0), axis=1)))
-            removed, pieces = _subtract(workpiece, tool, move, chord_tolerance) if length > 0 else (Fraction(0), 0)
+            removed, pieces, boolean_s, cells = (_subtract(meter, tool, move, chord_tolerance) if length > 0
+                                                 else (Fraction(0), 0, 0.0, 0))
             removed = _mm3(removed, grid)
             collision = None
             if removed > 0 and move.kind == "rapid":
@@ -270,15 +290,15 @@ def simulate(workpiece, program: Program, tools, *, chord_tolerance: float = CHO
             elif removed > 0 and not move.spindle_on:
                 collision = "cut with the spindle stopped"
             rec = MoveRecord(i, move.line, move.kind, move.tool, length, _move_time(move, length, rapid_rate),
-                             removed, pieces, collision, time.perf_counter() - t0)
+                             removed, pieces, collision, time.perf_counter() - t0, boolean_s, cells)
             records.append(rec)
             if on_move is not None:
                 on_move(rec, workpiece)
             if path is not None and (len(records) % checkpoint_every == 0 or len(records) == len(program.moves)):
                 _checkpoint(path, workpiece, records, stock, key)
-            total += rec.removed
+            total += float(rec.removed)
             bar.update(1)
-            bar.set_postfix(removed=f"{float(total):.5g} mm³", refresh=False)
+            bar.set_postfix(removed=f"{total:.5g} mm³", refresh=False)
     finally:
         bar.close()
     return MillingResult(workpiece, records, stock)
@@ -293,8 +313,7 @@ def _exact_text(v: Fraction) -> str:
 
 def summary_table(result: MillingResult) -> str:
     """A plain-text summary: totals, the exact volume identity, collisions, the slowest moves."""
-    wp = result.workpiece
-    final = _mm3(wp.volume(), wp.grid)
+    final = result.part_volume
     lines = [
         f"moves            {len(result.records)}",
         f"cut time         {result.cut_time_s / 60:.2f} min (rapids at the rapid rate)",
@@ -314,16 +333,3 @@ def summary_table(result: MillingResult) -> str:
         lines.append(f"{kind:<8}{len(rs):>7}{sum(r.length_mm for r in rs):>12.1f}{sum(r.time_s for r in rs):>10.1f}"
                      f"{float(sum(r.removed for r in rs)):>14.6g}{sum(r.wall_s for r in rs):>9.2f}")
     return "\n".join(lines)
-
-
-def export_stl(workpiece, path, *, binary: bool = True) -> Path:
-    """Write the workpiece's exact boundary (float model coordinates) as an STL file through meshio."""
-    import meshio
-
-    V, T = workpiece.to_mesh()
-    if len(T) == 0:
-        raise GeometryError("the workpiece is empty: there is no surface to export")
-    path = Path(path)
-    meshio.write(path, meshio.Mesh(np.asarray(V, np.float64), [("triangle", np.asarray(T, np.int64))]),
-                 file_format="stl", binary=binary)
-    return path

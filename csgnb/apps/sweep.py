@@ -296,8 +296,9 @@ def drill_sweeps(tool: GridTool, position=(0.0, 0.0, 0.0), *, tilt_degrees: floa
 def union_hulls(hulls: list[ConvexHull], *, width: int | None = None):
     """The union of hulls as one :class:`csgnb.bsp.BSP` (balanced pairwise merges on single BSPs; slow, exact).
 
-    The stand-in for what an octree workpiece does by iterated union; used to build a
-    non-convex tool (a drill step) as one solid for :meth:`BSPWorkpiece.difference`.
+    What an octree workpiece does faster by iterated union (``Workpiece.empty(grid)`` and
+    ``w |= hull``); kept for building a non-convex tool (a drill step) as one solid on the
+    single-BSP engine.
     """
     if not hulls:
         raise GeometryError("the union of no hulls is empty; nothing to build")

@@ -225,7 +225,17 @@ class GridTool:
         return self.__dict__["_design"]
 
     def hull_at(self, *positions) -> ConvexHull:
-        """Exact hull of the tool's grid vertices with the tip at each model position (the sweep of a convex tool)."""
+        """Exact hull of the tool's grid vertices with the tip at each model position (the sweep of a convex tool).
+
+        One or two positions (a pose, a straight move) reuse the tool's hull: translated, or
+        swept along the move (:meth:`csgnb.mesh.hull.ConvexHull.swept`, the same hull as
+        :func:`~csgnb.mesh.hull.convex_hull` of both poses' vertices, several times faster).
+        """
+        if len(positions) in (1, 2):
+            a = self.tip(positions[0])
+            if len(positions) == 1:
+                return self.hull.translated(a)
+            return self.hull.swept(self.tip(positions[1]) - a, offset=a)
         pts = np.vstack([self.at(p) for p in positions])
         return convex_hull(pts, width=self.grid.width, grid=self.grid, name="tool vertices")
 

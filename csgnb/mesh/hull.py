@@ -267,10 +267,75 @@ class ConvexHull:
         moved = ConvexHull(self._candidates, self._origin + t.astype(np.int64), self._normals, self._d_local,
                            width=self.width, grid=self.grid)
         check_mesh_points(np.stack([moved.lo, moved.hi]), self.width, "translated hull box corners")
-        for name in ("_faces_local",):
+        for name in ("_faces_local", "faces", "_edges"):  # indices, the same for the moved hull
             if name in self.__dict__:
                 moved.__dict__[name] = self.__dict__[name]
         return moved
+
+    @cached_property
+    def _edges(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Every edge once: ``(a, b, j, k)`` with the directed edge a -> b (indices into :attr:`points`) in face j's
+        counter-clockwise ring and b -> a in face k's."""
+        face_of = {}
+        for j, f in enumerate(self.faces):
+            for a, b in zip(f.tolist(), np.roll(f, -1).tolist(), strict=True):
+                face_of[(a, b)] = j
+        rows = [(a, b, j, face_of[(b, a)]) for (a, b), j in face_of.items() if a < b]
+        e = np.array(rows, np.int64).reshape(-1, 4)
+        return e[:, 0], e[:, 1], e[:, 2], e[:, 3]
+
+    def swept(self, t, *, offset=None) -> ConvexHull:
+        """The volume the hull sweeps moving by the integer vector ``t``: its Minkowski sum with the segment
+        ``[0, t]``, which is ``conv(hull ∪ (hull + t))`` -- the sweep of a convex tool along a straight move.
+        With ``offset``, the sweep of the hull translated by it (``translated(offset).swept(t)``, reusing
+        this hull's faces and edges: a tool's hull serves every move).
+
+        Built from this hull's facets and edges, with no new hull search: a facet ``n·x + d = 0``
+        with ``n·t <= 0`` bounds the sum at the start pose, one with ``n·t > 0`` at the end pose
+        (``d - n·t``); an edge a -> b of a face with ``n·t < 0`` whose other face has ``n·t > 0``
+        (the silhouette seen along ``t``) spans the facet through a, b and a + t, with outward
+        normal ``t × (b - a)`` (the face's inside lies along ``n × (b - a)``, and
+        ``(t × e)·(n × e) = |e|² n·t < 0``). These are exactly the facets :func:`convex_hull`
+        finds for the vertices at both poses, reduced and in the same order (the same local
+        origin, the smallest point), so the result is the same hull, found in about a tenth of
+        the time.
+        """
+        t = np.asarray(t)
+        u = np.zeros(3, np.int64) if offset is None else np.asarray(offset)
+        for name, vec in (("sweep vector", t), ("offset", u)):
+            if vec.shape != (3,) or vec.dtype.kind not in "iu":
+                raise TypeError(f"the {name} must be a (3,) integer vector, got {vec.dtype} {vec.shape}")
+        t, u = t.astype(np.int64), u.astype(np.int64)
+        if not t.any():
+            return self.translated(u) if u.any() else self
+        V = self.points + u
+        P = np.unique(np.vstack([V, V + t]), axis=0)
+        check_mesh_points(np.stack([P[0], P[-1], P.min(axis=0), P.max(axis=0)]), self.width, "swept hull points")
+        origin = P[0].copy()
+        L, Vl = P - origin, V - origin
+        N = self._normals
+        shift = origin - self._origin - u
+        E = int(max(np.abs(L).max(initial=0), np.abs(t).max(), np.abs(shift).max()))
+        fits = _arith(E, 48) is np.int64 and N.dtype != object and self._d_local.dtype != object
+        tt = t if fits else _object(t)
+        # Facets in the new local frame: d = d_old + n·(origin - old origin), then minus n·t at the end pose.
+        shift = shift if fits else _object(shift)
+        Nk = N if fits else _object(N)
+        s = Nk @ tt
+        d = (self._d_local if fits else _object(self._d_local)) + Nk @ shift
+        d = np.where(s > 0, d - s, d)
+        a, b, j, k = self._edges
+        sa, sb = s[j], s[k]
+        back = (sa < 0) & (sb > 0)  # a -> b lies in the face with n·t < 0
+        front = (sa > 0) & (sb < 0)  # b -> a does
+        A = Vl if fits else _object(Vl)
+        tail = np.concatenate([a[back], b[front]])
+        head = np.concatenate([b[back], a[front]])
+        M = _cross(np.broadcast_to(tt, (tail.shape[0], 3)), A[head] - A[tail])
+        dm = -np.sum(M * A[tail], axis=1)
+        M, dm = _reduce_planes(M, dm)
+        normals, d_local = _sorted_unique_planes(np.vstack([Nk, M]), np.concatenate([d, dm]))
+        return ConvexHull(L, origin, normals, d_local, width=self.width, grid=self.grid)
 
     def to_bsp(self, width: int | None = None, *, margin: int = 1):
         """The hull as a :class:`csgnb.bsp.BSP`: a linear tree, each facet's positive child an out leaf.

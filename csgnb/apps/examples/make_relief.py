@@ -1,8 +1,10 @@
-"""Write relief.nc: a ball end mill finishing a smooth 3-D relief by raster passes (run from the repo root).
+"""Write relief.nc: a ball end mill finishing a smooth 3-D relief by raster passes.
+
+``python -m csgnb.apps.examples.make_relief`` rewrites ``relief.nc`` next to this file.
 
 The tip follows the height field z(x, y) below, row by row along X (zig-zag), rows 3 mm
-apart, points 3 mm apart along a row: small enough for the single-BSP stand-in workpiece,
-shaped like a real finishing pass.
+apart, points 3 mm apart along a row: shaped like a real finishing pass, small enough for
+the single-BSP reference workpiece the tests compare the octree with.
 """
 
 import math
@@ -16,11 +18,12 @@ def height(x: float, y: float) -> float:
 
 
 def program() -> str:
+    """The text of relief.nc."""
     out = [
         "%",
-        "(relief.nc -- a 3-D relief finished with a ball end mill, written by examples/gcode/make_relief.py)",
+        "(relief.nc -- a 3-D relief finished with a ball end mill, written by csgnb/apps/examples/make_relief.py)",
         "(stock: 40 x 30 x 8 mm, origin at the lower left corner of the top face, z = 0 on top)",
-        "(tool: T1, 4 mm ball end mill; run: python -m csgnb.mill examples/gcode/relief.nc --stock 40 30 8 "
+        "(tool: T1, 4 mm ball end mill; run: python -m csgnb.mill csgnb/apps/examples/relief.nc --stock 40 30 8 "
         "--tool ball:4 --segments 16)",
         "G21 G90 G17 G94",
         "T1 M6",

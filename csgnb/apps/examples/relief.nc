@@ -1,7 +1,7 @@
 %
-(relief.nc -- a 3-D relief finished with a ball end mill, written by examples/gcode/make_relief.py)
+(relief.nc -- a 3-D relief finished with a ball end mill, written by csgnb/apps/examples/make_relief.py)
 (stock: 40 x 30 x 8 mm, origin at the lower left corner of the top face, z = 0 on top)
-(tool: T1, 4 mm ball end mill; run: python -m csgnb.mill examples/gcode/relief.nc --stock 40 30 8 --tool ball:4 --segments 16)
+(tool: T1, 4 mm ball end mill; run: python -m csgnb.mill csgnb/apps/examples/relief.nc --stock 40 30 8 --tool ball:4 --segments 16)
 G21 G90 G17 G94
 T1 M6
 S16000 M3

@@ -1,7 +1,7 @@
 %
 (pocket.nc -- a rounded pocket and an outside contour, for csgnb's milling simulation)
 (stock: 50 x 40 x 10 mm, origin at the lower left corner of the top face, z = 0 on top)
-(tool: T1, 6 mm flat end mill; run: python -m csgnb.mill examples/gcode/pocket.nc --stock 50 40 10 --tool flat:6)
+(tool: T1, 6 mm flat end mill; run: python -m csgnb.mill csgnb/apps/examples/pocket.nc --stock 50 40 10 --tool flat:6)
 (pocket: 24 x 16 mm, corner radius 5, 4 mm deep in two 2 mm steps; tool centre paths below)
 N10 G21 G90 G17 G94 G40 G49
 N20 T1 M6
