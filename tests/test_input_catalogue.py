@@ -23,14 +23,10 @@ BAD_VALUES = [
     np.full((3, 3), np.nan), np.zeros((0, 3)), np.array(["a", "b", "c"]), object(),
 ]
 
-# Public functions whose argument checks live in modules this track does not own (csgnb/bsp
-# tree, polygon, extract, merging's merge/remove_redundancy, random_tree, scenes); they are
-# being restructured by the lead. strict=True: the test fails once they are fixed, so the list
-# shrinks with them.
-KNOWN_RAW_ERRORS = {
-    "csgnb.bsp.BSPTree", "csgnb.bsp.PolygonSet", "csgnb.bsp.extract_boundary", "csgnb.bsp.extract_cells",
-    "csgnb.bsp.merge", "csgnb.bsp.remove_redundancy", "csgnb.bsp.random_bsp", "csgnb.bsp.tangent_plane_bsp",
-}
+# Public functions that still raise raw errors on bad arguments. strict: the test fails once one
+# is fixed, so the list only shrinks. Empty since the csgnb.bsp tree, polygon, extract, merging,
+# random_tree and scenes modules validate their arguments.
+KNOWN_RAW_ERRORS: set[str] = set()
 
 
 def _bad_values():

@@ -35,7 +35,7 @@ from csgnb.exact.integral import exact_int, integer_array
 from csgnb.exact.intrinsics import classify_at, plane_from_points_into, signed_distance_into, wide_sign_at
 from csgnb.exact.wide import DEFAULT_WIDTH, is_wide, wide_dtype
 
-__all__ = ["bsp_from_polygons", "bsp_from_mesh", "validate_mesh", "check_seed", "check_label"]
+__all__ = ["bsp_from_polygons", "bsp_from_mesh", "validate_mesh", "check_seed", "check_label", "check_count"]
 
 
 # ---------------------------------------------------------------------------
@@ -153,6 +153,20 @@ def check_label(label, name: str = "label") -> int:
         raise GeometryError(f"{name} must be an integer >= 1 (0 is out), got {label!r}") from None
     if not 1 <= v <= _MAX_LABEL:
         raise GeometryError(f"{name} must be an integer in [1, {_MAX_LABEL}] (0 is out; labels are int32), got {v}")
+    return v
+
+
+def check_count(value, name: str, minimum: int = 0, maximum: int | None = None) -> int:
+    """Return the integer parameter ``value`` (a count or size) checked against ``[minimum, maximum]``.
+
+    Non-integers raise as in :func:`~csgnb.exact.integral.exact_int` (``TypeError`` for
+    strings or ``None``, :class:`PrecisionError` for 2.7); a value out of range raises
+    :class:`GeometryError` naming the range.
+    """
+    v = exact_int(value, name)
+    if v < minimum or (maximum is not None and v > maximum):
+        bound = f">= {minimum}" if maximum is None else f"in [{minimum}, {maximum}]"
+        raise GeometryError(f"{name} must be an integer {bound}, got {v}")
     return v
 
 

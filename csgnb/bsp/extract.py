@@ -24,8 +24,11 @@ import numpy as np
 from csgnb._jit import jit
 from csgnb._resumable import DONE, FAILED, NEED_ROOM, grown, run_resumable
 from csgnb._views import unmanaged, unmanaged_tuple
+from csgnb.bsp.build import check_count
 from csgnb.bsp.surface import BoundarySurface, assemble_surface
 from csgnb.bsp.tree import OUT, BSPTree
+from csgnb.errors import GeometryError
+from csgnb.exact.integral import integer_array
 from csgnb.exact.intrinsics import classify_at, intersect_into
 from csgnb.mesh.cutting import CUT_PROPER, cut_cell, cut_cell_naive
 from csgnb.mesh.halfedge import (
@@ -45,8 +48,8 @@ from csgnb.mesh.halfedge import (
     room_for_cut,
 )
 
-__all__ = ["ClipScratch", "Extraction", "Pieces", "TreeArrays", "boundary_pieces", "extract_boundary",
-           "extract_cells"]
+__all__ = ["ClipScratch", "Extraction", "Pieces", "TreeArrays", "boundary_pieces", "check_box", "check_corner",
+           "check_tree", "extract_boundary", "extract_cells"]
 
 # Cell-stack columns.
 _NODE, _HANDLE, _FACE_BOUND = 0, 1, 2
@@ -472,6 +475,31 @@ class Extraction:
         return self.tree.label[self.cells[:, 0]]
 
 
+def check_corner(value, name: str) -> tuple[int, int, int]:
+    """A box corner as three exact ints (integral floats accepted; 2.7, NaN or a wrong shape refused)."""
+    arr = integer_array(value, name)
+    if arr.shape not in ((3,), (1, 3)):
+        raise GeometryError(f"{name} must be a point (3,) of integers, got shape {arr.shape}")
+    return tuple(int(v) for v in arr.reshape(3))
+
+
+def check_box(lo, hi) -> tuple[tuple[int, int, int], tuple[int, int, int]]:
+    """The box ``[lo, hi]`` as two corners of exact ints with ``lo < hi`` in every coordinate."""
+    lo, hi = check_corner(lo, "lo"), check_corner(hi, "hi")
+    if any(a >= b for a, b in zip(lo, hi, strict=True)):
+        raise GeometryError(f"the box needs lo < hi in every coordinate, got {lo}, {hi}")
+    return lo, hi
+
+
+def check_tree(tree, name: str = "tree") -> BSPTree:
+    """Return ``tree`` if it is a :class:`BSPTree`; ``TypeError`` naming what to pass otherwise."""
+    if not isinstance(tree, BSPTree):
+        hint = " (a BSP solid: pass its .tree)" if hasattr(tree, "tree") else ""
+        raise TypeError(f"{name} must be a csgnb.bsp.BSPTree, got {type(tree).__name__}{hint}; build one with "
+                        "bsp_from_mesh, random_bsp or BSP.from_mesh(...).tree")
+    return tree
+
+
 def extract_cells(tree: BSPTree, lo, hi, *, capacity: int = 1024, naive: bool = False
                   ) -> tuple[MeshStore, np.ndarray]:
     """Return the convex cells of the **in** leaves of ``tree`` inside the box ``[lo, hi]``.
@@ -482,6 +510,9 @@ def extract_cells(tree: BSPTree, lo, hi, *, capacity: int = 1024, naive: bool = 
     handle into ``store``). Out leaves are released; cells of zero volume never occur
     (cuts without a proper intersection send the whole cell to one side).
     """
+    check_tree(tree)
+    lo, hi = check_box(lo, hi)
+    capacity = check_count(capacity, "capacity", 1)
     mode = KEEP_CELLS | (NAIVE if naive else 0)
     ex = _Extractor(tree, lo, hi, mode, capacity).run()
     cells = ex.cells[: ex.state[1]]
@@ -560,6 +591,8 @@ def extract_boundary(tree: BSPTree, lo, hi, *, keep_cells: bool = True) -> Extra
         ``surface``: closed, conforming, exact polygons (see
         :class:`~csgnb.bsp.surface.BoundarySurface`), ``surface.to_polydata()`` for display.
     """
+    check_tree(tree)
+    lo, hi = check_box(lo, hi)
     mode = PIECES | WALLS | (KEEP_CELLS if keep_cells else 0)
     ex = _Extractor(tree, lo, hi, mode, 1024).run()
     cells = ex.cells[: ex.state[1]] if keep_cells else np.zeros((0, 2), np.int64)

@@ -24,8 +24,8 @@ import numpy as np
 from csgnb._jit import jit
 from csgnb._resumable import DONE, FAILED, NEED_ROOM, grown, run_resumable
 from csgnb._views import unmanaged, unmanaged_tuple
-from csgnb.bsp.build import bsp_from_polygons
-from csgnb.bsp.extract import TreeArrays, boundary_pieces, tree_arrays
+from csgnb.bsp.build import bsp_from_polygons, check_seed
+from csgnb.bsp.extract import TreeArrays, boundary_pieces, check_box, check_tree, tree_arrays
 from csgnb.bsp.polygon import PolygonSet
 from csgnb.bsp.surface import BoundarySurface, assemble_surface
 from csgnb.bsp.tree import OUT, BSPTree
@@ -214,6 +214,12 @@ def merge(a: BSPTree, b: BSPTree, fn, lo, hi, *, naive: bool = False) -> MergeRe
     MergeResult
         The output tree (palette = a's planes, then b's, then the box's) and its cells.
     """
+    check_tree(a, "a")
+    check_tree(b, "b")
+    if not callable(fn):
+        raise TypeError(f"the merge function must be callable fn(label_a, label_b) -> label (e.g. csgnb.bsp.UNION), "
+                        f"got {fn!r}")
+    lo, hi = check_box(lo, hi)
     if width_of(a.palette) != width_of(b.palette):
         raise GeometryError(f"cannot merge a {a.width}-bit BSP with a {b.width}-bit BSP: convert one first")
     palette = np.concatenate([a.palette, b.palette])
@@ -264,6 +270,10 @@ def remove_redundancy(result: MergeResult, *, seed: int = 0) -> BSPTree:
     is kept, so the node count never grows. Multi-material solids (labels other than
     0 and 1) are returned unchanged: importing a boundary gives one material.
     """
+    if not isinstance(result, MergeResult):
+        raise TypeError(f"remove_redundancy takes the MergeResult of csgnb.bsp.merge, got {type(result).__name__}; "
+                        "to simplify a solid, merge it first (BSP.merge(..., simplify=True) does both)")
+    seed = check_seed(seed)
     tree = result.tree
     labels = set(np.unique(tree.label[tree.plane < 0]).tolist())
     if not labels <= {OUT, 1}:

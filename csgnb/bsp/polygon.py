@@ -40,6 +40,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from csgnb._jit import jit
+from csgnb.bsp.tree import check_index_array
 from csgnb.errors import GeometryError
 from csgnb.exact.budgets import check_mesh_points, check_planes
 from csgnb.exact.intrinsics import classify_at, intersect_into, wide_sign_at
@@ -314,21 +315,21 @@ class PolygonSet:
     payload: np.ndarray | None = None
 
     def __post_init__(self) -> None:
-        support = np.ascontiguousarray(self.support, dtype=np.int32)
-        offsets = np.ascontiguousarray(self.offsets, dtype=np.int32)
-        edges = np.ascontiguousarray(self.edges, dtype=np.int32)
+        support = check_index_array(self.support, "support")
+        offsets = check_index_array(self.offsets, "offsets")
+        edges = check_index_array(self.edges, "edges")
         n = support.shape[0]
-        if support.ndim != 1 or offsets.shape != (n + 1,) or edges.ndim != 1:
+        if offsets.shape != (n + 1,):
             raise GeometryError(
-                f"a PolygonSet needs support (n,), offsets (n + 1,) and edges (m,); got {self.support.shape}, "
-                f"{self.offsets.shape} and {self.edges.shape}"
+                f"a PolygonSet needs support (n,), offsets (n + 1,) and edges (m,); got {support.shape}, "
+                f"{offsets.shape} and {edges.shape}"
             )
         if offsets[0] != 0 or offsets[-1] != edges.shape[0]:
             raise GeometryError(f"offsets must start at 0 and end at len(edges) = {edges.shape[0]}")
         sizes = np.diff(offsets)
         if n and sizes.min() < 3:
             raise GeometryError(f"polygon {int(np.argmin(sizes))} has {int(sizes.min())} edges; a polygon needs >= 3")
-        payload = np.zeros(n, np.int32) if self.payload is None else np.ascontiguousarray(self.payload, np.int32)
+        payload = np.zeros(n, np.int32) if self.payload is None else check_index_array(self.payload, "payload")
         if payload.shape != (n,):
             raise GeometryError(f"payload must have shape ({n},), got {payload.shape}")
         for name, value in (("support", support), ("offsets", offsets), ("edges", edges), ("payload", payload)):
@@ -408,7 +409,8 @@ def polygon_vertices(palette: np.ndarray, polygons: PolygonSet, i: int) -> np.nd
     if not -n <= i < n:
         raise IndexError(f"polygon index {i} out of range for {n} polygons")
     i %= n
-    one = PolygonSet(polygons.support[i : i + 1], [0, int(polygons.sizes[i])], polygons.polygon_edges(i))
+    one = PolygonSet(polygons.support[i : i + 1], np.array([0, polygons.sizes[i]], np.int32),
+                     polygons.polygon_edges(i))
     return _checked_vertices(palette, one)
 
 

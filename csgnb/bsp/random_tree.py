@@ -11,14 +11,17 @@ ancestor's); as in the paper this is not corrected.
 
 from __future__ import annotations
 
+import numbers
+
 import numpy as np
 
 from csgnb._jit import jit
+from csgnb.bsp.build import check_count, check_seed
 from csgnb.bsp.polygon import _canonical_int64, dedup_planes
 from csgnb.bsp.tree import BSPTree
-from csgnb.errors import PrecisionError
+from csgnb.errors import GeometryError, PrecisionError
 from csgnb.exact.budgets import budget
-from csgnb.exact.wide import to_wide
+from csgnb.exact.wide import check_width, to_wide
 
 __all__ = ["random_bsp", "DEFAULT_EXTENT", "DEFAULT_MAX_NORMAL"]
 
@@ -66,6 +69,16 @@ def _random_tree_kernel(points, normals, labels, planes, plane, neg, pos, label)
         n_nodes += 2
 
 
+def _probability(value, name: str) -> float:
+    """Return ``value`` as a float in [0, 1]; ``TypeError`` for non-numbers, :class:`GeometryError` outside."""
+    if isinstance(value, bool | np.bool_) or not isinstance(value, numbers.Real):
+        raise TypeError(f"{name} must be a probability (a real number in [0, 1]), got {type(value).__name__} {value!r}")
+    p = float(value)
+    if not 0.0 <= p <= 1.0:
+        raise GeometryError(f"{name} must be a probability in [0, 1], got {value!r}")
+    return p
+
+
 def random_bsp(
     n_inner: int,
     *,
@@ -111,9 +124,13 @@ def random_bsp(
     PrecisionError
         ``max_normal`` and ``extent`` together exceed the width's budget.
     """
-    n_inner = int(n_inner)
-    if n_inner < 0 or extent < 1 or max_normal < 1 or materials < 1 or not 0.0 <= p_in <= 1.0:
-        raise ValueError("need n_inner >= 0, extent >= 1, max_normal >= 1, materials >= 1 and 0 <= p_in <= 1")
+    n_inner = check_count(n_inner, "n_inner", 0)
+    width = check_width(width)
+    extent = check_count(extent, "extent", 1)
+    max_normal = check_count(max_normal, "max_normal", 1)
+    materials = check_count(materials, "materials", 1, int(np.iinfo(np.int32).max))
+    seed = check_seed(seed)
+    p_in = _probability(p_in, "p_in")
     b = budget(width)
     problems = b.plane_violations(int(max_normal), 3 * int(max_normal) * int(extent))
     if problems or 3 * max_normal * extent >= 2**62:

@@ -4,9 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from csgnb.bsp.build import check_count, check_seed
 from csgnb.bsp.tree import OUT, BSPTree
 from csgnb.errors import GeometryError
-from csgnb.exact.wide import to_wide
+from csgnb.exact.wide import check_width, to_wide
 
 __all__ = ["sphere_directions", "tangent_plane_bsp"]
 
@@ -48,7 +49,12 @@ def tangent_plane_bsp(n_planes: int, *, radius: int = 1 << 12, normal_scale: int
     lattice order: far apart in sequence) or ``"random"`` (shuffled with ``seed``).
     Extract inside the box ``[-2 * radius, 2 * radius]``.
     """
-    if order not in ("spiral", "golden", "random"):
+    n_planes = check_count(n_planes, "n_planes", 1)
+    radius = check_count(radius, "radius", 1)
+    normal_scale = check_count(normal_scale, "normal_scale", 1)
+    width = check_width(width)
+    seed = check_seed(seed)
+    if not isinstance(order, str) or order not in ("spiral", "golden", "random"):
         raise GeometryError(f"order must be 'spiral', 'golden' or 'random', got {order!r}")
     directions = sphere_directions(n_planes, "golden" if order == "golden" else "spiral")
     normals = np.rint(normal_scale * directions).astype(np.int64)

@@ -17,7 +17,7 @@ from fractions import Fraction
 import numpy as np
 
 from csgnb.bsp.build import bsp_from_mesh, check_seed
-from csgnb.bsp.extract import extract_boundary
+from csgnb.bsp.extract import check_corner, extract_boundary
 from csgnb.bsp.merging import MergeResult, merge, remove_redundancy
 from csgnb.bsp.surface import BoundarySurface
 from csgnb.bsp.tree import BSPTree
@@ -56,14 +56,6 @@ def SYMMETRIC_DIFFERENCE(a: int, b: int) -> int:  # noqa: N802
     """in where exactly one is in."""
     a, b = _labels(a, b)
     return (a or b) if not (a and b) else 0
-
-
-def _corner(value, name: str) -> tuple[int, int, int]:
-    """A box corner as three exact ints (integral floats accepted; 2.7, NaN or a wrong shape refused)."""
-    arr = integer_array(value, name)
-    if arr.shape not in ((3,), (1, 3)):
-        raise GeometryError(f"{name} must be a point (3,) of integers, got shape {arr.shape}")
-    return tuple(int(v) for v in arr.reshape(3))
 
 
 def _non_negative(value, name: str) -> int:
@@ -132,8 +124,8 @@ class BSP:
             raise TypeError(f"a BSP needs a BSPTree, got {type(tree).__name__}; build solids with BSP.from_mesh or "
                             "BSP.box")
         self.tree = tree
-        self.lo = _corner(lo, "lo")
-        self.hi = _corner(hi, "hi")
+        self.lo = check_corner(lo, "lo")
+        self.hi = check_corner(hi, "hi")
         if any(a >= b for a, b in zip(self.lo, self.hi, strict=True)):
             raise GeometryError(f"the box needs lo < hi in every coordinate, got {self.lo}, {self.hi}")
         self._surface: BoundarySurface | None = None
@@ -169,8 +161,8 @@ class BSP:
         width = check_width(width)
         seed = check_seed(seed)
         tree = bsp_from_mesh(v, faces, width=width, seed=seed)
-        lo = tuple(int(x) - margin for x in v.min(axis=0)) if lo is None else _corner(lo, "lo")
-        hi = tuple(int(x) + margin for x in v.max(axis=0)) if hi is None else _corner(hi, "hi")
+        lo = tuple(int(x) - margin for x in v.min(axis=0)) if lo is None else check_corner(lo, "lo")
+        hi = tuple(int(x) + margin for x in v.max(axis=0)) if hi is None else check_corner(hi, "hi")
         vmin, vmax = v.min(axis=0).tolist(), v.max(axis=0).tolist()
         if any(a > b for a, b in zip(lo, vmin, strict=True)) or any(a < b for a, b in zip(hi, vmax, strict=True)):
             raise GeometryError(f"the box {lo}..{hi} does not contain the mesh (its vertices span {vmin}..{vmax}); "
@@ -180,7 +172,7 @@ class BSP:
     @classmethod
     def box(cls, lo, hi, *, width: int = DEFAULT_WIDTH, domain_margin: int = 1) -> BSP:
         """The box ``[lo, hi]`` (integer corners) as a solid (six planes), in a domain ``domain_margin`` larger."""
-        lo, hi = _corner(lo, "lo"), _corner(hi, "hi")
+        lo, hi = check_corner(lo, "lo"), check_corner(hi, "hi")
         width = check_width(width)
         domain_margin = _non_negative(domain_margin, "domain_margin")
         planes = box_planes(lo, hi, width)
@@ -223,8 +215,8 @@ class BSP:
     def merge_result(self, other: BSP, fn, lo=None, hi=None) -> MergeResult:
         """The raw merge (tree before redundancy removal, with its cells) in the box [lo, hi]."""
         self._check_operand(other, fn)
-        lo = np.minimum(self.lo, other.lo) if lo is None else _corner(lo, "lo")
-        hi = np.maximum(self.hi, other.hi) if hi is None else _corner(hi, "hi")
+        lo = np.minimum(self.lo, other.lo) if lo is None else check_corner(lo, "lo")
+        hi = np.maximum(self.hi, other.hi) if hi is None else check_corner(hi, "hi")
         return merge(self.tree, other.tree, fn, lo, hi)
 
     def _check_operand(self, other, fn) -> None:

@@ -24,16 +24,42 @@ import numpy as np
 from csgnb._jit import jit
 from csgnb.errors import GeometryError
 from csgnb.exact.budgets import check_planes, check_points_against_planes
+from csgnb.exact.integral import integer_array
 from csgnb.exact.intrinsics import classify_at
 from csgnb.exact.wide import is_wide, width_of
 
-__all__ = ["OUT", "ON_BOUNDARY", "BSPTree"]
+__all__ = ["OUT", "ON_BOUNDARY", "BSPTree", "check_index_array"]
 
 OUT = 0
 """Label of an empty leaf."""
 
 ON_BOUNDARY = -2
 """Classification of a point that lies on a plane separating cells of different labels."""
+
+
+_INT32_MIN, _INT32_MAX = -(1 << 31), (1 << 31) - 1
+
+
+def check_index_array(values, name: str) -> np.ndarray:
+    """Return ``values`` as a contiguous 1-D ``int32`` array (indices or labels); a clear error otherwise.
+
+    An ``int32`` array passes without a copy; anything else is read exactly by
+    :func:`csgnb.exact.integral.integer_array` (so 2.7, NaN or strings are refused) and must
+    fit ``int32``.
+    """
+    if isinstance(values, np.ndarray) and values.dtype == np.int32:
+        arr = values
+    elif is_wide(values) or isinstance(values, str | bytes):
+        what = "a wide-integer array (those hold planes and points)" if is_wide(values) else f"the string {values!r}"
+        raise TypeError(f"{name} must be a 1-D array of int32 indices, got {what}")
+    else:
+        arr = integer_array(values, name)
+        if arr.size and (int(arr.min()) < _INT32_MIN or int(arr.max()) > _INT32_MAX):
+            raise GeometryError(f"{name} holds values beyond int32 ({int(arr.min())} .. {int(arr.max())}); "
+                                "node, plane and edge indices and labels are int32")
+    if arr.ndim != 1:
+        raise GeometryError(f"{name} must be a 1-D array of int32 indices, got shape {arr.shape}")
+    return np.ascontiguousarray(arr, dtype=np.int32)
 
 
 @jit
@@ -122,16 +148,19 @@ class BSPTree:
                 object.__setattr__(self, name, np.ascontiguousarray(getattr(self, name), dtype=np.int32))
             object.__setattr__(self, "palette", np.ascontiguousarray(self.palette))
             return
-        if not (is_wide(self.palette) and self.palette.ndim == 2 and self.palette.shape[1] == 4):
-            raise GeometryError(f"palette must be an (m, 4) wide array of planes, got {self.palette.shape}")
-        arrays = {name: getattr(self, name) for name in ("plane", "neg", "pos", "label")}
+        if not is_wide(self.palette):
+            raise TypeError(f"palette must be an (m, 4) wide array of planes (csgnb.exact.to_wide), got "
+                            f"{type(self.palette).__name__} {getattr(self.palette, 'dtype', '')}".rstrip())
+        if not (self.palette.ndim == 2 and self.palette.shape[1] == 4):
+            raise GeometryError(f"palette must be an (m, 4) wide array of planes, got shape {self.palette.shape}")
+        arrays = {name: check_index_array(getattr(self, name), name) for name in ("plane", "neg", "pos", "label")}
         n = arrays["plane"].shape[0]
         if n == 0:
             raise GeometryError("a BSP needs at least one node (a single leaf)")
         for name, arr in arrays.items():
             if arr.shape != (n,):
-                raise GeometryError(f"{name} must have shape ({n},), got {arr.shape}")
-            object.__setattr__(self, name, np.ascontiguousarray(arr, dtype=np.int32))
+                raise GeometryError(f"{name} must have shape ({n},) like plane, got {arr.shape}")
+            object.__setattr__(self, name, arr)
         object.__setattr__(self, "palette", np.ascontiguousarray(self.palette))
         inner = self.plane >= 0
         if np.any(self.plane >= self.palette.shape[0]):
