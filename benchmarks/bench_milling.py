@@ -261,8 +261,10 @@ def _report(name: str, d: dict) -> None:
           f"manifold3d first/last tenth {d['manifold3d_first_tenth_median_ms']:.1f}/"
           f"{d['manifold3d_last_tenth_median_ms']:.1f} ms")
     extra = f"; stock - removed == part: {d['exact_identity']}" if "exact_identity" in d else ""
-    print(f"  result: {d['faces']} exact polygons ({d['cells']} cells, {d['bsp_nodes']} BSP nodes); manifold3d "
-          f"{d['manifold3d_triangles']} triangles; volume {d['volume']:.6f} vs {d['manifold3d_volume']:.6f} mm^3 "
+    same = f" after the first {m}" if m != d["moves"] else ""
+    print(f"  result: {d['faces']} exact polygons ({d['cells']} cells, {d['bsp_nodes']} BSP nodes), volume "
+          f"{d['volume']:.6f} mm^3; manifold3d {d['manifold3d_triangles']} triangles{same}; volume"
+          f"{same} {d.get('volume_same_moves', d['volume']):.6f} vs {d['manifold3d_volume']:.6f} mm^3 "
           f"(rel. dev. {d['volume_rel_dev']:.2e}){extra}")
 
 
