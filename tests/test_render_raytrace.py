@@ -11,7 +11,7 @@ import pytest
 from csgnb.csg.gallery import figure2, figure15, moved, shared, tour_part
 from csgnb.errors import GeometryError
 from csgnb.render import Camera, edge_mask, raytrace
-from tests.test_csg_raycast import graph_value, world_leaves
+from tests.raycast_reference import graph_value, world_leaves
 
 
 def first_entry(node, origins, dirs):
