@@ -11,8 +11,8 @@ def test_warm_up_returns_the_seconds_per_part():
 
 
 def test_unknown_parts_are_named_in_the_error():
-    with pytest.raises(ValueError, match=r"\['octree'\].*exact"):
-        warmup.warm_up("exact", "octree")
+    with pytest.raises(ValueError, match=r"\['render'\].*exact"):
+        warmup.warm_up("exact", "render")
 
 
 def test_command_line_rejects_unknown_parts(capsys):
