@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 import pathlib
+import platform
 import time
 from functools import partial
 
@@ -48,6 +49,12 @@ def nominal_clock_ghz() -> float | None:
     except OSError:
         pass
     return None
+
+
+def nominal_clock_label() -> str:
+    """The nominal clock as printed beside wall-clock figures ("2600 MHz"), or the processor's name."""
+    ghz = nominal_clock_ghz()
+    return f"{ghz * 1000:.0f} MHz" if ghz else (platform.processor() or "unknown clock")
 
 
 def load_average() -> tuple[float, float, float] | None:

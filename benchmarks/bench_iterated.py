@@ -26,24 +26,14 @@ from __future__ import annotations
 
 import argparse
 import json
-import platform
 import time
 
 import numpy as np
+from _clock import nominal_clock_label
 
 from csgnb.apps import sweep, tools
 from csgnb.exact import Grid
 from csgnb.octree import Tool, Workpiece
-
-
-def _clock() -> str:
-    try:
-        for line in open("/proc/cpuinfo"):
-            if line.startswith("cpu MHz"):
-                return f"{float(line.split(':')[1]):.0f} MHz"
-    except OSError:
-        pass
-    return platform.processor() or "unknown clock"
 
 
 def _tenths(ts) -> tuple[float, float]:
@@ -175,8 +165,8 @@ def main() -> None:
     parser.add_argument("--json", type=str, default=None)
     args = parser.parse_args()
 
-    print(f"csgnb iterated CSG, {args.width}-bit, threshold {args.threshold}, one core, clock {_clock()}")
-    result = {"clock": _clock(), "width": args.width, "threshold": args.threshold, "workloads": {}}
+    print(f"csgnb iterated CSG, {args.width}-bit, threshold {args.threshold}, one core, clock {nominal_clock_label()}")
+    result = {"clock": nominal_clock_label(), "width": args.width, "threshold": args.threshold, "workloads": {}}
     if "drill" in args.workloads:
         d = drill_workload(args)
         result["workloads"]["drill"] = d

@@ -34,29 +34,19 @@ from __future__ import annotations
 import argparse
 import cProfile
 import json
-import platform
 import pstats
 import sys
 import time
 from fractions import Fraction
 
 import numpy as np
+from _clock import nominal_clock_label
 
 from csgnb.apps import carving, gcode, milling, tools
 from csgnb.apps.examples import EXAMPLES, example_path
 from csgnb.apps.meter import exact_volume
 from csgnb.exact import Grid
 from csgnb.octree import Workpiece
-
-
-def _clock() -> str:
-    try:
-        for line in open("/proc/cpuinfo"):
-            if line.startswith("cpu MHz"):
-                return f"{float(line.split(':')[1]):.0f} MHz"
-    except OSError:
-        pass
-    return platform.processor() or "unknown clock"
 
 
 def _tenths(ts) -> tuple[float, float]:
@@ -287,11 +277,11 @@ def main() -> None:
     parser.add_argument("--json", type=str, default=None)
     args = parser.parse_args()
 
-    print(f"csgnb milling vs manifold3d, threshold {args.threshold}, one core, clock {_clock()}")
+    print(f"csgnb milling vs manifold3d, threshold {args.threshold}, one core, clock {nominal_clock_label()}")
     t = time.perf_counter()
     _warm_up(args)
     print(f"warm-up (compile or load the kernels): {time.perf_counter() - t:.1f} s, not timed below")
-    out = {"clock": _clock(), "threshold": args.threshold, "moves_cap": args.moves, "programs": {}}
+    out = {"clock": nominal_clock_label(), "threshold": args.threshold, "moves_cap": args.moves, "programs": {}}
     for name in args.workloads:
         d = carving_workload(args) if name == "carving" else milling_workload(f"{name}.nc", args)
         out["programs"][name] = d

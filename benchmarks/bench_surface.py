@@ -25,12 +25,12 @@ from __future__ import annotations
 import argparse
 import itertools
 import json
-import platform
 import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
+from _clock import nominal_clock_label
 
 from csgnb.bsp.extract import boundary_pieces, extract_cells
 from csgnb.bsp.random_tree import random_bsp
@@ -38,16 +38,6 @@ from csgnb.bsp.surface import _assemble_surface_reference, assemble_surface
 
 TARGET_FACES = 50_000
 TARGET_EXPORT_S = 0.5  # "well under a second"
-
-
-def _clock() -> str:
-    try:
-        for line in open("/proc/cpuinfo"):
-            if line.startswith("cpu MHz"):
-                return f"{float(line.split(':')[1]):.0f} MHz"
-    except OSError:
-        pass
-    return platform.processor() or "unknown clock"
 
 
 def _best(fn, repeats: int) -> tuple[float, object]:
@@ -162,7 +152,7 @@ def main() -> None:
         f"{'input':<24} {'faces':>7} {'rows':>8} {'ref s':>8} {'new s':>8} {'speedup':>8} {'same':>5} "
         f"{'extract':>8} {'to_mesh':>8} {'manifold':>8} {'export':>8}"
     )
-    print(f"surface assembly and export, one core, clock {_clock()} (figures under load are provisional)")
+    print(f"surface assembly and export, one core, clock {nominal_clock_label()} (figures under load are provisional)")
     print(header)
     inputs = itertools.chain(random_inputs(args.bsp_sizes), workpiece_inputs(args.hulls))
     for name, tree, lo, hi, product in inputs:
@@ -219,7 +209,7 @@ def main() -> None:
         with open(args.json, "w") as fh:
             json.dump(
                 {
-                    "clock": _clock(),
+                    "clock": nominal_clock_label(),
                     "target_faces": TARGET_FACES,
                     "target_export_s": TARGET_EXPORT_S,
                     "worst_export_s_at_target": worst,
