@@ -47,7 +47,7 @@ from csgnb.bsp.solid import DIFFERENCE, UNION
 from csgnb.bsp.tree import BSPTree
 from csgnb.errors import InternalError
 from csgnb.mesh import volume as _mesh_volume
-from csgnb.mesh.hull import ConvexHull
+from csgnb.mesh.hull import ConvexHull, linear_bsp_arrays
 from csgnb.octree import Tool
 from csgnb.octree import Workpiece as OctreeWorkpiece
 from csgnb.octree.layout import BSP as BSP_CELL
@@ -259,20 +259,8 @@ def _boxes_against_planes(planes, lo, size) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _chain(planes: np.ndarray):
-    """A convex solid's linear BSP over its ``k`` wide planes: node 2i tests plane i (outside: an out leaf at
-    2i + 1; inside: on to 2i + 2); node 2k is the inside, where another tree can be grafted."""
-    k = planes.shape[0]
-    idx = np.arange(k)
-    plane = np.full(2 * k + 1, -1, np.int32)
-    neg = np.full(2 * k + 1, -1, np.int32)
-    pos = np.full(2 * k + 1, -1, np.int32)
-    label = np.zeros(2 * k + 1, np.int32)
-    plane[2 * idx] = idx
-    neg[2 * idx] = 2 * idx + 2
-    pos[2 * idx] = 2 * idx + 1
-    label[2 * idx] = -1
-    label[2 * k] = 1
-    return planes, plane, neg, pos, label
+    """A convex solid's linear BSP over its ``k`` wide planes (:func:`csgnb.mesh.hull.linear_bsp_arrays`)."""
+    return (planes, *linear_bsp_arrays(planes.shape[0]))
 
 
 def _bsp_volume(w, node: int, lo: np.ndarray, hi: np.ndarray, chain=None) -> Fraction:

@@ -346,18 +346,7 @@ class ConvexHull:
         from csgnb.bsp.solid import BSP
         from csgnb.bsp.tree import BSPTree
 
-        k = self.n_planes
-        idx = np.arange(k)
-        plane = np.full(2 * k + 1, -1, np.int32)
-        neg = np.full(2 * k + 1, -1, np.int32)
-        pos = np.full(2 * k + 1, -1, np.int32)
-        label = np.zeros(2 * k + 1, np.int32)
-        plane[2 * idx] = idx
-        neg[2 * idx] = 2 * idx + 2
-        pos[2 * idx] = 2 * idx + 1
-        label[2 * idx] = -1
-        label[2 * k] = 1
-        tree = BSPTree(self.planes_wide(width), plane, neg, pos, label)
+        tree = BSPTree(self.planes_wide(width), *linear_bsp_arrays(self.n_planes))
         return BSP(tree, self.lo - margin, self.hi + margin)
 
     def __repr__(self) -> str:
@@ -415,6 +404,25 @@ def _flat_error(P: np.ndarray, name: str) -> GeometryError:
         what = "coplanar"
     return GeometryError(f"the convex hull of these {len(P)} {name} is degenerate: they are {what}, so it has no "
                          "volume. A sweep of a flat piece along its own plane has zero volume and can be skipped")
+
+
+def linear_bsp_arrays(k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Node arrays ``plane, neg, pos, label`` ``(2k + 1,) int32`` of a convex solid's linear BSP over ``k`` planes.
+
+    Node 2i tests plane i (outside: an out leaf at 2i + 1; inside: on to 2i + 2); node 2k is the
+    in leaf (where another tree can be grafted).
+    """
+    idx = np.arange(k)
+    plane = np.full(2 * k + 1, -1, np.int32)
+    neg = np.full(2 * k + 1, -1, np.int32)
+    pos = np.full(2 * k + 1, -1, np.int32)
+    label = np.zeros(2 * k + 1, np.int32)
+    plane[2 * idx] = idx
+    neg[2 * idx] = 2 * idx + 2
+    pos[2 * idx] = 2 * idx + 1
+    label[2 * idx] = -1
+    label[2 * k] = 1
+    return plane, neg, pos, label
 
 
 def convex_hull(points, *, width: int = DEFAULT_WIDTH, grid=None, name: str = "points") -> ConvexHull:
