@@ -5,10 +5,18 @@ and the absence of ``fastmath``, are decided in one place:
 
 * ``cache=True`` by default: compiled machine code is written to disk and reused
   by the next process. Set ``CSGNB_DISABLE_CACHE=1`` to switch it off.
-* The cache of a csgnb kernel is keyed on the source of the *whole package*, not
+* The cache of a csgnb kernel is keyed on the sources of its module **and of every
+  csgnb module that module imports, transitively** (:func:`dependency_hash`), not
   only on the file the kernel lives in (numba's default). Kernels inline
   wide-integer intrinsics from other modules; with numba's per-file key an edit
-  of ``csgnb/exact/intrinsics.py`` would keep serving stale machine code.
+  of ``csgnb/exact/intrinsics.py`` would keep serving stale machine code. A kernel
+  can only call what its module's globals name, and those come from its imports,
+  so the import closure covers everything it inlines; an edit of
+  ``csgnb/apps/gcode.py`` recompiles only the kernels whose modules import it,
+  not the exact, mesh, bsp and octree kernels (minutes of compilation).
+* A cache folder that cannot be written (a read-only install, another user's
+  ``NUMBA_CACHE_DIR``) falls back to a per-user folder, then to no cache, with a
+  warning, instead of failing at import.
 * ``fastmath`` is never enabled: it allows reassociation and removes NaN/inf
   handling, which voids the IEEE error bounds the float filters and the
   conservative distances rely on.
@@ -18,15 +26,17 @@ and the absence of ``fastmath``, are decided in one place:
 
 from __future__ import annotations
 
+import ast
 import functools
 import hashlib
 import os
+import tempfile
 import warnings
 from pathlib import Path
 
 import numba
 
-__all__ = ["CACHE_ENABLED", "PACKAGE_SOURCE_HASH", "jit"]
+__all__ = ["CACHE_ENABLED", "PACKAGE_SOURCE_HASH", "dependency_hash", "jit", "module_dependencies"]
 
 _PACKAGE_DIR = Path(__file__).resolve().parent
 
@@ -43,16 +53,123 @@ def _package_source_hash() -> str:
     return digest.hexdigest()
 
 
+def _module_file(name: str, package_dir: Path) -> Path | None:
+    """The source file of csgnb module ``name`` (``csgnb.a.b``) under ``package_dir``, or None."""
+    parts = name.split(".")
+    if parts[0] != "csgnb":
+        return None
+    base = package_dir.joinpath(*parts[1:])
+    for candidate in (base.with_suffix(".py"), base / "__init__.py"):
+        if candidate.is_file():
+            return candidate
+    return None
+
+
+def _imported_modules(path: Path, package_dir: Path) -> set[Path]:
+    """The csgnb source files whose globals ``path`` can reach through its imports (lazy ones included).
+
+    ``from csgnb.a.b import x`` reaches ``csgnb/a/b.py`` (or ``csgnb/a/b/__init__.py``) and ``csgnb/a/b/x.py``
+    when ``x`` is a submodule; ``import csgnb.a.b`` binds ``csgnb``, so every package on the way counts.
+    Running ``csgnb/a/__init__.py`` on the way does not matter: a kernel sees only the names it imports."""
+    out: set[Path] = set()
+    tree = ast.parse(path.read_bytes(), filename=str(path))
+    names: list[str] = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            for alias in node.names:
+                parts = alias.name.split(".")
+                names.extend(".".join(parts[:k]) for k in range(2, len(parts) + 1))
+        elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+            names.append(node.module)
+            names.extend(f"{node.module}.{a.name}" for a in node.names)  # `from pkg import submodule`
+    for name in names:
+        f = _module_file(name, package_dir)
+        if f is not None:
+            out.add(f)
+    return out
+
+
+def module_dependencies(path, package_dir=None) -> list[Path]:
+    """The csgnb source files the module at ``path`` depends on: itself, this policy module and every
+    csgnb module it imports, transitively (sorted). ``package_dir`` defaults to this package."""
+    package_dir = Path(package_dir or _PACKAGE_DIR).resolve()
+    start = Path(path).resolve()
+    seen = {start, package_dir / "_jit.py"}
+    todo = [start]
+    while todo:
+        for dep in _imported_modules(todo.pop(), package_dir):
+            if dep not in seen:
+                seen.add(dep)
+                todo.append(dep)
+    return sorted(p for p in seen if p.is_file())
+
+
+def dependency_hash(path, package_dir=None) -> str:
+    """SHA-256 over the sources of :func:`module_dependencies` of ``path``: part of its kernels' cache key."""
+    root = Path(package_dir or _PACKAGE_DIR).resolve()
+    digest = hashlib.sha256()
+    for dep in module_dependencies(path, root):
+        digest.update(str(dep.relative_to(root)).encode())
+        digest.update(dep.read_bytes())
+    return digest.hexdigest()
+
+
+#: One computation per module and process (a module's kernels share it).
+_process_dependency_hash = functools.cache(dependency_hash)
+
+
 #: Whether compiled kernels are cached on disk (off when ``CSGNB_DISABLE_CACHE`` is set).
 CACHE_ENABLED: bool = not _env_flag("CSGNB_DISABLE_CACHE")
 
-#: SHA-256 of every ``.py`` file of the package: part of each cached kernel's key.
+#: SHA-256 of every ``.py`` file of the package (a version stamp; cache keys use :func:`dependency_hash`).
 PACKAGE_SOURCE_HASH: str = _package_source_hash()
 
 
+def _writable(folder: str) -> bool:
+    try:
+        os.makedirs(folder, exist_ok=True)
+        tempfile.TemporaryFile(dir=folder).close()
+        return True
+    except OSError:
+        return False
+
+
+def _cache_roots() -> list[str]:
+    """Where csgnb kernels may be cached, in order of preference: ``NUMBA_CACHE_DIR`` when set, else the
+    package's ``__pycache__`` folders (numba's default); then a per-user folder."""
+    from numba.core import config
+
+    roots = [config.CACHE_DIR] if config.CACHE_DIR else [str(_PACKAGE_DIR / "__pycache__")]
+    user = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+    roots.append(os.path.join(user, "csgnb", "numba"))
+    return roots
+
+
+def _choose_cache_root() -> str | None:
+    """The first writable cache root; a warning when it is not the preferred one; None when none is."""
+    roots = _cache_roots()
+    for k, root in enumerate(roots):
+        if _writable(root):
+            if k:
+                warnings.warn(f"csgnb: cannot write the numba cache folder {roots[0]}; caching compiled kernels "
+                              f"in {root} instead (set NUMBA_CACHE_DIR to a writable folder to choose)",
+                              RuntimeWarning, stacklevel=3)
+            return root
+    warnings.warn(f"csgnb: none of the numba cache folders {roots} can be written; kernels are compiled in "
+                  "every process (set NUMBA_CACHE_DIR to a writable folder to cache them)",
+                  RuntimeWarning, stacklevel=3)
+    return None
+
+
+#: The folder compiled kernels are cached under (None: caching off or impossible).
+CACHE_ROOT: str | None = _choose_cache_root() if CACHE_ENABLED else None
+if CACHE_ROOT is None:
+    CACHE_ENABLED = False
+
+
 def _install_package_cache_locator() -> None:
-    """Put a locator keyed on :data:`PACKAGE_SOURCE_HASH` first in numba's list, for csgnb files only."""
-    from numba.core import caching, config
+    """Put a locator keyed on :func:`dependency_hash` first in numba's list, for csgnb files only."""
+    from numba.core import caching
 
     # numba renamed these from private to public names over its versions.
     impl = getattr(caching, "CacheImpl", None) or getattr(caching, "_CacheImpl", None)
@@ -69,11 +186,10 @@ def _install_package_cache_locator() -> None:
     class PackageCacheLocator(base):
         def __init__(self, py_func, py_file):
             super().__init__(py_func, py_file)
-            if config.CACHE_DIR:  # honour NUMBA_CACHE_DIR like numba's own locator
-                self._cache_path = os.path.join(config.CACHE_DIR, self.get_suitable_cache_subpath(py_file))
+            self._cache_path = os.path.join(CACHE_ROOT, self.get_suitable_cache_subpath(py_file))
 
         def get_source_stamp(self):
-            return (super().get_source_stamp(), PACKAGE_SOURCE_HASH)
+            return (super().get_source_stamp(), _process_dependency_hash(self._py_file))
 
         @classmethod
         def from_function(cls, py_func, py_file):
@@ -81,7 +197,7 @@ def _install_package_cache_locator() -> None:
                 inside = Path(py_file).resolve().is_relative_to(_PACKAGE_DIR)
             except OSError:
                 inside = False
-            return super().from_function(py_func, py_file) if inside else None
+            return super().from_function(py_func, py_file) if inside and CACHE_ROOT else None
 
     if not any(c.__name__ == "PackageCacheLocator" for c in impl._locator_classes):
         impl._locator_classes.insert(0, PackageCacheLocator)

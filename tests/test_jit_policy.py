@@ -4,6 +4,7 @@ import ast
 import json
 import os
 import pathlib
+import shutil
 import subprocess
 import sys
 import textwrap
@@ -45,12 +46,61 @@ def test_cache_can_be_switched_off(tmp_path):
     assert not any(tmp_path.rglob("*.nbi"))
 
 
-def test_cache_key_includes_the_whole_package_source():
-    from csgnb._jit import PACKAGE_SOURCE_HASH
+def test_cache_key_covers_the_kernels_import_closure():
+    from csgnb._jit import dependency_hash, module_dependencies
     from csgnb.exact import predicates
 
     locator = predicates._classify_kernel._cache._impl.locator
-    assert PACKAGE_SOURCE_HASH in locator.get_source_stamp()
+    assert dependency_hash(predicates.__file__) in locator.get_source_stamp()
+    deps = {p.relative_to(PACKAGE).as_posix() for p in module_dependencies(predicates.__file__)}
+    # the intrinsics a predicate inlines, and the policy module itself
+    assert {"exact/predicates.py", "exact/intrinsics.py", "exact/lowering.py", "_jit.py"} <= deps
+    assert not any(d.startswith(("octree/", "apps/", "quadric/")) for d in deps)
+
+
+def test_an_edit_invalidates_only_the_kernels_that_depend_on_it(tmp_path):
+    """Edit one module in a copy of the package: exactly the modules importing it (transitively) get a new key."""
+    from csgnb._jit import dependency_hash, module_dependencies
+
+    copy = tmp_path / "csgnb"
+    shutil.copytree(PACKAGE, copy, ignore=shutil.ignore_patterns("__pycache__"))
+    modules = sorted(copy.rglob("*.py"))
+    before = {p: dependency_hash(p, copy) for p in modules}
+    for edited in ("octree/kernels.py", "apps/gcode.py", "exact/intrinsics.py"):
+        target = copy / edited
+        target.write_text(target.read_text() + "\n# an edit\n")
+        after = {p: dependency_hash(p, copy) for p in modules}
+        changed = {p for p in modules if after[p] != before[p]}
+        dependants = {p for p in modules if target in module_dependencies(p, copy)}
+        assert changed == dependants, edited
+        before = after
+        rel = {p.relative_to(copy).as_posix() for p in changed}
+        if edited == "octree/kernels.py":  # the octree's dependants, never the layers below it
+            assert "octree/workpiece.py" in rel
+            assert not any(r.startswith(("exact/", "mesh/", "bsp/", "quadric/", "sampling/")) for r in rel)
+        if edited == "apps/gcode.py":
+            assert not any(r.startswith(("exact/", "mesh/", "bsp/", "octree/")) for r in rel)
+        if edited == "exact/intrinsics.py":  # what inlines the intrinsics recompiles
+            assert {"exact/predicates.py", "mesh/cutting.py", "octree/kernels.py"} <= rel
+
+
+def test_an_unwritable_cache_folder_falls_back_with_a_warning(tmp_path):
+    locked = tmp_path / "locked"
+    locked.mkdir()
+    locked.chmod(0o500)
+    script = ("import warnings; warnings.simplefilter('always')\n"
+              "import csgnb._jit as j; print('ROOT', j.CACHE_ROOT, j.CACHE_ENABLED)\n"
+              "from csgnb import exact\n"
+              "exact.intersect_3_planes(*exact.to_wide([[1, 0, 0, -1], [0, 1, 0, -2], [0, 0, 1, -3]], 128))\n")
+    environ = {k: v for k, v in os.environ.items() if k != "CSGNB_DISABLE_CACHE"}
+    environ.update(NUMBA_CACHE_DIR=str(locked / "cache"), XDG_CACHE_HOME=str(tmp_path / "user"))
+    if os.geteuid() == 0:  # root writes anywhere: make the folder a file instead
+        locked.chmod(0o700)
+        (locked / "cache").write_text("not a folder")
+    out = subprocess.run([sys.executable, "-c", script], env=environ, capture_output=True, text=True)
+    assert out.returncode == 0, out.stderr
+    assert f"ROOT {tmp_path / 'user'}" in out.stdout and "True" in out.stdout
+    assert "cannot write the numba cache folder" in out.stderr
 
 
 def test_no_fastmath_and_one_jit_policy():
