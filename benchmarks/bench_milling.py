@@ -44,7 +44,6 @@ from _clock import nominal_clock_label
 
 from csgnb.apps import carving, gcode, milling, tools
 from csgnb.apps.examples import EXAMPLES, example_path
-from csgnb.apps.meter import exact_volume
 from csgnb.exact import Grid
 from csgnb.octree import Workpiece
 
@@ -169,7 +168,7 @@ def carving_workload(args) -> dict:
     csg_total = time.perf_counter() - t0
     _phase(f"csgnb carved {n} dodecahedra in {csg_total:.1f} s")
     t = time.perf_counter()
-    vol = exact_volume(w) / Fraction(grid.scale) ** 3
+    vol = w.volume() / Fraction(grid.scale) ** 3
     volume_s = time.perf_counter() - t
     if removed is not None:
         assert before - sum(removed) == vol
@@ -195,7 +194,7 @@ def carving_workload(args) -> dict:
     if m < n:
         wm = Workpiece.box(*box, grid=grid, threshold=args.threshold)
         carving.carve(wm, c, progress=False, limit=m, track_volume=False)
-        vol_m = exact_volume(wm) / Fraction(grid.scale) ** 3
+        vol_m = wm.volume() / Fraction(grid.scale) ** 3
     else:
         vol_m = vol
     # The hull's construction is inside csgnb's step time and outside manifold3d's (it makes the grid points both

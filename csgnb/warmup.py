@@ -1,9 +1,10 @@
 """Compiling csgnb's numba kernels ahead of use, with a progress bar: the set-up runs it, notebooks call it first.
 
 numba compiles a kernel the first time it is called with new argument types; csgnb caches the machine code on
-disk (``NUMBA_CACHE_DIR``, see :mod:`csgnb._jit`), keyed on the source of the whole package. So the first run
-after an install or an edit of csgnb compiles for one to three minutes, and every later run loads the kernels from
-the cache in seconds. :func:`warm_up` runs one small, typical workload per part of the package so that this
+disk (``NUMBA_CACHE_DIR``, see :mod:`csgnb._jit`), keyed on the sources of the kernel's module and of every csgnb
+module it imports. So the first run after an install compiles for minutes, an edit recompiles the kernels that
+depend on the edited module, and every later run loads the kernels from the cache in seconds. :func:`warm_up`
+runs one small, typical workload per part of the package so that this
 happens up front, visibly, instead of as a silent ``[*]`` in the middle of a notebook.
 
 ``python -m csgnb.warmup`` warms every part (``scripts/demo.sh`` and ``scripts/lab.sh`` call it).
@@ -12,6 +13,7 @@ happens up front, visibly, instead of as a silent ``[*]`` in the middle of a not
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import time
 
@@ -110,35 +112,74 @@ def _sampling() -> None:
 PARTS = {"exact": _exact, "mesh": _mesh, "bsp": _bsp, "octree": _octree, "quadric": _quadric, "sampling": _sampling}
 
 
-def warm_up(*parts: str, progress: bool = True) -> dict[str, float]:
+#: The two pipelines share no kernel: their parts compile in parallel processes.
+TRACKS = (("exact", "mesh", "bsp", "octree"), ("quadric", "sampling"))
+
+
+def _warm_parts(names: list[str]) -> dict[str, float]:
+    """Warm ``names`` in order, without output (run in a helper process by :func:`warm_up`)."""
+    seconds = {}
+    for name in names:
+        t0 = time.perf_counter()
+        PARTS[name]()
+        seconds[name] = time.perf_counter() - t0
+    return seconds
+
+
+def warm_up(*parts: str, progress: bool = True, parallel: bool | None = None) -> dict[str, float]:
     """Compile (or load from the cache) the kernels of ``parts`` (default: all of :data:`PARTS`).
 
     Prints what it does and shows a ``tqdm`` progress bar (a widget in a notebook) unless ``progress=False``.
+    With ``parallel`` (default: when the machine has more than one core and both tracks are asked for) the
+    quadric track compiles in a second process while this one compiles the exact track (:data:`TRACKS`).
     Returns the seconds spent per part.
     """
     names = list(parts) or list(PARTS)
     unknown = [p for p in names if p not in PARTS]
     if unknown:
         raise ValueError(f"unknown part(s) {unknown}: warm_up knows {list(PARTS)}")
+    here = [n for n in names if n in TRACKS[0]]
+    there = [n for n in names if n not in TRACKS[0]]
+    if parallel is None:
+        parallel = (os.cpu_count() or 1) > 1
+    if not (parallel and here and there):
+        here, there = names, []
     if progress:
         from tqdm.auto import tqdm
 
         print("Preparing csgnb's numba kernels for " + ", ".join(names) + ": compiled on the first run after an "
-              "install or an edit (1-3 minutes), loaded from the cache (NUMBA_CACHE_DIR) afterwards.", flush=True)
-        bar = tqdm(names, desc="numba kernels", unit="part", leave=False)
-    else:
-        bar = names
-    seconds = {}
-    for name in bar:
-        if progress:
-            bar.set_postfix_str(name)
-        t0 = time.perf_counter()
-        PARTS[name]()
-        seconds[name] = time.perf_counter() - t0
+              "install or an edit of the modules they depend on (minutes), loaded from the cache (NUMBA_CACHE_DIR) "
+              "afterwards." + (f" {', '.join(there)} compile in a second process." if there else ""), flush=True)
+        bar = tqdm(total=len(names), desc="numba kernels", unit="part", leave=False)
+    seconds: dict[str, float] = {}
+    pool = future = None
+    if there:
+        import multiprocessing
+        from concurrent.futures import ProcessPoolExecutor
+
+        pool = ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn"))
+        future = pool.submit(_warm_parts, there)
+    try:
+        for name in here:
+            if progress:
+                bar.set_postfix_str(name)
+            seconds.update(_warm_parts([name]))
+            if progress:
+                bar.update(1)
+        if future is not None:
+            if progress:
+                bar.set_postfix_str(", ".join(there))
+            seconds.update(future.result())
+            if progress:
+                bar.update(len(there))
+    finally:
+        if pool is not None:
+            pool.shutdown(cancel_futures=True)
     if progress:
         bar.close()
-        print(f"Kernels ready ({sum(seconds.values()):.0f} s).", flush=True)
-    return seconds
+        print(f"Kernels ready ({sum(seconds.values()):.0f} s of compilation"
+              + (", two processes)." if there else ")."), flush=True)
+    return {n: seconds[n] for n in names}
 
 
 def main(argv=None) -> int:

@@ -34,13 +34,27 @@ if [ ! -x .venv/bin/python ]; then
     echo "csgnb setup: creating .venv with $($PYTHON --version)"
     "$PYTHON" -m venv .venv
 fi
-# Reinstall only when the package metadata changed since the last install.
+# Dependencies: by default exactly requirements.lock (pinned versions and file hashes: a fresh machine gets what CI
+# tested; scripts/lock.sh refreshes it). CSGNB_DEPS=latest installs the newest releases instead (to find breakage
+# from new versions deliberately). Reinstall only when the lock, the package metadata or the mode changed.
+deps_mode="${CSGNB_DEPS:-lock}"
+case "$deps_mode" in
+    lock|latest) ;;
+    *) echo "csgnb setup: CSGNB_DEPS must be 'lock' (default) or 'latest', got '$deps_mode'" >&2; exit 2 ;;
+esac
 stamp=.venv/.csgnb-installed
-if [ ! -f "$stamp" ] || [ pyproject.toml -nt "$stamp" ]; then
-    echo "csgnb setup: pip install -e .[dev] (first time: a few minutes)"
+wanted="$deps_mode $(cat pyproject.toml requirements.lock | sha256sum | cut -c1-16)"
+if [ ! -f "$stamp" ] || [ "$(cat "$stamp")" != "$wanted" ]; then
     .venv/bin/python -m pip install -q --upgrade pip
-    .venv/bin/python -m pip install -q -e ".[dev]"
-    touch "$stamp"
+    if [ "$deps_mode" = lock ]; then
+        echo "csgnb setup: pip install -r requirements.lock (pinned, hash-checked; first time: a few minutes)"
+        .venv/bin/python -m pip install -q --require-hashes -r requirements.lock
+        .venv/bin/python -m pip install -q --no-deps -e .
+    else
+        echo "csgnb setup: pip install --upgrade -e .[dev] (CSGNB_DEPS=latest: the newest releases, not the lock)"
+        .venv/bin/python -m pip install -q --upgrade --upgrade-strategy eager -e ".[dev]"
+    fi
+    echo "$wanted" > "$stamp"
 fi
 
 export PATH="$ROOT/.venv/bin:$PATH"

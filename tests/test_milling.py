@@ -5,7 +5,7 @@ The reference for straight cuts of a flat end mill is independent of the hull an
 a plunge removes area(P) x depth, a horizontal move then removes width(P across the move) x
 depth more, where P is the tool's grid polygon (shoelace area and projections with Python
 ints). Volumes are in mm³ as exact Fractions (the grid scale is a power of two). The
-per-move volumes on the octree are measured locally (:mod:`csgnb.apps.meter`); tests here
+per-move volumes on the octree are measured locally (:mod:`csgnb.octree.volume`); tests here
 check them against whole-workpiece volumes and against the reference engine.
 """
 
@@ -20,7 +20,6 @@ import pytest
 from csgnb import GeometryError
 from csgnb.apps import gcode, milling, sweep, tools
 from csgnb.apps._bsp_workpiece import BSPWorkpiece
-from csgnb.apps.meter import VolumeMeter
 from csgnb.exact import Grid
 from csgnb.mesh.hull import convex_hull
 from csgnb.octree import Workpiece
@@ -193,11 +192,11 @@ def test_tools_on_another_grid_and_bad_tools_are_refused(W, flat):
     with pytest.raises(GeometryError, match="one grid"):
         w.difference(other.hull_at((0, 0, 0)))
     with pytest.raises(GeometryError, match="one grid"):
-        VolumeMeter(w).difference(other.hull_at((0, 0, 0)))
+        w.difference(other.hull_at((0, 0, 0)), track_volume=True)
     with pytest.raises(TypeError):
         w.difference(np.zeros((3, 3)))
     with pytest.raises(TypeError, match="quantize"):
-        VolumeMeter(w).difference((flat.offsets.astype(float), flat.faces))
+        w.difference((flat.offsets.astype(float), flat.faces), track_volume=True)
     with pytest.raises(GeometryError, match="no tool 2"):
         milling.simulate(w, gcode.parse("T2 M6\nG0 X1"), {1: flat}, progress=False)
     assert w.model_volume() == 40 * 30 * 10
@@ -207,7 +206,7 @@ def test_tools_on_another_grid_and_bad_tools_are_refused(W, flat):
 def test_workpiece_booleans_return_exact_volume_changes(cls):
     g = Grid.from_resolution(1.0)
     w = cls.empty(g)
-    meter = VolumeMeter(w)
+    meter = _Measured(w)
     assert w.volume() == 0
     a = convex_hull(np.array([[0, 0, 0], [4, 0, 0], [0, 4, 0], [0, 0, 4]]), grid=g)
     b = convex_hull(np.array([[10, 0, 0], [12, 0, 0], [10, 3, 0], [10, 0, 6], [12, 3, 6]]), grid=g)
@@ -221,6 +220,21 @@ def test_workpiece_booleans_return_exact_volume_changes(cls):
     assert w.surface().n_polygons == 0
 
 
+class _Measured:
+    """``op(tool) -> (exact change, report)`` through ``track_volume=True``: removed volume for a difference."""
+
+    def __init__(self, w):
+        self.w = w
+
+    def difference(self, tool):
+        report = self.w.difference(tool, track_volume=True)
+        return -report.volume_change, report
+
+    def union(self, tool):
+        report = self.w.union(tool, track_volume=True)
+        return report.volume_change, report
+
+
 def tetra(a, s):
     a = np.asarray(a)
     return (np.array([a, a + [s, 0, 0], a + [0, s, 0], a + [0, 0, s]]),
@@ -228,14 +242,14 @@ def tetra(a, s):
 
 
 @pytest.mark.parametrize("threshold", [12, 40])
-def test_the_meter_equals_whole_volume_differences_through_splits_and_combines(threshold):
+def test_tracked_changes_equal_whole_volume_differences_through_splits_and_combines(threshold):
     """Random hulls and meshes cut and filled back: every measured change is the exact difference of the
     whole workpiece's volumes, and the reference engine measures the same numbers."""
     rng = np.random.default_rng(threshold)
     g = Grid.from_resolution(1.0)
     w = Workpiece.box([0, 0, 0], [32, 32, 32], grid=g, threshold=threshold)
     ref = BSPWorkpiece.box([0, 0, 0], [32, 32, 32], grid=g)
-    meter, ref_meter = VolumeMeter(w), VolumeMeter(ref)
+    meter, ref_meter = _Measured(w), _Measured(ref)
     before = w.volume()
     ops = []
     for i in range(14):
@@ -254,7 +268,7 @@ def test_the_meter_equals_whole_volume_differences_through_splits_and_combines(t
         before = after
     assert w.stats.splits > 0 and w.stats.combines > 0
     assert w.volume() == ref.volume()
-    # Booleans the meter did not see (here a plain one) do not fool it.
+    # Booleans measured by no one (here a plain one) do not fool the cache.
     w -= convex_hull(np.array([[4, 20, 4], [20, 20, 4], [4, 30, 4], [4, 20, 20]]), grid=g)
     v = w.volume()
     cut = convex_hull(np.array([[2, 2, 2], [30, 4, 2], [4, 30, 6], [6, 6, 30]]), grid=g)
@@ -308,7 +322,7 @@ def test_a_ball_mill_cut_matches_an_independent_halfspace_intersection(W):
         b = np.r_[rng.uniform(5, 35), rng.uniform(5, 25), rng.uniform(-4, -1)]
         w = W.box(*STOCK, grid=GRID)
         (hull,) = sweep.straight_sweep(ball, a, b).hulls
-        removed, _ = VolumeMeter(w).difference(hull)
+        removed, _ = _Measured(w).difference(hull)
         g = GRID.to_grid(np.array(STOCK, float)).astype(float)
         box = np.array([[-1, 0, 0, g[0, 0]], [1, 0, 0, -g[1, 0]], [0, -1, 0, g[0, 1]], [0, 1, 0, -g[1, 1]],
                         [0, 0, -1, g[0, 2]], [0, 0, 1, -g[1, 2]]])

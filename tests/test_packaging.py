@@ -37,3 +37,39 @@ def test_every_notebook_chapter_present_is_numbered():
     names = sorted(p.stem for p in (ROOT / "notebooks").glob("*.ipynb"))
     assert "00_tour" in names
     assert all(re.match(r"^\d\d_[a-z0-9_]+$", n) for n in names)
+
+
+def _locked() -> dict[str, str]:
+    text = (ROOT / "requirements.lock").read_text()
+    return {m.group(1).lower().replace("_", "-"): m.group(2)
+            for m in re.finditer(r"^([A-Za-z0-9_.\-]+)==(\S+)", text, re.MULTILINE)}
+
+
+def test_the_lock_pins_every_dependency_with_hashes_and_the_setup_installs_it():
+    project = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]
+    locked = _locked()
+    wanted = {_name(r) for r in project["dependencies"] + project["optional-dependencies"]["dev"]}
+    assert wanted <= set(locked), f"not in requirements.lock (run bash scripts/lock.sh): {wanted - set(locked)}"
+    text = (ROOT / "requirements.lock").read_text()
+    blocks = re.split(r"\n(?=[A-Za-z0-9_.\-]+==)", text.split("\n", 2)[2])
+    assert all("--hash=sha256:" in b for b in blocks if "==" in b)
+    setup = (ROOT / "scripts" / "setup.sh").read_text()
+    assert "--require-hashes -r requirements.lock" in setup and 'CSGNB_DEPS:-lock' in setup
+
+
+def test_the_installed_versions_are_the_locked_ones():
+    """What the tests run on is what the lock says (unless CSGNB_DEPS=latest asked for the newest releases)."""
+    import os
+    from importlib.metadata import PackageNotFoundError, version
+
+    if os.environ.get("CSGNB_DEPS", "lock") == "latest":
+        return
+    wrong = {}
+    for name, pinned in _locked().items():
+        try:
+            got = version(name)
+        except PackageNotFoundError:
+            got = None
+        if got != pinned:
+            wrong[name] = (pinned, got)
+    assert not wrong, f"installed versions differ from requirements.lock (re-run scripts/setup.sh): {wrong}"

@@ -19,3 +19,9 @@ def test_command_line_rejects_unknown_parts(capsys):
     with pytest.raises(SystemExit):
         warmup.main(["nope"])
     assert "unknown part" in capsys.readouterr().err
+
+
+def test_the_two_tracks_warm_in_parallel_processes():
+    """exact + quadric: the quadric part runs in a second (spawned) process; both report their seconds."""
+    seconds = warmup.warm_up("exact", "quadric", progress=False, parallel=True)
+    assert list(seconds) == ["exact", "quadric"] and all(v >= 0 for v in seconds.values())

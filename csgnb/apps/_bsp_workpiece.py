@@ -184,11 +184,10 @@ class BSPWorkpiece:
         """The exact, closed boundary (grid coordinates)."""
         return self.bsp.surface()
 
-    def to_mesh(self) -> tuple[np.ndarray, np.ndarray]:
-        """The exact boundary as float model vertices ``(n, 3)`` and outward triangles ``(m, 3) int64``."""
-        from csgnb.apps.export import part_mesh
-
-        return part_mesh(self)
+    def to_mesh(self, manifold: bool = False) -> tuple[np.ndarray, np.ndarray]:
+        """The exact boundary as float model vertices ``(n, 3)`` and outward triangles ``(m, 3) int64``
+        (the triangulation of :meth:`csgnb.octree.Workpiece.to_mesh`)."""
+        return self.surface().to_mesh(manifold, transform=self.grid.to_model)
 
     def to_polydata(self):
         """The boundary as a pyvista ``PolyData`` in model units."""

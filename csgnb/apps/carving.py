@@ -190,8 +190,8 @@ def carve(workpiece, carving: Carving, *, progress: bool = True, limit: int | No
     Parameters
     ----------
     track_volume : bool
-        Measure each step's exact removed volume (on the octree cells the dodecahedron
-        reaches, :class:`csgnb.apps.meter.VolumeMeter`); without it ``removed`` is None and
+        Measure each step's exact removed volume (the workpiece measures it on the octree
+        cells the dodecahedron reaches, :mod:`csgnb.octree.volume`); without it ``removed`` is None and
         the steps cost only the Booleans.
 
     Returns
@@ -203,20 +203,16 @@ def carve(workpiece, carving: Carving, *, progress: bool = True, limit: int | No
     """
     from tqdm.auto import tqdm
 
-    from csgnb.apps.meter import VolumeMeter
-
     if not carving.grid.same_as(workpiece.grid):
         raise GeometryError("the carving and the workpiece lie on different grids")
     k = len(carving) if limit is None else min(int(limit), len(carving))
     unit = Fraction(carving.grid.scale) ** 3
-    meter = VolumeMeter(workpiece) if track_volume else None
     removed, seconds = ([] if track_volume else None), []
     for i in tqdm(range(k), disable=not progress, desc="carving", unit="solid"):
         t0 = time.perf_counter()
         hull = carving.hull(i)
-        if meter is None:
-            workpiece.difference(hull)
-        else:
-            removed.append(meter.difference(hull)[0] / unit)
+        report = workpiece.difference(hull, track_volume=track_volume)
+        if track_volume:
+            removed.append(report.removed / unit)
         seconds.append(time.perf_counter() - t0)
     return removed, seconds

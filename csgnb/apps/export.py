@@ -1,108 +1,113 @@
-"""A workpiece's exact boundary as float triangles (model units) and as an STL file (meshio).
+"""A milled part as an STL file that other programs can trust: one triangulation, checked as written.
 
-The boundary (:class:`csgnb.bsp.surface.BoundarySurface`) is conforming: an edge of one
-polygon that carries a vertex of a neighbour (a T-junction) carries it too. Such polygons
-have *flat* vertices (collinear with both neighbours); a plain fan would join vertices of
-one edge into zero-area triangles. :func:`surface_triangles` clips ears at strict corners
-next to flat vertices first (deciding collinearity exactly on the homogeneous integer
-vertices), so every triangle has area and the mesh stays closed edge for edge.
+There is one triangulation path for every export: the workpiece's own
+(``workpiece.to_mesh(manifold=True)``, :meth:`csgnb.bsp.surface.BoundarySurface.triangulate`:
+no flat triangle next to a T-junction vertex, vertices duplicated along edges that four faces
+share). What this module adds is the file format's own problem: a binary STL stores each
+triangle's corners as float32 and no vertex identity, so
+
+* two exact vertices closer than a float32 step become one point, and a triangle with two such
+  corners has no area (CAM tools reject it, slicers warn); such *collapsed* triangles are dropped
+  -- a collapsed triangle's two coinciding corners are glued in every reader anyway, so the
+  remaining triangles still close up -- and counted;
+* readers weld corners by position, so an edge that the exact part touches itself along (two
+  solid cells meeting only at that edge) is shared by four triangles in every reader, whatever
+  the writer duplicated: the part is closed but not 2-manifold there. That is the true shape,
+  so it is not hidden: the report counts such edges.
+
+:func:`export_stl` writes the file, reads it back with meshio and reports what a reader sees
+(:class:`StlReport`: triangles, dropped, closed, non-manifold edges, the volume it encloses).
 """
 
 from __future__ import annotations
 
+from collections import Counter
+from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
 
 from csgnb.errors import GeometryError
-from csgnb.exact.wide import from_wide
 
-__all__ = ["export_stl", "part_mesh", "surface_triangles"]
-
-_FLAT_CANDIDATE = 1e-9
-"""Relative size of a float cross product below which collinearity is decided exactly (the positions are correctly
-rounded doubles, so a clearly larger cross product is never that of three collinear points)."""
+__all__ = ["StlReport", "check_triangle_soup", "export_stl"]
 
 
-def _collinear(a, b, c) -> bool:
-    """Whether three homogeneous integer points are collinear: every 3x3 minor of [a; b; c] is zero (exact)."""
-    for skip in range(4):
-        cols = [k for k in range(4) if k != skip]
-        (a0, a1, a2), (b0, b1, b2), (c0, c1, c2) = ([p[k] for k in cols] for p in (a, b, c))
-        if a0 * (b1 * c2 - b2 * c1) - a1 * (b0 * c2 - b2 * c0) + a2 * (b0 * c1 - b1 * c0):
-            return False
-    return True
+@dataclass
+class StlReport:
+    """What a reader of the written STL sees (all counts after welding corners by their float32 position).
 
-
-def _ear_triangles(poly: list[int], flat_at) -> list[tuple[int, int, int]]:
-    """Triangles of a convex polygon whose edges may carry extra (T-junction) vertices, none of zero area.
-
-    While a flat vertex remains, the ear at a strict corner next to one is clipped -- which
-    turns that flat vertex into a corner and keeps the rest a convex polygon with area -- and
-    the flat-free rest is fanned. ``flat_at(a, b, c)`` decides whether b is flat between a, c.
+    ``closed``: every edge is used equally often in both directions; ``non_manifold_edges``:
+    edges used by more than two triangles; ``dropped``: triangles whose float32 corners
+    coincide (no area), left out; ``volume``: the enclosed volume (model units³, float64 sum).
     """
-    poly = list(poly)
-    out = []
-    while len(poly) > 3:
-        k = len(poly)
-        flat = [flat_at(poly[i - 1], poly[i], poly[(i + 1) % k]) for i in range(k)]
-        if not any(flat):
-            break
-        for i in range(k):
-            if not flat[i] and (flat[i - 1] or flat[(i + 1) % k]):
-                out.append((poly[i - 1], poly[i], poly[(i + 1) % k]))
-                del poly[i]
-                break
-        else:  # all flat: a zero-area polygon (not on a solid's boundary)
-            return out
-    out += [(poly[0], poly[i], poly[i + 1]) for i in range(1, len(poly) - 1)]
-    return out
+
+    path: str
+    triangles: int
+    vertices: int
+    dropped: int
+    closed: bool
+    non_manifold_edges: int
+    volume: float
+
+    @property
+    def watertight(self) -> bool:
+        """Closed and 2-manifold: every edge used by exactly two triangles, once in each direction."""
+        return self.closed and self.non_manifold_edges == 0
+
+    def as_dict(self) -> dict:
+        return dict(asdict(self), watertight=self.watertight)
+
+    def summary(self) -> str:
+        text = (f"STL {self.path}: {self.triangles} triangles, closed: {'yes' if self.closed else 'NO'}, "
+                f"2-manifold: {'yes' if self.non_manifold_edges == 0 else 'no'}")
+        if self.non_manifold_edges:
+            text += (f" ({self.non_manifold_edges} edges shared by four or more triangles: the exact part "
+                     "touches itself along them)")
+        if self.dropped:
+            text += f"; {self.dropped} triangles collapsed by float32 rounding dropped"
+        return text
 
 
-def surface_triangles(surface) -> tuple[np.ndarray, np.ndarray]:
-    """The boundary's vertices ``(n, 3) float64`` (grid coordinates, correctly rounded) and outward triangles
-    ``(m, 3) int64`` with no zero-area triangle."""
-    if surface.n_polygons == 0:
-        return np.zeros((0, 3)), np.zeros((0, 3), np.int64)
-    P = surface.positions()
-    scale = float(np.abs(P).max()) or 1.0
-    exact: dict[int, tuple[int, ...]] = {}
-
-    def homogeneous(i: int) -> tuple[int, ...]:
-        if i not in exact:
-            exact[i] = tuple(int(x) for x in from_wide(surface.vertices[i:i + 1])[0])
-        return exact[i]
-
-    def flat_at(a: int, b: int, c: int) -> bool:
-        cross = np.cross(P[a] - P[b], P[c] - P[b])
-        if float(np.abs(cross).max()) > _FLAT_CANDIDATE * scale * scale:
-            return False
-        return _collinear(homogeneous(a), homogeneous(b), homogeneous(c))
-
-    tris: list[tuple[int, int, int]] = []
-    for f in surface.polygons():
-        poly = [int(i) for i in f]
-        if len(poly) == 3:
-            tris.append((poly[0], poly[1], poly[2]))
-        else:
-            tris += _ear_triangles(poly, flat_at)
-    return P, np.array(tris, np.int64).reshape(-1, 3)
+def check_triangle_soup(points: np.ndarray, triangles: np.ndarray) -> tuple[np.ndarray, np.ndarray, dict]:
+    """Weld ``points (n, 3)`` by exact position, drop triangles with coinciding corners; return the welded
+    points, the kept triangles and ``{"dropped", "closed", "non_manifold_edges", "volume"}``."""
+    P, inverse = np.unique(np.asarray(points), axis=0, return_inverse=True)
+    T = inverse.reshape(-1)[np.asarray(triangles, np.int64)].reshape(-1, 3)
+    collapsed = (T[:, 0] == T[:, 1]) | (T[:, 1] == T[:, 2]) | (T[:, 2] == T[:, 0])
+    T = T[~collapsed]
+    directed = Counter(map(tuple, np.concatenate([T[:, [0, 1]], T[:, [1, 2]], T[:, [2, 0]]]).tolist()))
+    closed = all(directed.get((b, a), 0) == n for (a, b), n in directed.items())
+    undirected = Counter()
+    for (a, b), n in directed.items():
+        undirected[(min(a, b), max(a, b))] += n
+    Q = P.astype(np.float64)
+    volume = float(np.sum(np.einsum("ij,ij->i", Q[T[:, 0]], np.cross(Q[T[:, 1]], Q[T[:, 2]])))) / 6.0
+    return P, T, {"dropped": int(collapsed.sum()), "closed": bool(closed),
+                  "non_manifold_edges": int(sum(1 for n in undirected.values() if n > 2)), "volume": volume}
 
 
-def part_mesh(workpiece) -> tuple[np.ndarray, np.ndarray]:
-    """``workpiece``'s exact boundary as float model vertices ``(n, 3)`` and outward triangles ``(m, 3) int64``."""
-    V, T = surface_triangles(workpiece.surface())
-    return workpiece.grid.to_model(V) if len(V) else V, T
+def export_stl(workpiece, path, *, binary: bool = True) -> StlReport:
+    """Write ``workpiece``'s exact boundary (model units) as an STL file through meshio; return what a reader sees.
 
-
-def export_stl(workpiece, path, *, binary: bool = True) -> Path:
-    """Write ``workpiece``'s exact boundary (float model coordinates) as an STL file through meshio."""
+    Corners are rounded to float32 (binary STL) first; triangles that rounding collapses are
+    dropped. The file is read back and checked (:class:`StlReport`); it is written to a
+    temporary name and renamed, so a failed export leaves no half-written file.
+    """
     import meshio
 
-    V, T = part_mesh(workpiece)
+    V, T = workpiece.to_mesh(manifold=True)
     if len(T) == 0:
         raise GeometryError("the workpiece is empty: there is no surface to export")
+    V32 = np.asarray(V, np.float32)
+    P, kept, _ = check_triangle_soup(V32, T)
     path = Path(path)
-    meshio.write(path, meshio.Mesh(np.asarray(V, np.float64), [("triangle", np.asarray(T, np.int64))]),
-                 file_format="stl", binary=binary)
-    return path
+    tmp = path.with_name(f".{path.name}.writing")
+    try:
+        meshio.write(tmp, meshio.Mesh(P.astype(np.float64), [("triangle", kept)]), file_format="stl", binary=binary)
+        back = meshio.read(tmp, file_format="stl")
+        _, T2, seen = check_triangle_soup(back.points.astype(np.float32), back.cells_dict["triangle"])
+        tmp.replace(path)
+    finally:
+        tmp.unlink(missing_ok=True)
+    return StlReport(str(path), int(T2.shape[0]), int(P.shape[0]), int(T.shape[0] - T2.shape[0]), seen["closed"],
+                     seen["non_manifold_edges"], seen["volume"])

@@ -12,10 +12,12 @@ The workpiece is a :class:`csgnb.octree.Workpiece` (or anything with its API: ``
 ``difference(tool, track_volume=...) -> OpReport``, ``volume()``, ``surface()``,
 ``save(path)``, ``type(w).load(path)``; the tests run the single-BSP reference
 :class:`csgnb.apps._bsp_workpiece.BSPWorkpiece` too). Each move's exact removed volume is
-measured on the octree cells its sweep reaches (:class:`csgnb.apps.meter.VolumeMeter`), so
-it costs the same at move 10 as at move 10,000. Non-convex tools are sent as meshes (the
-octree clips them per cell). Programmed positions are the tool tip (the lowest point of its
-axis).
+measured by the workpiece on the octree cells its sweep reaches (``difference(piece,
+track_volume=True)``, :mod:`csgnb.octree.volume`), so it costs the same at move 10 as at move
+10,000. A run that fails part-way re-raises the error with the moves done attached
+(``error.partial_result``, a :class:`MillingResult`), so a caller can still report them.
+Non-convex tools are sent as meshes (the octree clips them per cell). Programmed positions are the tool tip (the
+lowest point of its axis).
 """
 
 from __future__ import annotations
@@ -34,10 +36,10 @@ import numpy as np
 
 from csgnb.apps.export import export_stl
 from csgnb.apps.gcode import Move, Program
-from csgnb.apps.meter import VolumeMeter, exact_volume
 from csgnb.apps.sweep import straight_sweep
 from csgnb.apps.tools import GridTool
 from csgnb.errors import GeometryError
+from csgnb.exact.rational import describe_fraction, fraction_text, parse_fraction
 
 __all__ = ["MillingResult", "MoveRecord", "export_stl", "move_pieces", "simulate", "summary_table"]
 
@@ -107,8 +109,8 @@ class MillingResult:
 
     @cached_property
     def part_volume(self) -> Fraction:
-        """Exact volume of the part (mm³), computed once (:func:`csgnb.apps.meter.exact_volume`)."""
-        return _mm3(exact_volume(self.workpiece), self.workpiece.grid)
+        """Exact volume of the part (mm³), computed once (``workpiece.volume()``)."""
+        return _mm3(self.workpiece.volume(), self.workpiece.grid)
 
     @property
     def collisions(self) -> list[MoveRecord]:
@@ -153,12 +155,12 @@ def move_pieces(move: Move, tool: GridTool, chord_tolerance: float = CHORD_TOLER
     return out
 
 
-def _subtract(meter: VolumeMeter, tool: GridTool, move: Move, chord_tolerance: float):
+def _subtract(workpiece, tool: GridTool, move: Move, chord_tolerance: float):
     """Subtract one move's pieces; return (exact removed grid units³, pieces, Boolean seconds, cells touched)."""
     removed, pieces, seconds, cells = Fraction(0), 0, 0.0, 0
     for piece in move_pieces(move, tool, chord_tolerance):
-        r, report = meter.difference(piece)
-        removed += r
+        report = workpiece.difference(piece, track_volume=True)
+        removed -= report.volume_change
         pieces += 1
         seconds += report.seconds
         cells += report.cells
@@ -177,13 +179,12 @@ def _tool_for(move: Move, tools) -> GridTool:
 
 def _record_json(r: MoveRecord) -> dict:
     d = asdict(r)
-    d["removed"] = f"{r.removed.numerator}/{r.removed.denominator}"
+    d["removed"] = fraction_text(r.removed)
     return d
 
 
 def _record_from_json(d: dict) -> MoveRecord:
-    n, _, m = d["removed"].partition("/")
-    return MoveRecord(**dict(d, removed=Fraction(int(n), int(m))))
+    return MoveRecord(**dict(d, removed=parse_fraction(d["removed"])))
 
 
 def _write_atomic(path: Path, data: bytes) -> None:
@@ -204,7 +205,7 @@ def _checkpoint(path: Path, workpiece, records: list[MoveRecord], stock: Fractio
     digest = hashlib.sha256(wp_path.read_bytes()).hexdigest()
     old = json.loads(path.read_text())["workpiece"] if path.exists() else None
     index = {"done": done, "workpiece": wp_path.name, "sha256": digest, "program": program_key,
-             "stock": f"{stock.numerator}/{stock.denominator}", "records": [_record_json(r) for r in records]}
+             "stock": fraction_text(stock), "records": [_record_json(r) for r in records]}
     _write_atomic(path, json.dumps(index).encode())
     if old and old != wp_path.name:
         path.with_name(old).unlink(missing_ok=True)
@@ -217,9 +218,8 @@ def _resume(path: Path, workpiece_type, program_key: str):
     wp_path = path.with_name(index["workpiece"])
     if hashlib.sha256(wp_path.read_bytes()).hexdigest() != index["sha256"]:
         raise ValueError(f"the checkpoint's workpiece {wp_path} does not match its index (corrupted)")
-    n, _, m = index["stock"].partition("/")
     return (workpiece_type.load(wp_path), [_record_from_json(r) for r in index["records"]],
-            Fraction(int(n), int(m)))
+            parse_fraction(index["stock"]))
 
 
 def _program_key(program: Program, tools, chord_tolerance: float) -> str:
@@ -266,12 +266,11 @@ def simulate(workpiece, program: Program, tools, *, chord_tolerance: float = CHO
             raise GeometryError(f"tool {t.name!r} lies on {t.grid}, the workpiece on {grid}: build the tool with "
                                 "shape.on(workpiece.grid)")
     records: list[MoveRecord] = []
-    stock = _mm3(exact_volume(workpiece), grid)
+    stock = _mm3(workpiece.volume(), grid)
     key = _program_key(program, tools, chord_tolerance)
     path = Path(checkpoint) if checkpoint is not None else None
     if path is not None and path.exists():
         workpiece, records, stock = _resume(path, type(workpiece), key)
-    meter = VolumeMeter(workpiece)
     bar = tqdm(total=len(program.moves), initial=len(records), disable=not progress, unit="move", desc="milling")
     total = float(sum(r.removed for r in records))  # for the bar only: an exact running sum grows with the part
     try:
@@ -281,7 +280,7 @@ def simulate(workpiece, program: Program, tools, *, chord_tolerance: float = CHO
             tool = _tool_for(move, tools)
             points = move.points(chord_tolerance)
             length = float(np.sum(np.linalg.norm(np.diff(points, axis=0), axis=1)))
-            removed, pieces, boolean_s, cells = (_subtract(meter, tool, move, chord_tolerance) if length > 0
+            removed, pieces, boolean_s, cells = (_subtract(workpiece, tool, move, chord_tolerance) if length > 0
                                                  else (Fraction(0), 0, 0.0, 0))
             removed = _mm3(removed, grid)
             collision = None
@@ -299,16 +298,22 @@ def simulate(workpiece, program: Program, tools, *, chord_tolerance: float = CHO
             total += float(rec.removed)
             bar.update(1)
             bar.set_postfix(removed=f"{total:.5g} mm³", refresh=False)
+    except (Exception, KeyboardInterrupt) as exc:
+        # The moves done so far are kept: the caller gets them (a partial report), and a checkpointed run
+        # resumes from its last checkpoint (written every checkpoint_every moves, never mid-move).
+        done = len(records)
+        line = program.moves[done].line if done < len(program.moves) else None
+        exc.partial_result = MillingResult(workpiece, records, stock)
+        exc.add_note(f"csgnb milling stopped at move {done} of {len(program.moves)} (line {line}); the moves done "
+                     "are in the exception's partial_result" + (f", checkpointed in {path}" if path else ""))
+        raise
     finally:
         bar.close()
     return MillingResult(workpiece, records, stock)
 
 
 def _exact_text(v: Fraction) -> str:
-    text = f"{v.numerator}/{v.denominator}" if v.denominator != 1 else str(v.numerator)
-    if len(text) <= 48:
-        return f"exact: {text}"
-    return f"exact: a Fraction of {len(str(v.numerator))}/{len(str(v.denominator))} digits"
+    return describe_fraction(v)
 
 
 def summary_table(result: MillingResult) -> str:

@@ -9,7 +9,9 @@ and nothing else (the paper reuses its precomputed drill sweeps this way).
   kernels keep the planes that cross the cell box (a linear BSP);
 * **mesh** (a closed integer triangle mesh, validated like :meth:`csgnb.bsp.BSP.from_mesh`,
   or the exact boundary of a :class:`csgnb.bsp.BSP`): plane-based polygons; per cell the
-  kernels clip the polygons to the box and build a small BSP from the pieces (§3.9).
+  kernels clip the polygons to the box and build a small BSP from the pieces (§3.9);
+* **empty** (a BSP with no material, e.g. an empty workpiece's ``to_bsp()``): a difference or
+  union with it changes nothing, an intersection empties the workpiece.
 """
 
 from __future__ import annotations
@@ -87,6 +89,8 @@ class Tool:
         edges = np.concatenate([np.roll(edge[s:s + k], 1) for s, k in zip(poly[:, 0], sizes, strict=True)]) \
             if len(sizes) else np.zeros(0, np.int64)
         polygons = PolygonSet(poly[:, 2].astype(np.int32), offsets, edges.astype(np.int32))
+        if not len(sizes):  # no boundary in its box (walls included): no material at all
+            return cls("empty", np.zeros((0, 4), object), np.zeros(3, np.int64), np.zeros(3, np.int64), grid=grid)
         lo, hi = np.asarray(bsp.lo), np.asarray(bsp.hi)
         if len(sizes):
             from csgnb.exact.predicates import to_double_position

@@ -30,7 +30,7 @@ from fractions import Fraction
 import numpy as np
 
 from csgnb._resumable import DONE, FAILED, grown
-from csgnb.bsp.extract import extract_boundary, extract_cells
+from csgnb.bsp.extract import check_corner, extract_boundary
 from csgnb.bsp.merging import constant_labels, merge_table
 from csgnb.bsp.polygon import _set_vertices_kernel
 from csgnb.bsp.solid import BSP as SolidBSP
@@ -39,11 +39,11 @@ from csgnb.bsp.surface import BoundarySurface
 from csgnb.bsp.tree import BSPTree
 from csgnb.errors import GeometryError, InternalError, PrecisionError
 from csgnb.exact.budgets import budget
+from csgnb.exact.integral import integer_array
 from csgnb.exact.predicates import homogeneous_points, to_double_position
 from csgnb.exact.quantization import Grid
 from csgnb.exact.wide import DEFAULT_WIDTH, wide_dtype
 from csgnb.mesh.hull import ConvexHull
-from csgnb.mesh.volume import cells_volume
 from csgnb.octree import kernels as K
 from csgnb.octree.global_tree import _global_size, _global_tree_kernel
 from csgnb.octree.layout import (
@@ -77,9 +77,13 @@ from csgnb.octree.layout import (
     new_tree_arrays,
 )
 from csgnb.octree.tool import Tool
+from csgnb.octree.volume import CellVolumes, LocalChange, convex_change
 from csgnb.octree.workspace import ToolArrays, grow, new_workspace, with_palette
 
 __all__ = ["DEFAULT_THRESHOLD", "OpReport", "Workpiece"]
+
+_DIFFERENCE = np.array([[0, 0], [1, 0]])  # merge tables (workpiece label, tool label) -> label
+_UNION = np.array([[0, 1], [1, 1]])
 
 DEFAULT_THRESHOLD = 150
 """Maximum BSP nodes per octree cell (the paper found 100-200 best; ``benchmarks/bench_iterated.py --sweep``)."""
@@ -180,7 +184,7 @@ class Workpiece:
         self.amap: AxisMap = new_axis_map()
         self.ws = new_workspace(self.palette, self.threshold)
         self._max_normal, self._max_offset = 1, self.root_size
-        self._volumes: dict[tuple, Fraction] = {}
+        self._volumes = CellVolumes()
         self._meta: dict = {}
         self._tables: dict = {}
         self.stats = WorkpieceStats()
@@ -189,9 +193,18 @@ class Workpiece:
 
     @classmethod
     def box(cls, lo, hi, *, grid: Grid | None = None, **kw) -> Workpiece:
-        """The box ``[lo, hi]`` (model units on ``grid``; integer grid coordinates on the identity grid)."""
+        """The box ``[lo, hi]``: integer corners on the identity grid (the default), model units on another ``grid``.
+
+        On the identity grid model coordinates are grid coordinates, so a corner such as 2.5 is
+        refused (as :meth:`csgnb.bsp.BSP.box` refuses it) rather than rounded to 2 or 3; on a
+        scaled grid corners are quantized like every model point (rounded to the nearest grid
+        point, at most half of ``grid.resolution`` away).
+        """
         w = cls(grid, **kw)
-        g = w.grid.to_grid(np.stack([np.asarray(lo, float).reshape(3), np.asarray(hi, float).reshape(3)]))
+        if w.grid.exponent == 0 and not np.any(w.grid.origin):
+            g = np.stack([np.asarray(check_corner(lo, "lo"), np.int64), np.asarray(check_corner(hi, "hi"), np.int64)])
+        else:
+            g = w.grid.to_grid(np.stack([_real_corner(lo, "lo"), _real_corner(hi, "hi")]))
         if np.any(g[0] >= g[1]):
             raise GeometryError(f"the box {np.asarray(lo).tolist()}..{np.asarray(hi).tolist()} is empty on this grid "
                                 f"(resolution {w.grid.resolution:g})")
@@ -245,7 +258,7 @@ class Workpiece:
         if t.grid is not None and not t.grid.same_as(self.grid):
             raise GeometryError(f"the tool lies on {t.grid}, the workpiece on {self.grid}: quantize both on one grid")
         limit = self.grid.max_coordinate
-        if np.abs(np.stack([t.lo, t.hi])).max() > limit:
+        if t.kind != "empty" and np.abs(np.stack([t.lo, t.hi])).max() > limit:
             raise PrecisionError(f"the tool's box {t.lo.tolist()}..{t.hi.tolist()} leaves the grid's budget box "
                                  f"|coordinate| <= {limit} ({self.width}-bit)")
         return t
@@ -332,14 +345,26 @@ class Workpiece:
             raise GeometryError("the octree workpiece holds one material (labels 0 and 1); the label function "
                                 f"returned {int(table.max())}")
         constant = constant_labels(table, np.array([0, 1]))
-        before = self._total_volume() if track_volume else None
-        rows = self._add_planes(tool)
-        kind, ta = self._tool_arrays(tool, rows)
         outside_identity = all(int(table[la, 0]) == la for la in labels_a)
         if outside_identity:
             lo, hi = tool.lo, tool.hi  # cells outside the tool's box keep their labels
         else:
             lo, hi = self.root_lo - 1, self.root_lo + self.root_size + 1
+        if tool.kind == "empty":
+            if not outside_identity and int(table[0, 0]) != 0:
+                raise GeometryError("the tool is empty and the label function makes material outside it "
+                                    "(fn(0, 0) = 1): that fills the whole octree root box; use a tool box instead")
+            return self._empty_tool(outside_identity, track_volume, t0)
+        change = measure = before = None
+        if track_volume:  # measured where the solid can change (csgnb.octree.volume)
+            if not outside_identity:
+                before = self.volume()
+            elif tool.kind == "convex" and (np.array_equal(table, _DIFFERENCE) or np.array_equal(table, _UNION)):
+                change = convex_change(self, self._volumes, tool, union=np.array_equal(table, _UNION))
+            else:
+                measure = LocalChange(self, self._volumes, tool.lo, tool.hi)
+        rows = self._add_planes(tool)
+        kind, ta = self._tool_arrays(tool, rows)
         counts_before = self.oc.counts.copy()
         leaves = self._run_boolean(kind, ta, lo, hi, table, constant)
         if leaves.shape[0]:
@@ -352,7 +377,11 @@ class Workpiece:
         report = OpReport(int(leaves.shape[0]), int(c[S_MERGES]), int(c[S_RELABELS]), int(c[S_SPLITS]),
                           int(c[S_COMBINES]), 0.0, unchanged=int(c[S_UNCHANGED]))
         if track_volume:
-            report.volume_change = self._total_volume() - before
+            if before is not None:
+                change = self.volume() - before
+            elif measure is not None:
+                change = measure.finish()
+            report.volume_change = change
         report.seconds = time.perf_counter() - t0
         s = self.stats
         s.operations += 1
@@ -363,6 +392,21 @@ class Workpiece:
         s.combines += report.combines
         s.pathological = int(self.oc.counts[S_PATHOLOGICAL])
         s.seconds.append(report.seconds)
+        return report
+
+    def _empty_tool(self, outside_identity: bool, track_volume: bool, t0: float) -> OpReport:
+        """A Boolean with no tool material: nothing changes where ``fn(a, 0) == a`` (a difference, a union);
+        otherwise (``fn(0, 0) = 0`` is checked by the caller) ``fn(1, 0) = 0``: the workpiece becomes empty."""
+        before = self.volume() if track_volume and not outside_identity else Fraction(0)
+        if not outside_identity:
+            fresh = Workpiece(self.grid, threshold=self.threshold, min_cell=self.min_cell,
+                              max_tool_polygons=self.max_tool_polygons, seed=self.seed)
+            for name in ("oc", "pool", "palette", "amap", "ws", "_max_normal", "_max_offset", "_volumes"):
+                setattr(self, name, getattr(fresh, name))
+        report = OpReport(0, 0, 0, 0, 0, time.perf_counter() - t0,
+                          volume_change=-before if track_volume else None)
+        self.stats.operations += 1
+        self.stats.seconds.append(report.seconds)
         return report
 
     def difference(self, tool, **kw) -> OpReport:
@@ -616,6 +660,22 @@ class Workpiece:
         n = int(K._leaf_list(self.oc, out))
         return out[:n]
 
+    def cells_meeting(self, lo, hi) -> np.ndarray:
+        """The leaves (octree node ids, ``(k,) int64``) whose box meets the open box ``(lo, hi)`` (grid units).
+
+        Node ids name cells until the next Boolean (which may split, combine or replace them)."""
+        return self._leaves_meeting(lo, hi)
+
+    def cell_box(self, node: int) -> tuple[np.ndarray, int]:
+        """Leaf ``node``'s box: its low corner ``(3,) int64`` and edge length (grid units)."""
+        self._check_leaf(node)
+        return self.oc.lo[node].copy(), int(self.oc.size[node])
+
+    def _check_leaf(self, node) -> None:
+        n = int(self.oc.counts[N_NODES])
+        if not isinstance(node, int | np.integer) or not 0 <= int(node) < n or self.oc.child[node] >= 0:
+            raise GeometryError(f"{node!r} is not a leaf of this workpiece (cells(), cells_meeting() list them)")
+
     def _leaves_meeting(self, lo, hi) -> np.ndarray:
         out = np.empty(64, np.int64)
         lo = np.asarray(lo, np.int64)
@@ -680,40 +740,23 @@ class Workpiece:
 
     def classify(self, points) -> np.ndarray:
         """Labels of points: integer ``(n, 3)`` grid points or homogeneous wide ``(n, 4)`` (-2: on the boundary)."""
-        p = np.asarray(points)
-        if p.dtype.kind in "iu":
-            p = homogeneous_points(np.atleast_2d(p).astype(np.int64), self.width)
+        p = points if isinstance(points, np.ndarray) and points.dtype.names else None
+        if p is None:  # grid points: integers, or integral floats (2.0), converted exactly; 2.5 is refused
+            q = integer_array(points, "points")
+            if q.ndim not in (1, 2) or q.shape[-1] != 3:
+                raise GeometryError(f"points must be integer grid points (n, 3) or wide homogeneous (n, 4), "
+                                    f"got shape {q.shape}")
+            p = homogeneous_points(np.atleast_2d(q), self.width)
         return self.global_tree().classify(p)
 
-    def _leaf_key(self, node: int) -> tuple:
-        if self.oc.kind[node] == BSP:
-            return (BSP, int(self.oc.lo[node, 0]), int(self.oc.lo[node, 1]), int(self.oc.lo[node, 2]),
-                    int(self.oc.size[node]), int(self.oc.start[node]), int(self.oc.length[node]))
-        return (UNIFORM, int(self.oc.size[node]), int(self.oc.label[node]))
-
-    def _leaf_volume(self, node: int) -> Fraction:
-        if self.oc.kind[node] == UNIFORM:
-            return Fraction(int(self.oc.size[node]) ** 3) if self.oc.label[node] > 0 else Fraction(0)
-        key = self._leaf_key(node)
-        v = self._volumes.get(key)
-        if v is None:
-            lo = self.oc.lo[node]
-            store, cells = extract_cells(self.cell_bsp(node), lo, lo + self.oc.size[node])
-            v = cells_volume(store, cells[:, 1])
-            self._volumes[key] = v
-        return v
-
-    def _total_volume(self) -> Fraction:
-        leaves = self._leaves()
-        keys = {self._leaf_key(int(n)) for n in leaves if self.oc.kind[n] == BSP}
-        for k in list(self._volumes):
-            if k not in keys:
-                del self._volumes[k]
-        return sum((self._leaf_volume(int(n)) for n in leaves), Fraction(0))
-
     def volume(self) -> Fraction:
-        """Exact volume (grid units cubed); per-cell volumes are cached."""
-        return self._total_volume()
+        """Exact volume (grid units cubed): the cells' volumes (cached by cell content), summed pairwise."""
+        return self._volumes.total(self, self._leaves())
+
+    def cell_volume(self, node: int) -> Fraction:
+        """Exact solid volume of leaf ``node`` (grid units cubed), cached by the cell's content."""
+        self._check_leaf(node)
+        return self._volumes.volume(self, int(node))
 
     def model_volume(self) -> Fraction:
         """Exact volume in model units cubed (the grid scale is a power of two)."""
@@ -752,6 +795,17 @@ class Workpiece:
     def __repr__(self) -> str:
         return (f"Workpiece({self.n_cells} cells, {self.n_bsp_nodes} BSP nodes, {self.width}-bit, "
                 f"threshold {self.threshold})")
+
+
+def _real_corner(value, name: str) -> np.ndarray:
+    """A model-unit box corner as ``(3,) float64``; a clear error for another shape or a non-number."""
+    try:
+        arr = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise TypeError(f"{name} must be a point of 3 real numbers, got {value!r}") from None
+    if arr.size != 3:
+        raise GeometryError(f"{name} must be a point of 3 coordinates, got shape {arr.shape}")
+    return arr.reshape(3)
 
 
 def _box_hull(lo, hi, width: int) -> ConvexHull:
