@@ -40,7 +40,7 @@ import numpy as np
 from _clock import bare_jit, best_cpu_time, load_average, measure_clock_ghz, nominal_clock_ghz
 
 from csgnb._views import unmanaged, unmanaged_tuple
-from csgnb.bsp.extract import KEEP_CELLS, _Extractor, extract_boundary, extract_cells
+from csgnb.bsp.extract import KEEP_CELLS, Extractor, extract_boundary, extract_cells
 from csgnb.bsp.scenes import tangent_plane_bsp
 from csgnb.exact.wide import to_wide
 from csgnb.mesh.cutting import CUT_PROPER, cut, cut_cell, cut_cell_naive
@@ -179,7 +179,7 @@ def measure(n: int, order: str, repeats: int, clock: float) -> dict:
     cut_s = best_cpu_time(lambda: extract_cells(tree, lo, hi), repeats)
     kernel_s = float("inf")  # the kernel call(s) alone: the store, box and stack set up outside the timing
     for _ in range(repeats):
-        ex = _Extractor(tree, lo, hi, KEEP_CELLS, 1024)
+        ex = Extractor(tree, lo, hi, KEEP_CELLS, 1024)
         t0 = time.process_time()
         ex.run()
         kernel_s = min(kernel_s, time.process_time() - t0)

@@ -12,7 +12,7 @@ the 128-bit budget) unless ``--resolution`` is given. Progress goes to stderr; a
 table to stdout.
 
 The workpiece is :class:`csgnb.octree.Workpiece` (``--reference`` runs the slow
-single-BSP :class:`csgnb.apps._bsp_workpiece.BSPWorkpiece` instead, for comparison).
+single-BSP :class:`csgnb.apps.reference.BSPWorkpiece` instead, for comparison).
 A PROGRAM that is not a file but the name of a shipped example (``pocket.nc``,
 ``relief.nc``: :mod:`csgnb.apps.examples`) runs that example.
 """
@@ -36,7 +36,7 @@ from csgnb.exact import Grid
 def workpiece_type(reference: bool = False):
     """The workpiece class: ``csgnb.octree.Workpiece``, or with ``reference`` the single-BSP ``BSPWorkpiece``."""
     if reference:
-        from csgnb.apps._bsp_workpiece import BSPWorkpiece
+        from csgnb.apps.reference import BSPWorkpiece
 
         return BSPWorkpiece
     from csgnb.octree import Workpiece

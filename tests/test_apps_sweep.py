@@ -141,7 +141,7 @@ def test_prisms_and_end_poses_cover_a_translated_non_convex_tool():
     # The L as one closed mesh: the union of the two boxes' boundary, via the BSP.
     grid = GRID
     solids = [convex_hull(grid.to_grid(box_mesh(*b))).to_bsp() for b in boxes]
-    from csgnb.apps._bsp_workpiece import BSPWorkpiece
+    from csgnb.apps.reference import BSPWorkpiece
 
     V, T = BSPWorkpiece(solids[0] | solids[1], grid).to_mesh()
     shape = tools.mesh_tool(V, T)

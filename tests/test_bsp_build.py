@@ -10,7 +10,7 @@ from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
 from csgnb import GeometryError, PrecisionError, exact
-from csgnb.bsp import build
+from csgnb.bsp import BSP, build
 from csgnb.bsp.build import _triangles_overlap, bsp_from_mesh, bsp_from_polygons, validate_mesh
 from csgnb.bsp.polygon import PolygonSet, polygons_from_triangles
 from csgnb.bsp.random_tree import random_bsp
@@ -305,17 +305,22 @@ def test_rejects_bad_arrays():
         bsp_from_mesh(V * 10_000, F)
 
 
-def test_rejects_degenerate_faces():
+def test_refuses_flat_faces_and_drops_collapsed_ones():
     V, F = SOLIDS["tetrahedron"]
-    V2 = np.r_[V, [[3, 0, 0]]]  # on the edge (0, 1)
+    V2 = np.r_[V, [[3, 0, 0]]]  # on the edge (0, 1): three distinct collinear corners
     F2 = np.r_[F, [[0, 4, 1]]]
-    with pytest.raises(GeometryError, match="face 4 .* degenerate"):
+    with pytest.raises(GeometryError, match="face 4 .* flat"):
         bsp_from_mesh(V2, F2)
-    with pytest.raises(GeometryError, match="face 1 .* degenerate"):
-        bsp_from_mesh(V, np.r_[F[:1], [[0, 1, 1]], F[1:]])
-    # Two indices of one position: welded, hence repeated.
-    with pytest.raises(GeometryError, match="face 0 .* degenerate"):
-        bsp_from_mesh(np.r_[V, V[:1]], np.r_[[[0, 2, 4]], F])
+    expected = BSP.from_mesh(V, F).volume()
+    # A face with a repeated corner, and one whose corners weld into one position (what quantizing a fine float
+    # mesh does): no area, no volume; they are dropped and counted, and the solid is the same.
+    for V3, F3 in ((V, np.r_[F[:1], [[0, 1, 1]], F[1:]]), (np.r_[V, V[:1]], np.r_[[[0, 2, 4]], F])):
+        report = {}
+        W, T = validate_mesh(V3, F3, report=report)
+        assert report == {"collapsed_faces": 1} and T.shape[0] == F.shape[0]
+        assert BSP.from_mesh(V3, F3).volume() == expected
+    with pytest.raises(GeometryError, match="no closed mesh is left"):
+        bsp_from_mesh(V, np.r_[F[:3], [[0, 0, 1]]])
 
 
 def test_rejects_open_meshes():

@@ -9,7 +9,7 @@ import pytest
 
 from csgnb import GeometryError
 from csgnb.apps import carving
-from csgnb.apps._bsp_workpiece import BSPWorkpiece
+from csgnb.apps.reference import BSPWorkpiece
 from csgnb.exact import Grid
 from csgnb.octree import Workpiece
 

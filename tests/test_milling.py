@@ -19,7 +19,7 @@ import pytest
 
 from csgnb import GeometryError
 from csgnb.apps import gcode, milling, sweep, tools
-from csgnb.apps._bsp_workpiece import BSPWorkpiece
+from csgnb.apps.reference import BSPWorkpiece
 from csgnb.exact import Grid
 from csgnb.mesh.hull import convex_hull
 from csgnb.octree import Workpiece

@@ -7,6 +7,6 @@ removed volume), :mod:`~csgnb.apps.export` (a checked STL),
 :mod:`~csgnb.apps.carving` (Figure 15a placements), :mod:`~csgnb.apps.examples` (the shipped
 G-code programs). The workpiece they drive is :class:`csgnb.octree.Workpiece`, through its
 public API only (no octree array is read here);
-:class:`~csgnb.apps._bsp_workpiece.BSPWorkpiece` (one whole-workpiece BSP, exact and slow)
+:class:`~csgnb.apps.reference.BSPWorkpiece` (one whole-workpiece BSP, exact and slow)
 is the tests' independent reference.
 """

@@ -11,7 +11,7 @@ goes to a ``tqdm.auto`` bar; ``checkpoint=PATH`` saves the workpiece and the rec
 The workpiece is a :class:`csgnb.octree.Workpiece` (or anything with its API: ``grid``,
 ``difference(tool, track_volume=...) -> OpReport``, ``volume()``, ``surface()``,
 ``save(path)``, ``type(w).load(path)``; the tests run the single-BSP reference
-:class:`csgnb.apps._bsp_workpiece.BSPWorkpiece` too). Each move's exact removed volume is
+:class:`csgnb.apps.reference.BSPWorkpiece` too). Each move's exact removed volume is
 measured by the workpiece on the octree cells its sweep reaches (``difference(piece,
 track_volume=True)``, :mod:`csgnb.octree.volume`), so it costs the same at move 10 as at move
 10,000. A run that fails part-way re-raises the error with the moves done attached
@@ -241,7 +241,7 @@ def simulate(workpiece, program: Program, tools, *, chord_tolerance: float = CHO
     ----------
     workpiece : Workpiece
         A :class:`csgnb.octree.Workpiece` (or the reference
-        :class:`csgnb.apps._bsp_workpiece.BSPWorkpiece`).
+        :class:`csgnb.apps.reference.BSPWorkpiece`).
     program : Program
         From :func:`csgnb.apps.gcode.parse`.
     tools : GridTool or dict

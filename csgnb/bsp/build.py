@@ -43,7 +43,7 @@ __all__ = ["bsp_from_polygons", "bsp_from_mesh", "validate_mesh", "check_seed", 
 
 
 @jit
-def _build_kernel(palette, support, offsets, edges, verts, order, label,
+def build_kernel(palette, support, offsets, edges, verts, order, label,
                   plane, neg, pos, lab, a_edges, a_verts, sides, st_node, st_start, st_k):
     """Insert polygons ``order[0], order[1], ...`` into a BSP; return the node count or a negative code.
 
@@ -235,7 +235,7 @@ def bsp_from_polygons(palette: np.ndarray, polygons: PolygonSet, *, seed: int = 
         a_verts = np.empty((cap_arena, 4), palette.dtype)
         sides = np.empty(cap_arena, np.int8)
         st = [np.empty(cap_stack, np.int32) for _ in range(3)]
-        count = int(_build_kernel(palette, polygons.support, polygons.offsets, polygons.edges, verts, order,
+        count = int(build_kernel(palette, polygons.support, polygons.offsets, polygons.edges, verts, order,
                                   int(label), plane, neg, pos, lab, a_edges, a_verts, sides, *st))
         if count >= 0:
             break
@@ -600,14 +600,19 @@ def _describe_edge(first_index, V, a: int, b: int) -> str:
     return f"({int(first_index[a])}, {int(first_index[b])}) from {V[a].tolist()} to {V[b].tolist()}"
 
 
-def validate_mesh(vertices, faces, width: int = DEFAULT_WIDTH) -> tuple[np.ndarray, np.ndarray]:
+def validate_mesh(vertices, faces, width: int = DEFAULT_WIDTH, *,
+                  report: dict | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Check that an integer triangle mesh bounds a solid; return it welded: ``(vertices, faces)``.
 
     Vertices at equal positions are merged first (a triangle soup with repeated
-    corners is fine). Then, in this order, the mesh must be: integer ``(n, 3)`` /
-    ``(m, 3)`` arrays with valid indices; within the mesh budget of ``width``; free
-    of degenerate faces; closed (every edge has an opposite half-edge); edge-manifold
-    (two faces per edge); consistently oriented; outward (positive exact volume);
+    corners is fine), and faces that merging collapsed (two corners at one point: what
+    quantizing a fine float mesh onto a grid makes) are dropped -- such a face bounds no
+    volume, and its two remaining edges cancel, so the rest closes up as before; their
+    number goes to ``report["collapsed_faces"]`` when a dict is given. Then, in this
+    order, the mesh must be: integer ``(n, 3)`` / ``(m, 3)`` arrays with valid indices;
+    within the mesh budget of ``width``; free of flat faces (three distinct collinear
+    corners: an edge of the neighbour would need splitting); closed (every edge has an
+    opposite half-edge); edge-manifold (two faces per edge); consistently oriented; outward (positive exact volume);
     free of self-intersections (exact tests between faces whose bounding boxes
     overlap, including touching faces and coplanar faces folded over a shared edge);
     and, for meshes of several shells (connected components), properly nested: every
@@ -650,13 +655,24 @@ def validate_mesh(vertices, faces, width: int = DEFAULT_WIDTH) -> tuple[np.ndarr
     W, first_index, inverse = np.unique(V, axis=0, return_index=True, return_inverse=True)
     T = inverse.reshape(-1)[F]
     repeated = (T[:, 0] == T[:, 1]) | (T[:, 1] == T[:, 2]) | (T[:, 2] == T[:, 0])
+    if report is not None:
+        report["collapsed_faces"] = int(repeated.sum())
+    if repeated.any():
+        keep = np.flatnonzero(~repeated)
+        if keep.shape[0] < 4:
+            raise GeometryError(f"only {keep.shape[0]} faces of {F.shape[0]} have three distinct corners (the rest "
+                                "collapsed when equal vertices merged): no closed mesh is left")
+        T, F = T[keep], F[keep]
+        face_ids = keep
+    else:
+        face_ids = np.arange(T.shape[0])
     normal = np.cross(W[T[:, 1]] - W[T[:, 0]], W[T[:, 2]] - W[T[:, 0]])  # fits int64 within the budget
-    degenerate = np.flatnonzero(repeated | ~normal.any(axis=1))
+    degenerate = np.flatnonzero(~normal.any(axis=1))
     if degenerate.size:
         f = int(degenerate[0])
         raise GeometryError(
-            f"face {f} {F[f].tolist()} is degenerate: its corners {W[T[f]].tolist()} are collinear or repeated; "
-            "remove it"
+            f"face {int(face_ids[f])} {F[f].tolist()} is flat: its corners {W[T[f]].tolist()} are three distinct "
+            "collinear points (a neighbour's edge passes through the middle one); remove it and split that edge"
         )
 
     # Half-edges (a -> b) of face f; an undirected edge must carry exactly one each way.
@@ -672,7 +688,8 @@ def validate_mesh(vertices, faces, width: int = DEFAULT_WIDTH) -> tuple[np.ndarr
     if np.any(counts == 1):
         s = int(starts[np.argmax(counts == 1)])
         raise GeometryError(
-            f"the mesh is open: edge {_describe_edge(first_index, W, a[s], b[s])} of face {int(face[s])} has no "
+            f"the mesh is open: edge {_describe_edge(first_index, W, a[s], b[s])} of face "
+            f"{int(face_ids[face[s]])} has no "
             "opposite half-edge (a hole or a crack; weld or fill it)"
         )
     if np.any(counts > 2):
@@ -687,7 +704,8 @@ def validate_mesh(vertices, faces, width: int = DEFAULT_WIDTH) -> tuple[np.ndarr
     if np.any(same):
         s = int(starts[np.argmax(same)])
         raise GeometryError(
-            f"the mesh is inconsistently oriented: faces {int(face[s])} and {int(face[s + 1])} run along their shared "
+            f"the mesh is inconsistently oriented: faces {int(face_ids[face[s]])} and "
+            f"{int(face_ids[face[s + 1]])} run along their shared "
             f"edge {_describe_edge(first_index, W, a[s], b[s])} in the same direction; reverse one of them"
         )
 
@@ -722,7 +740,8 @@ def validate_mesh(vertices, faces, width: int = DEFAULT_WIDTH) -> tuple[np.ndarr
     if pair is not None:
         i, j = pair
         raise GeometryError(
-            f"the mesh intersects itself: faces {i} {F[i].tolist()} and {j} {F[j].tolist()} "
+            f"the mesh intersects itself: faces {int(face_ids[i])} {F[i].tolist()} and "
+            f"{int(face_ids[j])} {F[j].tolist()} "
             f"(corners {W[T[i]].tolist()} and {W[T[j]].tolist()}) cross or touch away from the vertices and edge "
             "they share"
         )

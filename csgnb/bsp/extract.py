@@ -40,10 +40,10 @@ from csgnb.mesh.halfedge import (
     TWIN,
     VERT,
     MeshStore,
-    _cell_halfedges,
-    _dest,
-    _plane_row,
+    collect_cell_halfedges,
+    face_plane_row,
     grown_mesh_arrays,
+    halfedge_dest,
     release_cell,
     room_for_cut,
 )
@@ -186,7 +186,7 @@ def clip_face(m, f, lab, tree, sc, out):
         if k >= rows.shape[0]:
             return False
         rows[k] = he[g, VERT]
-        edges[k] = _plane_row(fc, he[he[g, TWIN], FACE])
+        edges[k] = face_plane_row(fc, he[he[g, TWIN], FACE])
         k += 1
         g = np.int64(he[g, NEXT])
         if g == fc[f, HE]:
@@ -200,7 +200,7 @@ def clip_face(m, f, lab, tree, sc, out):
     # A vertex of the cell strictly behind the face (adjacent faces are never coplanar),
     # to route pieces lying in a node's plane to the side the face looks at.
     g0 = np.int64(fc[f, HE])
-    behind = _dest(he, he[he[g0, TWIN], NEXT])
+    behind = halfedge_dest(he, he[he[g0, TWIN], NEXT])
     if k > pool.shape[0] or k > arena_v.shape[0]:
         return False
     for i in range(k):
@@ -276,7 +276,7 @@ def clip_face(m, f, lab, tree, sc, out):
             if si * sj < 0:
                 c = n_pool
                 n_pool += 1
-                intersect_into(palette, _plane_row(fc, f), palette, e, palette, s, pool, c)
+                intersect_into(palette, face_plane_row(fc, f), palette, e, palette, s, pool, c)
                 # The part being left continues along the cut; the part being entered along e.
                 arena_v[neg_start + nn] = c
                 arena_e[neg_start + nn] = s if si < 0 else e
@@ -307,7 +307,7 @@ def clip_cell(m, h, lab, tree, sc, out, walls):
     # A cell never has more half-edges than the store has rows in use; the work array holds them.
     if sc.work.shape[0] < m.counts[1]:
         return False
-    nh = _cell_halfedges(m.he, m.hmark, m.counts, h, sc.work)
+    nh = collect_cell_halfedges(m.he, m.hmark, m.counts, h, sc.work)
     for i in range(nh):
         g = np.int64(sc.work[i])
         f = np.int64(m.he[g, FACE])
@@ -403,7 +403,7 @@ def _extract_kernel(m, tree, stack, state, cells, sc, out, mode, no_path):
                         unmanaged(no_path))
 
 
-class _Extractor:
+class Extractor:
     """Drives :func:`_extract_kernel` over a fresh store (the growth between resumptions)."""
 
     def __init__(self, tree: BSPTree, lo, hi, mode: int, capacity: int) -> None:
@@ -445,7 +445,7 @@ class _Extractor:
         self.sc = grown_clip_scratch(sc) if top >= 0 and self.tree.plane[self.stack[top, _NODE]] < 0 else sc
         self.out = grown_pieces(self.out, 4 * self.sc.arena_v.shape[0], self.sc.stack.shape[0])
 
-    def run(self) -> _Extractor:
+    def run(self) -> Extractor:
         run_resumable(self.step, self.grow, "boundary extraction")
         return self
 
@@ -514,12 +514,12 @@ def extract_cells(tree: BSPTree, lo, hi, *, capacity: int = 1024, naive: bool = 
     lo, hi = check_box(lo, hi)
     capacity = check_count(capacity, "capacity", 1)
     mode = KEEP_CELLS | (NAIVE if naive else 0)
-    ex = _Extractor(tree, lo, hi, mode, capacity).run()
+    ex = Extractor(tree, lo, hi, mode, capacity).run()
     cells = ex.cells[: ex.state[1]]
     return ex.store, cells[tree.label[cells[:, 0]] != OUT]
 
 
-def _pieces_tuple(palette: np.ndarray, out: Pieces):
+def pieces_tuple(palette: np.ndarray, out: Pieces):
     nv, npoly = (int(c) for c in out.counts)
     return palette, out.vx[:nv], out.edge[:nv], out.poly[:npoly]
 
@@ -546,7 +546,7 @@ def boundary_pieces(tree: BSPTree, store: MeshStore, cells: np.ndarray, *, walls
         box["out"] = grown_pieces(box["out"], 4 * box["sc"].arena_v.shape[0], box["sc"].stack.shape[0])
 
     run_resumable(step, grow, "boundary clipping")
-    return _pieces_tuple(store.planes.copy(), box["out"])
+    return pieces_tuple(store.planes.copy(), box["out"])
 
 
 @jit
@@ -594,7 +594,7 @@ def extract_boundary(tree: BSPTree, lo, hi, *, keep_cells: bool = True) -> Extra
     check_tree(tree)
     lo, hi = check_box(lo, hi)
     mode = PIECES | WALLS | (KEEP_CELLS if keep_cells else 0)
-    ex = _Extractor(tree, lo, hi, mode, 1024).run()
+    ex = Extractor(tree, lo, hi, mode, 1024).run()
     cells = ex.cells[: ex.state[1]] if keep_cells else np.zeros((0, 2), np.int64)
-    surface = assemble_surface(*_pieces_tuple(ex.store.planes.copy(), ex.out))
+    surface = assemble_surface(*pieces_tuple(ex.store.planes.copy(), ex.out))
     return Extraction(tree, ex.store, cells, surface)

@@ -230,7 +230,7 @@ def split_polygon_planes(palette, support_row, plane, edges_in, k, out_neg, out_
 
 
 @jit
-def _set_vertices_kernel(palette, support, offsets, edges, verts):
+def set_vertices_kernel(palette, support, offsets, edges, verts):
     """Vertices of every polygon, row-aligned with ``edges``; return the first row with x4 = 0, or -1."""
     bad = -1
     for i in range(support.shape[0]):
@@ -376,7 +376,7 @@ def _checked_vertices(palette: np.ndarray, polygons: PolygonSet) -> np.ndarray:
     if palette.shape[0]:
         check_planes(palette, "palette")
     verts = np.empty((polygons.edges.shape[0], 4), palette.dtype)
-    bad = int(_set_vertices_kernel(palette, polygons.support, polygons.offsets, polygons.edges, verts))
+    bad = int(set_vertices_kernel(palette, polygons.support, polygons.offsets, polygons.edges, verts))
     if bad >= 0:
         i = int(np.searchsorted(polygons.offsets, bad, side="right") - 1)
         raise GeometryError(

@@ -21,17 +21,9 @@ from numba import types
 from numba.core.errors import TypingError
 from numba.extending import intrinsic
 
-# Only the loaders and sign helpers come from csgnb.exact.intrinsics (the names it keeps for other
-# packages' intrinsics); the integer arithmetic below is local, so it does not follow that module's layout.
-from csgnb.exact.intrinsics import (
-    _abs,
-    _element_pointer,
-    _load,
-    _load_row,
-    _row_pointer,
-    _sign,
-    _wide_width,
-)
+# Only the loaders and sign helpers come from csgnb.exact.lowering (the public code-generation helpers every
+# package's intrinsics use); the integer arithmetic below is local, so it does not follow that module's layout.
+from csgnb.exact.lowering import absolute, element_pointer, load, load_row, row_pointer, sign, wide_width
 
 __all__ = [
     "on_plane_at",
@@ -47,7 +39,7 @@ __all__ = [
 
 def _same_width(name: str, *atys) -> int:
     """The common width of wide arrays ``atys``; a typing error if they differ."""
-    widths = {_wide_width(a, name) for a in atys}
+    widths = {wide_width(a, name) for a in atys}
     if len(widths) != 1:
         raise TypingError(f"{name}: operands have different widths {sorted(widths)}")
     return widths.pop()
@@ -83,8 +75,8 @@ def on_plane_at(typingctx, X, i, S, j):
     W = ir.IntType(2 * bits + 64)
 
     def codegen(context, builder, sig, args):
-        x = [builder.sext(v, W) for v in _load_row(context, builder, sig.args[0], args[0], args[1], sig.args[1], T, 4)]
-        s = [builder.sext(v, W) for v in _load_row(context, builder, sig.args[2], args[2], args[3], sig.args[3], T, 4)]
+        x = [builder.sext(v, W) for v in load_row(context, builder, sig.args[0], args[0], args[1], sig.args[1], T, 4)]
+        s = [builder.sext(v, W) for v in load_row(context, builder, sig.args[2], args[2], args[3], sig.args[3], T, 4)]
         return builder.icmp_signed("==", _dot(builder, x, s), ir.Constant(W, 0))
 
     return types.boolean(X, i, S, j), codegen
@@ -105,10 +97,10 @@ def line_direction_into(typingctx, P, i, j, out, row):
     T = ir.IntType(bits)
 
     def codegen(context, builder, sig, args):
-        a1, b1, c1 = _load_row(context, builder, sig.args[0], args[0], args[1], sig.args[1], T, 3)
-        a2, b2, c2 = _load_row(context, builder, sig.args[0], args[0], args[2], sig.args[2], T, 3)
+        a1, b1, c1 = load_row(context, builder, sig.args[0], args[0], args[1], sig.args[1], T, 3)
+        a2, b2, c2 = load_row(context, builder, sig.args[0], args[0], args[2], sig.args[2], T, 3)
         u = [_det2(builder, b1, c1, b2, c2), _det2(builder, c1, a1, c2, a2), _det2(builder, a1, b1, a2, b2)]
-        mags = [_abs(builder, v) for v in u]
+        mags = [absolute(builder, v) for v in u]
         k = ir.Constant(_I64, 0)
         best = mags[0]
         uk = u[0]
@@ -117,9 +109,9 @@ def line_direction_into(typingctx, P, i, j, out, row):
             k = builder.select(better, ir.Constant(_I64, axis), k)
             best = builder.select(better, mags[axis], best)
             uk = builder.select(better, u[axis], uk)
-        base = _row_pointer(context, builder, sig.args[3], args[3], args[4], sig.args[4])
+        base = row_pointer(context, builder, sig.args[3], args[3], args[4], sig.args[4])
         for c, v in enumerate([*u, uk]):
-            builder.store(v, _element_pointer(builder, base, c, T), align=8)
+            builder.store(v, element_pointer(builder, base, c, T), align=8)
         zero = builder.icmp_unsigned("==", best, ir.Constant(T, 0))
         return builder.select(zero, ir.Constant(_I64, -1), k)
 
@@ -137,14 +129,14 @@ def normals_det_sign_at(typingctx, P, i, j, k):
     T = ir.IntType(bits)
 
     def codegen(context, builder, sig, args):
-        n = [_load_row(context, builder, sig.args[0], args[0], args[c], sig.args[c], T, 3) for c in (1, 2, 3)]
+        n = [load_row(context, builder, sig.args[0], args[0], args[c], sig.args[c], T, 3) for c in (1, 2, 3)]
         (a1, b1, c1), (a2, b2, c2), (a3, b3, c3) = n
         det = _dot(
             builder,
             [a1, b1, c1],
             [_det2(builder, b2, c2, b3, c3), _det2(builder, c2, a2, c3, a3), _det2(builder, a2, b2, a3, b3)],
         )
-        return _sign(builder, det)
+        return sign(builder, det)
 
     return types.int8(P, i, j, k), codegen
 
@@ -157,9 +149,9 @@ def normals_dot_sign_at(typingctx, P, i, j):
     W = ir.IntType(2 * bits + 64)
 
     def codegen(context, builder, sig, args):
-        a = [builder.sext(v, W) for v in _load_row(context, builder, sig.args[0], args[0], args[1], sig.args[1], T, 3)]
-        b = [builder.sext(v, W) for v in _load_row(context, builder, sig.args[0], args[0], args[2], sig.args[2], T, 3)]
-        return _sign(builder, _dot(builder, a, b))
+        a = [builder.sext(v, W) for v in load_row(context, builder, sig.args[0], args[0], args[1], sig.args[1], T, 3)]
+        b = [builder.sext(v, W) for v in load_row(context, builder, sig.args[0], args[0], args[2], sig.args[2], T, 3)]
+        return sign(builder, _dot(builder, a, b))
 
     return types.int8(P, i, j), codegen
 
@@ -182,14 +174,14 @@ def binet_cauchy_sign_at(typingctx, P, a, b, s, t):
         def normal(c):
             return [
                 builder.sext(v, T2)
-                for v in _load_row(context, builder, sig.args[0], args[0], args[c], sig.args[c], T, 3)
+                for v in load_row(context, builder, sig.args[0], args[0], args[c], sig.args[c], T, 3)
             ]
 
         na, nb, ns, nt = normal(1), normal(2), normal(3), normal(4)
         value = _det2(
             builder, _dot(builder, na, ns), _dot(builder, na, nt), _dot(builder, nb, ns), _dot(builder, nb, nt)
         )
-        return _sign(builder, value)
+        return sign(builder, value)
 
     return types.int8(P, a, b, s, t), codegen
 
@@ -207,15 +199,15 @@ def compare_coordinate_at(typingctx, X, i, Y, j, c):
 
     def codegen(context, builder, sig, args):
         col = context.cast(builder, args[4], sig.args[4], types.intp)
-        bx = _row_pointer(context, builder, sig.args[0], args[0], args[1], sig.args[1])
-        by = _row_pointer(context, builder, sig.args[2], args[2], args[3], sig.args[3])
-        xc, x4 = _load(builder, bx, col, T), _load(builder, bx, 3, T)
-        yc, y4 = _load(builder, by, col, T), _load(builder, by, 3, T)
+        bx = row_pointer(context, builder, sig.args[0], args[0], args[1], sig.args[1])
+        by = row_pointer(context, builder, sig.args[2], args[2], args[3], sig.args[3])
+        xc, x4 = load(builder, bx, col, T), load(builder, bx, 3, T)
+        yc, y4 = load(builder, by, col, T), load(builder, by, 3, T)
         diff = builder.sub(
             builder.mul(builder.sext(xc, T2), builder.sext(y4, T2)),
             builder.mul(builder.sext(yc, T2), builder.sext(x4, T2)),
         )
-        return builder.mul(builder.mul(_sign(builder, diff), _sign(builder, x4)), _sign(builder, y4))
+        return builder.mul(builder.mul(sign(builder, diff), sign(builder, x4)), sign(builder, y4))
 
     return types.int8(X, i, Y, j, c), codegen
 
@@ -231,11 +223,11 @@ def copy_normalized_into(typingctx, X, i, out, o):
     T = ir.IntType(bits)
 
     def codegen(context, builder, sig, args):
-        x = _load_row(context, builder, sig.args[0], args[0], args[1], sig.args[1], T, 4)
+        x = load_row(context, builder, sig.args[0], args[0], args[1], sig.args[1], T, 4)
         negative = builder.icmp_signed("<", x[3], ir.Constant(T, 0))
-        base = _row_pointer(context, builder, sig.args[2], args[2], args[3], sig.args[3])
+        base = row_pointer(context, builder, sig.args[2], args[2], args[3], sig.args[3])
         for c, v in enumerate(x):
-            builder.store(builder.select(negative, builder.neg(v), v), _element_pointer(builder, base, c, T), align=8)
+            builder.store(builder.select(negative, builder.neg(v), v), element_pointer(builder, base, c, T), align=8)
         return context.get_dummy_value()
 
     return types.none(X, i, out, o), codegen
@@ -265,7 +257,7 @@ def collinear_at(typingctx, X, a, b, c):
 
     def codegen(context, builder, sig, args):
         rows = [
-            [builder.sext(v, W) for v in _load_row(context, builder, sig.args[0], args[0], args[k], sig.args[k], T, 4)]
+            [builder.sext(v, W) for v in load_row(context, builder, sig.args[0], args[0], args[k], sig.args[k], T, 4)]
             for k in (1, 2, 3)
         ]
         zero = ir.Constant(W, 0)

@@ -43,7 +43,7 @@ from csgnb.bsp.surface_intrinsics import (
 from csgnb.errors import PrecisionError
 from csgnb.exact.budgets import check_points_against_planes
 from csgnb.exact.intrinsics import classify_at, intersect_into, points_equal_at, wide_sign_at
-from csgnb.exact.predicates import _ratio_to_double
+from csgnb.exact.predicates import ratio_to_double
 
 __all__ = [
     "OK",
@@ -228,7 +228,7 @@ def _merge_rows(vx, limbs, vid, vertices, pos, pos_bits, status, rows, points, f
             return _BAD
         # The candidate's position goes into the next free row; it stays there if the point is new.
         for c in range(3):
-            pos[count, c] = _ratio_to_double(vx, r, c)
+            pos[count, c] = ratio_to_double(vx, r, c)
         h = _SEED
         for c in range(3):
             h = _mix(h ^ np.uint64(pos_bits[count, c]))
@@ -435,8 +435,8 @@ def pair_lines_kernel(
         c2 = 0
         for c in range(3):
             if c != k:
-                keys[count, c2] = _ratio_to_double(dirs, count, c)
-                keys[count, 2 + c2] = _ratio_to_double(points, count, c)
+                keys[count, c2] = ratio_to_double(dirs, count, c)
+                keys[count, 2 + c2] = ratio_to_double(points, count, c)
                 c2 += 1
         h = _mix(_SEED ^ np.uint64(k))
         for c in range(4):

@@ -29,7 +29,7 @@ from csgnb.csg.graph import Complement, Difference, Intersection, Leaf, Node, Tr
 from csgnb.errors import CsgnbError
 from csgnb.quadric import tolerances as tol
 from csgnb.quadric.arguments import as_count, as_matrix
-from csgnb.quadric.quadric import Quadric, _apply_inverse, transform_inverse
+from csgnb.quadric.quadric import Quadric, apply_inverse, transform_inverse
 
 __all__ = ["NormalForm", "to_normal_form", "quadric_coefficients"]
 
@@ -146,7 +146,7 @@ class NormalForm:
             return self
         M = np.array([q.matrix for q in self.quadrics])
         if Minv[3, 0] == 0.0 and Minv[3, 1] == 0.0 and Minv[3, 2] == 0.0 and Minv[3, 3] == 1.0:
-            # affine: blockwise, as ``quadric._apply_inverse``, for all quadrics at once
+            # affine: blockwise, as ``quadric.apply_inverse``, for all quadrics at once
             Li, sv = Minv[:3, :3], Minv[:3, 3]
             A, m, c = M[:, :3, :3], M[:, :3, 3], M[:, 3, 3]
             As_m = A @ sv + m
@@ -232,7 +232,7 @@ class _Converter:
         Minv = self.inverse.get(mkey)
         if Minv is None:  # a composed path map: checked once (a product of good maps can be singular)
             Minv = self.inverse[mkey] = transform_inverse(M, "the transform along a path to a leaf")
-        return Quadric._trusted(_apply_inverse(q.matrix, Minv))
+        return Quadric._trusted(apply_inverse(q.matrix, Minv))
 
     def _check(self, terms: list[Term]) -> list[Term]:
         if len(terms) > self.max_terms:

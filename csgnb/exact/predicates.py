@@ -211,7 +211,7 @@ _TWO_POW_52 = 4503599627370496
 
 
 @jit
-def _ratio_to_double(points, i, c):
+def ratio_to_double(points, i, c):
     """x_c / x_4 of ``points[i]`` rounded to the nearest double, ties to even (the exact path).
 
     A float estimate (within 2 ulp) is corrected by exact comparisons of the
@@ -266,7 +266,7 @@ def _positions(points, start, stop, out, counts):
             for c in range(3):
                 if not (certified >> c) & 1:
                     counts[0] += 1
-                    out[t, c] = _ratio_to_double(points, t, c)
+                    out[t, c] = ratio_to_double(points, t, c)
 
 
 @jit
@@ -283,7 +283,7 @@ def _to_double_exact_kernel(points, out):
     """The exact path alone (the reference the fast path is measured against)."""
     for t in range(points.shape[0]):
         for c in range(3):
-            out[t, c] = _ratio_to_double(points, t, c)
+            out[t, c] = ratio_to_double(points, t, c)
 
 
 # ---------------------------------------------------------------------------

@@ -55,14 +55,14 @@ from csgnb.mesh.halfedge import (
     TWIN,
     VERT,
     MeshStore,
-    _cell_halfedges,
-    _dest,
     _new_face,
     _new_halfedge,
     _new_stamp,
     _new_vertex,
-    _plane_row,
     _rot,
+    collect_cell_halfedges,
+    face_plane_row,
+    halfedge_dest,
 )
 
 __all__ = ["CutResult", "cut", "cut_cell", "cut_cell_naive", "CUT_PROPER", "CUT_ERROR"]
@@ -122,7 +122,7 @@ def _descend(m, h0, s, path):
         neg = False
         h = hv
         while True:
-            su = _side(m, _dest(he, h), s)
+            su = _side(m, halfedge_dest(he, h), s)
             pos = pos or su > 0
             neg = neg or su < 0
             h = _rot(he, h)
@@ -137,7 +137,7 @@ def _descend(m, h0, s, path):
         best_side = 1
         h = hv
         while True:
-            u = _dest(he, h)
+            u = halfedge_dest(he, h)
             su = _side(m, u, s)
             if su == -sign0:
                 if sv != 0:
@@ -152,7 +152,7 @@ def _descend(m, h0, s, path):
                     best = h
                     best_side = 0
             elif best_side != 0 and sign0 * compare_cached_values_at(m.vdot, u, v, m.vx) < 0:
-                if best < 0 or sign0 * compare_cached_values_at(m.vdot, u, _dest(he, best), m.vx) < 0:
+                if best < 0 or sign0 * compare_cached_values_at(m.vdot, u, halfedge_dest(he, best), m.vx) < 0:
                     best = h
             h = _rot(he, h)
             if h == hv:
@@ -160,7 +160,7 @@ def _descend(m, h0, s, path):
         if best < 0:
             # A global minimum of sign0 * f on the polytope, at distance >= 0.
             return 0, sign0
-        v = _dest(he, best)
+        v = halfedge_dest(he, best)
         hv = np.int64(he[best, TWIN])  # runs from the new v back: an outgoing half-edge of v
         _record(path, v)
         sv = _side(m, v, s)
@@ -177,7 +177,7 @@ def _split_edge(m, h, s):
     fc = m.fc
     t = np.int64(he[h, TWIN])
     w = _new_vertex(m)
-    intersect_into(m.palette, _plane_row(fc, he[h, FACE]), m.palette, _plane_row(fc, he[t, FACE]), m.palette, s,
+    intersect_into(m.palette, face_plane_row(fc, he[h, FACE]), m.palette, face_plane_row(fc, he[t, FACE]), m.palette, s,
                    m.vx, w)
     m.counts[N_CONSTRUCT] += 1
     _mark_on_plane(m, w)
@@ -217,7 +217,7 @@ def _march_and_separate(m, z0, hz0, s, opp_neg, opp_pos):
         h = hz
         found = False
         for _ in range(he.shape[0]):
-            if _side(m, _dest(he, h), s) < 0 and _side(m, _dest(he, _rot(he, h)), s) >= 0:
+            if _side(m, halfedge_dest(he, h), s) < 0 and _side(m, halfedge_dest(he, _rot(he, h)), s) >= 0:
                 found = True
                 break
             h = _rot(he, h)
@@ -226,18 +226,18 @@ def _march_and_separate(m, z0, hz0, s, opp_neg, opp_pos):
         if not found:
             return -1, -1
         r = _rot(he, h)  # z -> b, in the face G between the two neighbours
-        b = _dest(he, r)
+        b = halfedge_dest(he, r)
         if _side(m, b, s) == 0:
             loop[n, LOOP_H] = r  # an on-plane edge already: no face to split (Figure 4, last sentence)
             znext = b
         else:
             # Walk G from b to its other on-plane point (Figure 4a: split an edge there).
             e = r
-            while _side(m, _dest(he, e), s) > 0:
+            while _side(m, halfedge_dest(he, e), s) > 0:
                 e = np.int64(he[e, NEXT])
-            if _side(m, _dest(he, e), s) < 0:
+            if _side(m, halfedge_dest(he, e), s) < 0:
                 _split_edge(m, e, s)
-            w = _dest(he, e)
+            w = halfedge_dest(he, e)
             g = np.int64(he[r, FACE])
             prev_r = np.int64(he[h, TWIN])
             d1 = _new_halfedge(m)
@@ -354,7 +354,7 @@ def cut_cell_naive(m, work, h0, s, opp_neg, opp_pos):
     ``work`` (int32) holds at least the polytope's half-edges.
     """
     he = m.he
-    nh = _cell_halfedges(he, m.hmark, m.counts, h0, work)
+    nh = collect_cell_halfedges(he, m.hmark, m.counts, h0, work)
     _new_stamp(m.counts)
     pos = False
     neg = False
@@ -368,7 +368,7 @@ def cut_cell_naive(m, work, h0, s, opp_neg, opp_pos):
         if sv == 0:
             zero_h = h
         elif sv > 0 and cross_h < 0:
-            if _side(m, _dest(he, h), s) < 0:
+            if _side(m, halfedge_dest(he, h), s) < 0:
                 cross_h = h
     if not (pos and neg):
         return 0, 1 if pos else -1, -1

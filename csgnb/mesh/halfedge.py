@@ -164,12 +164,12 @@ def _rot(he, h):
 
 
 @jit(inline="always")
-def _dest(he, h):
+def halfedge_dest(he, h):
     return he[he[h, NEXT], VERT]
 
 
 @jit(inline="always")
-def _plane_row(fc, f):
+def face_plane_row(fc, f):
     p = fc[f, PLANE]
     return p if p >= 0 else ~p
 
@@ -280,7 +280,7 @@ def _release_cell_kernel(m, h0):
 
 
 @jit
-def _cell_halfedges(he, hmark, counts, h0, out):
+def collect_cell_halfedges(he, hmark, counts, h0, out):
     """Write every half-edge of the polytope of ``h0`` into ``out``; return how many."""
     stamp = _new_stamp(counts)
     n = 0
@@ -419,7 +419,7 @@ class MeshStore:
     def cell_halfedges(self, cell: int) -> np.ndarray:
         """Return the half-edges ``(k,) int32`` of the polytope named by ``cell``."""
         out = np.empty(int(self.counts[NH]), np.int32)
-        n = _cell_halfedges(self.he, self.hmark, self.counts, int(cell), out)
+        n = collect_cell_halfedges(self.he, self.hmark, self.counts, int(cell), out)
         return out[:n]
 
     def cell_faces(self, cell: int) -> list[list[int]]:
@@ -556,7 +556,7 @@ class MeshStore:
                 raise GeometryError(f"half-edge {h} and its twin {t} do not run in opposite directions")
             if he[h, FACE] == he[t, FACE]:
                 raise GeometryError(f"half-edge {h} has its twin in the same face")
-            if _plane_row(self.fc, he[h, FACE]) == _plane_row(self.fc, he[t, FACE]):
+            if face_plane_row(self.fc, he[h, FACE]) == face_plane_row(self.fc, he[t, FACE]):
                 raise GeometryError(f"faces {he[h, FACE]} and {he[t, FACE]} are adjacent and coplanar")
         fids, polys = self.face_polygons(cell)
         verts = np.unique([v for p in polys for v in p])
@@ -569,7 +569,7 @@ class MeshStore:
         for f, p in zip(fids, polys, strict=True):
             if len(p) < 3 or len(set(p)) != len(p):
                 raise GeometryError(f"face {f} has vertices {p}")
-            row = _plane_row(self.fc, f)
+            row = face_plane_row(self.fc, f)
             flip = -1 if self.fc[f, PLANE] < 0 else 1
             sides = _classify_rows(self.vx, verts, self.palette, row) * flip
             on = set(int(v) for v in verts[sides == 0])

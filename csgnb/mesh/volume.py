@@ -25,8 +25,8 @@ from numba.extending import intrinsic
 
 from csgnb._jit import jit
 from csgnb._views import unmanaged, unmanaged_tuple
-from csgnb.exact.intrinsics import _load_row, _row_pointer, _wide_width
-from csgnb.mesh.halfedge import FACE, HE, NEXT, VERT, _cell_halfedges
+from csgnb.exact.lowering import load_row, row_pointer, wide_width
+from csgnb.mesh.halfedge import FACE, HE, NEXT, VERT, collect_cell_halfedges
 
 __all__ = ["cells_volume", "sum_fractions", "term_limbs"]
 
@@ -42,14 +42,14 @@ def volume_term_into(typingctx, X, a, b, c, out, row):
 
     ``X`` (n, 4) wide homogeneous points; ``out`` (m, 2L) int64 with L = :func:`term_limbs`.
     """
-    bits = _wide_width(X, "volume_term_into")
+    bits = wide_width(X, "volume_term_into")
     T = ir.IntType(bits)
     W = ir.IntType(4 * bits)
     limbs = 4 * bits // 64
 
     def codegen(context, builder, sig, args):
         def load(k):
-            return [builder.sext(v, W) for v in _load_row(context, builder, sig.args[0], args[0], args[k],
+            return [builder.sext(v, W) for v in load_row(context, builder, sig.args[0], args[0], args[k],
                                                          sig.args[k], T, 4)]
 
         A, B, C = load(1), load(2), load(3)
@@ -65,7 +65,7 @@ def volume_term_into(typingctx, X, a, b, c, out, row):
         negative = builder.icmp_signed("<", den, ir.Constant(W, 0))
         det = builder.select(negative, builder.neg(det), det)
         den = builder.select(negative, builder.neg(den), den)
-        base = _row_pointer(context, builder, sig.args[4], args[4], args[5], sig.args[5])
+        base = row_pointer(context, builder, sig.args[4], args[4], args[5], sig.args[5])
         i64 = ir.IntType(64)
         for k, value in enumerate((det, den)):
             for j in range(limbs):
@@ -87,7 +87,7 @@ def _terms_kernel(m, handles, work, out):
     he = m.he
     n = 0
     for i in range(handles.shape[0]):
-        nh = _cell_halfedges(he, m.hmark, m.counts, handles[i], work)
+        nh = collect_cell_halfedges(he, m.hmark, m.counts, handles[i], work)
         for j in range(nh):
             g = np.int64(work[j])
             f = np.int64(he[g, FACE])

@@ -39,7 +39,7 @@ import numpy as np
 from csgnb._jit import jit
 from csgnb._resumable import DONE, FAILED, NEED_ROOM
 from csgnb._views import unmanaged, unmanaged_tuple
-from csgnb.bsp.build import _build_kernel
+from csgnb.bsp.build import build_kernel
 from csgnb.bsp.extract import PIECES, TreeArrays, clip_cell, extract_into
 from csgnb.bsp.merging import merge_cells
 from csgnb.bsp.polygon import copy_point, split_polygon
@@ -407,7 +407,7 @@ def pieces_to_import(out, bi, need):
 def import_polygons(pal, bi, n, bs, seed, t, need):
     """Build the BSP of ``n`` import polygons into ``t`` (label 1 inside); its node count or -1."""
     _shuffle(bs.order, n, seed)
-    count = _build_kernel(pal, bi.support[:n], bi.offsets[: n + 1], bi.edges, bi.verts, bs.order[:n], 1,
+    count = build_kernel(pal, bi.support[:n], bi.offsets[: n + 1], bi.edges, bi.verts, bs.order[:n], 1,
                           t.plane, t.neg, t.pos, t.label, bs.a_edges, bs.a_verts, bs.sides,
                           bs.st_node, bs.st_start, bs.st_k)
     if count == -1:

@@ -79,10 +79,10 @@ class Tool:
     @classmethod
     def from_bsp(cls, bsp, *, grid=None, seed: int = 0) -> Tool:
         """A tool from a :class:`csgnb.bsp.BSP`: its exact boundary (plane-based pieces) and its tree."""
-        from csgnb.bsp.extract import PIECES, WALLS, _Extractor, _pieces_tuple
+        from csgnb.bsp.extract import PIECES, WALLS, Extractor, pieces_tuple
 
-        ex = _Extractor(bsp.tree, bsp.lo, bsp.hi, PIECES | WALLS, 1024).run()
-        palette, vx, edge, poly = _pieces_tuple(ex.store.planes.copy(), ex.out)
+        ex = Extractor(bsp.tree, bsp.lo, bsp.hi, PIECES | WALLS, 1024).run()
+        palette, vx, edge, poly = pieces_tuple(ex.store.planes.copy(), ex.out)
         sizes = poly[:, 1]
         offsets = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int32)
         # import convention: edge j runs from vertex j - 1 to vertex j

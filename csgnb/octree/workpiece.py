@@ -32,7 +32,7 @@ import numpy as np
 from csgnb._resumable import DONE, FAILED, grown
 from csgnb.bsp.extract import check_corner, extract_boundary
 from csgnb.bsp.merging import constant_labels, merge_table
-from csgnb.bsp.polygon import _set_vertices_kernel
+from csgnb.bsp.polygon import set_vertices_kernel
 from csgnb.bsp.solid import BSP as SolidBSP
 from csgnb.bsp.solid import DIFFERENCE, INTERSECTION, UNION
 from csgnb.bsp.surface import BoundarySurface
@@ -310,7 +310,7 @@ class Workpiece:
                            ~rows[np.maximum(~polys.support, 0)]).astype(np.int32)
         edges = rows[polys.edges].astype(np.int32)
         verts = np.empty((edges.shape[0], 4), dtype)
-        _set_vertices_kernel(self.palette, support, polys.offsets, edges, verts)
+        set_vertices_kernel(self.palette, support, polys.offsets, edges, verts)
         pos = to_double_position(verts) if verts.shape[0] else np.zeros((0, 3))
         owner = np.repeat(np.arange(len(polys)), polys.sizes)
         plo = np.full((len(polys), 3), np.inf)

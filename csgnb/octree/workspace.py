@@ -59,7 +59,7 @@ class ImportInput(NamedTuple):
 
 
 class BuildScratch(NamedTuple):
-    """Scratch of :func:`csgnb.bsp.build._build_kernel` (insertion order, piece arena, work stack)."""
+    """Scratch of :func:`csgnb.bsp.build.build_kernel` (insertion order, piece arena, work stack)."""
 
     order: np.ndarray
     a_edges: np.ndarray

@@ -86,7 +86,7 @@ def planes_mask(matrices: np.ndarray) -> np.ndarray:
     return (a == 0.0) | (a <= tol.PLANE * np.linalg.norm(M[..., :3, 3], axis=-1))
 
 
-def _apply_inverse(Q: np.ndarray, Minv: np.ndarray) -> np.ndarray:
+def apply_inverse(Q: np.ndarray, Minv: np.ndarray) -> np.ndarray:
     """Return ``Minv.T @ Q @ Minv`` (eq. 17), blockwise for affine ``Minv`` (exact zeros stay)."""
     if Minv[3, 0] == 0.0 and Minv[3, 1] == 0.0 and Minv[3, 2] == 0.0 and Minv[3, 3] == 1.0:
         Li, s = Minv[:3, :3], Minv[:3, 3]
@@ -199,7 +199,7 @@ class Quadric:
         blockwise, so a plane stays a plane exactly.
         """
         M = as_matrix(M, "transform")
-        return Quadric(_apply_inverse(self._matrix, transform_inverse(M)))
+        return Quadric(apply_inverse(self._matrix, transform_inverse(M)))
 
     def translated(self, offset) -> Quadric:
         """Return this quadric moved by ``offset`` : (3,)."""
