@@ -11,6 +11,7 @@ check them against whole-workpiece volumes and against the reference engine.
 
 from __future__ import annotations
 
+import json
 from collections import Counter
 from fractions import Fraction
 
@@ -100,8 +101,11 @@ def test_flat_end_mill_slots_remove_the_exact_prism_volumes(W, flat, tmp_path):
     # STL through meshio: a closed triangle mesh whose float volume is the exact one, rounded.
     import meshio
 
-    path = milling.export_stl(w, tmp_path / "part.stl")
-    m = meshio.read(path)
+    report = milling.export_stl(w, tmp_path / "part.stl")
+    assert report.closed and report.watertight and report.dropped == 0
+    assert report.volume == pytest.approx(float(w.model_volume()), rel=1e-6)
+    m = meshio.read(report.path)
+    assert len(m.cells_dict["triangle"]) == report.triangles == len(w.to_mesh(manifold=True)[1])
     V, T = m.points.astype(float), m.cells_dict["triangle"]
     V, inv = np.unique(V, axis=0, return_inverse=True)
     T = inv.reshape(-1)[T]
@@ -365,3 +369,43 @@ def test_octree_and_reference_agree_move_for_move(text, chord_tolerance):
     assert sum(r.removed > 0 for r in octree.records) >= 3
     assert octree.workpiece.volume() == ref.workpiece.volume()
     assert octree.workpiece.surface().is_closed()
+
+
+def test_exact_values_of_any_size_survive_checkpoints_and_summaries():
+    """A long job's exact volumes have denominators of 10^4+ digits; Python refuses to convert such ints to
+    decimal text (4,300 digits), which made a 1,153-move job fail at its end with no STL and no JSON."""
+    from csgnb.apps.milling import MillingResult, MoveRecord, _record_from_json, _record_json, summary_table
+
+    huge = Fraction(7, 3**20000)
+    rec = MoveRecord(0, 1, "linear", None, 1.0, 0.1, huge, 1, None, 0.01)
+    back = _record_from_json(json.loads(json.dumps(_record_json(rec))))
+    assert back.removed == huge and back == rec
+
+    class _Part:
+        grid = Grid.from_resolution(1.0)
+
+        def volume(self):
+            return Fraction(10**6) - huge
+
+    table = summary_table(MillingResult(_Part(), [rec], Fraction(10**6)))
+    assert "stock - removed == part: True" in table and "digits" in table
+
+
+def test_a_failing_run_keeps_the_moves_done(W, flat, monkeypatch):
+    program = gcode.parse("G0 X5 Y5 Z5\nG1 Z-1 F100\nG1 X20\nG1 Y20\nG1 X5")
+    w = W.box(*STOCK, grid=GRID)
+    calls = {"n": 0}
+    original = type(w).difference
+
+    def failing(self, tool, **kw):
+        calls["n"] += 1
+        if calls["n"] == 3:
+            raise RuntimeError("disk full")
+        return original(self, tool, **kw)
+
+    monkeypatch.setattr(type(w), "difference", failing)
+    with pytest.raises(RuntimeError, match="disk full") as info:
+        milling.simulate(w, program, flat, progress=False)
+    partial = info.value.partial_result
+    assert 0 < len(partial.records) < len(program.moves)
+    assert any("partial_result" in note for note in info.value.__notes__)

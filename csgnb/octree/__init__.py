@@ -3,7 +3,9 @@
 :class:`Workpiece` is the API; :mod:`~csgnb.octree.layout` the plain arrays it is made of,
 :mod:`~csgnb.octree.kernels` the per-cell Booleans, splits and combines,
 :mod:`~csgnb.octree.tool` the tools (convex hulls, meshes, BSPs, translated exactly),
-:mod:`~csgnb.octree.global_tree` the whole workpiece as one BSP (export, classification).
+:mod:`~csgnb.octree.global_tree` the whole workpiece as one BSP (export, classification),
+:mod:`~csgnb.octree.volume` exact cell volumes cached by cell content and the exact volume change
+of a Boolean, :mod:`~csgnb.octree.persist` saving and loading.
 """
 
 from csgnb.octree.tool import Tool
