@@ -62,6 +62,10 @@ class Tool:
     @classmethod
     def from_hull(cls, hull) -> Tool:
         """A convex tool from a :class:`~csgnb.mesh.hull.ConvexHull` (its exact facet planes)."""
+        from csgnb.mesh.hull import ConvexHull
+
+        if not isinstance(hull, ConvexHull):
+            raise TypeError(f"Tool.from_hull takes a csgnb.mesh.hull.ConvexHull, got {type(hull).__name__}")
         return cls("convex", _object_planes(hull.planes), hull.lo, hull.hi, grid=getattr(hull, "grid", None))
 
     @classmethod
@@ -79,6 +83,10 @@ class Tool:
     @classmethod
     def from_bsp(cls, bsp, *, grid=None, seed: int = 0) -> Tool:
         """A tool from a :class:`csgnb.bsp.BSP`: its exact boundary (plane-based pieces) and its tree."""
+        from csgnb.bsp.solid import BSP
+
+        if not isinstance(bsp, BSP):
+            raise TypeError(f"Tool.from_bsp takes a csgnb.bsp.BSP, got {type(bsp).__name__}")
         from csgnb.bsp.extract import PIECES, WALLS, Extractor, pieces_tuple
 
         ex = Extractor(bsp.tree, bsp.lo, bsp.hi, PIECES | WALLS, 1024).run()

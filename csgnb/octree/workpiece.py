@@ -22,10 +22,12 @@ in grid units cubed (``model_volume`` converts).
 
 from __future__ import annotations
 
+import os
 import time
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from fractions import Fraction
+from pathlib import Path
 
 import numpy as np
 
@@ -664,7 +666,7 @@ class Workpiece:
         """The leaves (octree node ids, ``(k,) int64``) whose box meets the open box ``(lo, hi)`` (grid units).
 
         Node ids name cells until the next Boolean (which may split, combine or replace them)."""
-        return self._leaves_meeting(lo, hi)
+        return self._leaves_meeting(check_corner(lo, "lo"), check_corner(hi, "hi"))
 
     def cell_box(self, node: int) -> tuple[np.ndarray, int]:
         """Leaf ``node``'s box: its low corner ``(3,) int64`` and edge length (grid units)."""
@@ -710,8 +712,9 @@ class Workpiece:
         The workpiece's palette holds every plane any cell ever used (hundreds of thousands
         after a long run); a cell's extraction copies its tree's palette, so it gets its own.
         """
-        if self.oc.child[node] >= 0 or self.oc.kind[node] != BSP:
-            raise GeometryError(f"octree node {node} is not a leaf with a BSP")
+        self._check_leaf(node)
+        if self.oc.kind[node] != BSP:
+            raise GeometryError(f"octree node {node} is a uniform leaf (label {int(self.oc.label[node])}), no BSP")
         s, n = int(self.oc.start[node]), int(self.oc.length[node])
         p = self.pool
         plane = p.plane[s:s + n]
@@ -773,28 +776,42 @@ class Workpiece:
         ``manifold=True`` duplicates vertices along edges shared by four faces, so every edge has
         exactly two triangles (what manifold3d and other 2-manifold consumers need).
         """
-        mesh = self.surface().to_polydata(manifold=manifold)
+        mesh = self.surface().to_polydata(manifold=_flag(manifold, "manifold"))
         mesh.points = self.grid.to_model(mesh.points)
         return mesh
 
     def to_mesh(self, manifold: bool = False) -> tuple[np.ndarray, np.ndarray]:
         """Float vertices ``(n, 3)`` in model units and outward triangles ``(m, 3) int64`` of the boundary."""
-        return self.surface().to_mesh(manifold, transform=self.grid.to_model)
+        return self.surface().to_mesh(_flag(manifold, "manifold"), transform=self.grid.to_model)
 
     def to_trimesh(self, manifold: bool = False):
         """The boundary as a ``trimesh.Trimesh`` in model units (trimesh is optional: ``pip install trimesh``)."""
-        return self.surface().to_trimesh(manifold, transform=self.grid.to_model)
+        return self.surface().to_trimesh(_flag(manifold, "manifold"), transform=self.grid.to_model)
 
     def save_mesh(self, path, *, manifold: bool = False, file_format: str | None = None):
         """Write the boundary in model units through meshio (``.stl``, ``.obj``, ``.ply``, ...); return the path.
 
         ``save`` / ``load`` keep the exact workpiece; this writes the float triangles other tools read.
         """
-        return self.surface().save(path, manifold, self.grid.to_model, file_format)
+        if not isinstance(path, str | os.PathLike):
+            raise TypeError(f"path must be a file name, got {type(path).__name__}")
+        if file_format is None and Path(path).suffix.lower() not in _MESH_SUFFIXES:
+            raise GeometryError(f"cannot tell the mesh format of {str(path)!r}: end it in "
+                                f"{', '.join(sorted(_MESH_SUFFIXES))} or pass file_format= (a meshio format name)")
+        return self.surface().save(path, _flag(manifold, "manifold"), self.grid.to_model, file_format)
 
     def __repr__(self) -> str:
         return (f"Workpiece({self.n_cells} cells, {self.n_bsp_nodes} BSP nodes, {self.width}-bit, "
                 f"threshold {self.threshold})")
+
+
+_MESH_SUFFIXES = {".stl", ".obj", ".ply", ".off", ".vtk", ".vtu"}
+
+
+def _flag(value, name: str) -> bool:
+    if not isinstance(value, bool | np.bool_):
+        raise TypeError(f"{name} must be True or False, got {value!r:.40}")
+    return bool(value)
 
 
 def _real_corner(value, name: str) -> np.ndarray:
@@ -825,7 +842,13 @@ def _mesh_arrays(vertices, faces):
     if isinstance(obj, str) or hasattr(obj, "__fspath__"):
         import meshio
 
-        mesh = meshio.read(obj)
+        if not os.path.exists(obj):
+            raise FileNotFoundError(f"no mesh file {obj!r}")
+        try:
+            mesh = meshio.read(obj)
+        except meshio.ReadError as exc:
+            raise GeometryError(f"cannot read {obj} as a mesh ({exc}); meshio reads .stl, .obj, .ply, .off, ...") \
+                from None
         tris = [c.data for c in mesh.cells if c.type == "triangle"]
         if not tris:
             raise GeometryError(f"{obj} has no triangles (cell types: {[c.type for c in mesh.cells]})")
