@@ -54,7 +54,7 @@ def _digest(header: dict, arrays: dict[str, np.ndarray]) -> str:
     h = hashlib.sha256()
     h.update(json.dumps({k: v for k, v in header.items() if k != "sha256"}, sort_keys=True).encode())
     for name in sorted(arrays):
-        a = np.ascontiguousarray(arrays[name])
+        a = np.asarray(arrays[name], order="C")  # (np.ascontiguousarray would make a 0-d array 1-d)
         h.update(name.encode())
         h.update(str(a.dtype).encode())
         h.update(str(a.shape).encode())
@@ -124,7 +124,7 @@ def _write_zip(fh, header_json: str, arrays: dict[str, np.ndarray]) -> None:
             info.external_attr = 0o644 << 16
             info.create_system = 3
             with zf.open(info, "w", force_zip64=True) as out:
-                np.lib.format.write_array(out, np.ascontiguousarray(arr), allow_pickle=False)
+                np.lib.format.write_array(out, np.asarray(arr, order="C"), allow_pickle=False)
 
 
 def write_arrays(path, header: dict, arrays: dict[str, np.ndarray], *, file_format: str = FORMAT,
@@ -334,7 +334,6 @@ def check_workpiece(path, header: dict, arrays: dict[str, np.ndarray]) -> dict:
 
 
 def _check(header: dict, arrays: dict[str, np.ndarray]) -> dict:  # noqa: C901 (one list of checks)
-    from csgnb.errors import InternalError
     from csgnb.exact.budgets import _plane_maxima, budget, check_planes
     from csgnb.exact.quantization import Grid
     from csgnb.exact.wide import WIDTHS, wide_dtype
@@ -579,8 +578,6 @@ def _check(header: dict, arrays: dict[str, np.ndarray]) -> dict:  # noqa: C901 (
             check_planes(palette, "the palette")
         except CsgnbError as exc:
             raise _Bad(f"array 'palette_limbs': {exc}") from None
-        except InternalError:
-            raise
         N, _, D, _ = _plane_maxima(palette)
         if N > max_normal or D > max_offset:
             raise _Bad(f"the palette's planes (max |normal| {N}, max |offset| {D}) exceed the header's "
