@@ -101,6 +101,29 @@ def test_the_built_workpiece_exercises_every_part_of_the_format(saved):
     assert same_solid(r, w)
 
 
+def cycle_edit(a):
+    """Q -> A -> B (inner nodes of one BSP, B's neg child X): make B -> A and Q -> X, every node keeping one parent."""
+    plane, neg = a["pool_plane"], a["pool_neg"]
+    cells = np.flatnonzero((a["oc_child"] == -1) & (a["oc_kind"] == 1))
+    for c in cells:
+        s, n = int(a["oc_start"][c]), int(a["oc_length"][c])
+        for q in range(s, s + n):
+            if plane[q] < 0:
+                continue
+            A = s + int(neg[q])
+            if plane[A] < 0:
+                continue
+            B = s + int(neg[A])
+            if plane[B] < 0:
+                continue
+            X = int(neg[B])
+            nn = neg.copy()
+            nn[B] = A - s
+            nn[q] = X
+            return {"pool_neg": nn}
+    raise AssertionError("no BSP three inner nodes deep")
+
+
 def crafted_cases(header, a):
     """(name, edits, what the error must name): the attacks of issue 25 and one per check."""
     n = a["oc_child"].shape[0]
@@ -116,6 +139,7 @@ def crafted_cases(header, a):
     counts = a["oc_counts"]
     return [
         ("threshold lowered", {"h_threshold": int(a["oc_length"][big]) - 1}, "threshold"),
+        ("threshold huge (a huge workspace)", {"h_threshold": 10**9}, "threshold"),
         ("max_coordinate 10", {"h_max_coordinate": 10}, "root_lo"),
         ("root moved with max_coordinate", {"h_max_coordinate": 10, "h_root_lo": [-16] * 3, "h_root_size": 32},
          "oc_lo|root"),
@@ -147,6 +171,7 @@ def crafted_cases(header, a):
          "oc_start"),
         ("pool child beyond the BSP", {"pool_neg": edited(a, "pool_neg", int(pin[0]), 10**6)}, "pool_neg"),
         ("pool cycle", {"pool_pos": edited(a, "pool_pos", int(pin[1]), 0)}, "pool_pos"),
+        ("pool cycle apart from the root", cycle_edit(a), "cycle"),
         ("pool shared node", {"pool_pos": edited(a, "pool_pos", int(pin[0]), a["pool_neg"][pin[0]])}, "parents"),
         ("pool plane beyond palette", {"pool_plane": edited(a, "pool_plane", int(pin[0]), counts[N_PAL] + 3)},
          "pool_plane"),

@@ -284,6 +284,7 @@ HEADER_FIELDS = {"width", "exponent", "origin", "max_coordinate", "threshold", "
                  "seed", "root_lo", "root_size", "max_normal", "max_offset"}
 OPTIONAL_HEADER_FIELDS = {"completed", "checkpoint", "format", "version", "sha256"}
 _AXIS_MULTIPLIER = np.int64(-7046029254386353131)
+_MAX_THRESHOLD = 1 << 16  # BSP nodes per cell (the paper's best: 100-200); the workspace grows with it
 
 
 class _Bad(Exception):
@@ -370,6 +371,8 @@ def _check(header: dict, arrays: dict[str, np.ndarray]) -> dict:  # noqa: C901 (
     except (CsgnbError, TypeError) as exc:
         raise _Bad(f"the header's grid is invalid: {exc}") from None
     threshold = _int(header, "threshold", 8)
+    if threshold > _MAX_THRESHOLD:
+        raise _Bad(f"header field 'threshold' = {threshold} is beyond {_MAX_THRESHOLD} (the workspace is sized by it)")
     min_cell = _int(header, "min_cell", 1)
     if min_cell & (min_cell - 1):
         raise _Bad(f"header field 'min_cell' must be a power of two, got {min_cell}")
@@ -550,11 +553,10 @@ def _check(header: dict, arrays: dict[str, np.ndarray]) -> dict:  # noqa: C901 (
     if np.any(is_leaf & (plane != -1)):
         raise _Bad(f"pool_plane[{_first(is_leaf & (plane != -1))}] must be a palette row or -1 (a leaf)")
     for name, arr in (("neg", neg), ("pos", pos)):
-        badc = is_inner & ((arr <= rel) | (arr >= seg_len))
+        badc = is_inner & ((arr < 1) | (arr >= seg_len))
         if np.any(badc):
             i = _first(badc)
-            raise _Bad(f"pool_{name}[{i}] = {int(arr[i])} is not a later node of its BSP (node {int(rel[i])} of "
-                       f"{int(seg_len[i])})")
+            raise _Bad(f"pool_{name}[{i}] = {int(arr[i])} is not a node 1 .. {int(seg_len[i]) - 1} of its cell's BSP")
         if np.any(is_leaf & (arr != -1)):
             raise _Bad(f"pool_{name}[{_first(is_leaf & (arr != -1))}] of a leaf must be -1")
     if np.any(is_inner & (plabel != -1)):
@@ -569,6 +571,17 @@ def _check(header: dict, arrays: dict[str, np.ndarray]) -> dict:  # noqa: C901 (
         i = _first(wrong)
         raise _Bad(f"BSP pool node {i} (node {int(rel[i])} of its cell's BSP) has {int(indegree[i])} parents: the "
                    "nodes of a cell's BSP must form a tree from its first node")
+    # one parent each is a tree unless some nodes form a cycle apart from the root: climb (doubling) to the roots
+    inner_rows = np.flatnonzero(is_inner)
+    up = np.arange(m, dtype=np.int64)
+    up[targets] = np.concatenate([inner_rows, inner_rows])
+    for _ in range(int(lens.max(initial=1)).bit_length() + 1):
+        up = up[up]
+    cyc = rel[up] != 0
+    if np.any(cyc):
+        i = _first(cyc)
+        raise _Bad(f"BSP pool node {i} (node {int(rel[i])} of its cell's BSP) lies on a cycle: the nodes of a cell's "
+                   "BSP must form a tree from its first node")
 
     # -- the palette and the wall-plane map -----------------------------------------------------
     palette = np.zeros((p, 4), wide_dtype(width))
