@@ -284,6 +284,13 @@ def test_the_same_workpiece_saves_the_same_bytes(saved, tmp_path):
     # built again in arrays grown differently: the same state, the same bytes
     build(grow=True).save(tmp_path / "grown.npz")
     assert (tmp_path / "grown.npz").read_bytes() == first
+    # an empty workpiece too (no pool, no palette)
+    empty = Workpiece.empty(threshold=16)
+    empty.save(tmp_path / "empty.npz")
+    back = Workpiece.load(tmp_path / "empty.npz")
+    assert back.volume() == 0 and back.n_cells == 1
+    back.save(tmp_path / "empty2.npz")
+    assert (tmp_path / "empty.npz").read_bytes() == (tmp_path / "empty2.npz").read_bytes()
     # and it goes on identically after a load
     rng = np.random.default_rng(99)
     cut = random_hull(rng, [12, 12, 12], 7)

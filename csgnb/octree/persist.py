@@ -240,7 +240,7 @@ def read_arrays(path, *, file_format: str = FORMAT, version: int = VERSION) -> t
         raise WorkpieceFileError(f"{path} is not a {file_format} file: it has no header")
     try:
         header = json.loads(str(raw))
-    except ValueError as exc:
+    except (ValueError, RecursionError) as exc:
         raise WorkpieceFileError(f"{path} has an unreadable header (corrupted?): {exc}") from exc
     if not isinstance(header, dict):
         raise WorkpieceFileError(f"{path} has an unreadable header (not a JSON object)")
