@@ -305,7 +305,7 @@ def test_save_and_load_are_bit_exact_and_refuse_damaged_files(flat, tmp_path, mo
     def boom(*a, **k):
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(np, "savez", boom)
+    monkeypatch.setattr(np.lib.format, "write_array", boom)
     w.difference(sweep.straight_sweep(flat, (30, 20, -1), (35, 20, -1)).hulls[0])
     with pytest.raises(KeyboardInterrupt):
         w.save(path)

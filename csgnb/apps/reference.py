@@ -23,14 +23,8 @@ Interface (volumes exact :class:`fractions.Fraction` in **grid units cubed**;
 
 from __future__ import annotations
 
-import hashlib
-import json
-import os
-import tempfile
 import time
-import zipfile
 from fractions import Fraction
-from pathlib import Path
 
 import numpy as np
 
@@ -46,7 +40,7 @@ from csgnb.octree import OpReport
 __all__ = ["BSPWorkpiece"]
 
 _FORMAT = "csgnb-bsp-workpiece"
-_VERSION = 1
+_VERSION = 2
 
 
 class BSPWorkpiece:
@@ -204,48 +198,53 @@ class BSPWorkpiece:
                 "label": t.label, "box": np.array([self.bsp.lo, self.bsp.hi], np.int64)}
 
     def save(self, path) -> None:
-        """Write the workpiece to ``path`` (a versioned .npz with a checksum; written to a temporary file, then
-        renamed, so an interrupted save leaves the previous file intact)."""
-        path = Path(path)
-        arrays = self._arrays()
-        digest = hashlib.sha256(b"".join(a.tobytes() for a in arrays.values())).hexdigest()
-        header = {"format": _FORMAT, "version": _VERSION, "width": self.grid.width, "scale": self.grid.scale,
-                  "origin": self.grid.origin.tolist(), "max_coordinate": self.grid.max_coordinate, "sha256": digest}
-        fd, tmp = tempfile.mkstemp(dir=path.parent or ".", prefix=path.name + ".", suffix=".tmp")
-        try:
-            with os.fdopen(fd, "wb") as fh:
-                np.savez(fh, header=np.array(json.dumps(header)), **arrays)
-                fh.flush()
-                os.fsync(fh.fileno())
-            os.replace(tmp, path)
-        except BaseException:
-            Path(tmp).unlink(missing_ok=True)
-            raise
+        """Write the workpiece to ``path`` (:mod:`csgnb.octree.persist`: a versioned .npz with a checksum, written
+        deterministically to a temporary file, then renamed, so an interrupted save leaves the previous file
+        intact)."""
+        from csgnb.octree.persist import write_arrays
+
+        g = self.grid
+        header = {"width": g.width, "exponent": int(g.exponent), "origin": [float(x) for x in g.origin],
+                  "max_coordinate": int(g.max_coordinate)}
+        write_arrays(path, header, self._arrays(), file_format=_FORMAT, version=_VERSION)
 
     @classmethod
     def load(cls, path) -> BSPWorkpiece:
-        """Read a workpiece written by :meth:`save`; a corrupted or truncated file is a clear ``ValueError``."""
+        """Read a workpiece written by :meth:`save`; a corrupted, truncated or inconsistent file is a clear
+        ``WorkpieceFileError`` (a ``ValueError``)."""
+        from csgnb.errors import CsgnbError
+        from csgnb.octree.persist import WorkpieceFileError, read_arrays
+
+        header, arrays = read_arrays(path, file_format=_FORMAT, version=_VERSION)
+        names = {"limbs", "plane", "neg", "pos", "label", "box"}
+        if set(arrays) != names:
+            raise WorkpieceFileError(f"{path} is not a valid BSP workpiece: it holds the arrays {sorted(arrays)}, "
+                                     f"expected {sorted(names)}")
+        extra = set(header) - {"width", "exponent", "origin", "max_coordinate", "format", "version", "sha256"}
+        if extra:
+            raise WorkpieceFileError(f"{path} is not a valid BSP workpiece: unknown header field(s) {sorted(extra)}")
         try:
-            with np.load(Path(path), allow_pickle=False) as z:
-                header = json.loads(str(z["header"]))
-                arrays = {k: z[k] for k in ("limbs", "plane", "neg", "pos", "label", "box")}
-        except (OSError, EOFError, KeyError, ValueError, zipfile.BadZipFile) as exc:
-            raise ValueError(f"{path} is not a readable workpiece file (truncated or corrupted?): {exc}") from exc
-        if header.get("format") != _FORMAT or header.get("version") != _VERSION:
-            raise ValueError(f"{path} is a {header.get('format')} v{header.get('version')} file; this reads "
-                             f"{_FORMAT} v{_VERSION}")
-        digest = hashlib.sha256(b"".join(a.tobytes() for a in arrays.values())).hexdigest()
-        if digest != header["sha256"]:
-            raise ValueError(f"{path} is corrupted: its checksum does not match its contents")
-        grid = Grid(scale=header["scale"], origin=header["origin"], width=header["width"],
-                    max_coordinate=header["max_coordinate"])
-        limbs = arrays["limbs"]
-        if limbs.ndim != 3 or limbs.shape[1:] != (4, grid.width // 64):
-            raise ValueError(f"{path} is corrupted: its plane palette has shape {limbs.shape}")
-        palette = np.zeros(limbs.shape[:2], wide_dtype(grid.width))
-        palette["limbs"] = limbs
-        tree = BSPTree(palette, arrays["plane"], arrays["neg"], arrays["pos"], arrays["label"])
-        return cls(BSP(tree, arrays["box"][0], arrays["box"][1]), grid)
+            if not all(isinstance(header.get(k), int) and not isinstance(header.get(k), bool)
+                       for k in ("width", "exponent", "max_coordinate")):
+                raise GeometryError("the header's width, exponent and max_coordinate must be integers")
+            grid = Grid(exponent=header["exponent"], origin=header["origin"], width=header["width"],
+                        max_coordinate=header["max_coordinate"])
+            limbs, box = arrays["limbs"], arrays["box"]
+            if limbs.dtype != np.uint64 or limbs.ndim != 3 or limbs.shape[1:] != (4, grid.width // 64):
+                raise GeometryError(f"its plane palette has dtype {limbs.dtype} and shape {limbs.shape}, expected "
+                                    f"uint64 (m, 4, {grid.width // 64})")
+            if box.dtype != np.int64 or box.shape != (2, 3):
+                raise GeometryError(f"its box has dtype {box.dtype} and shape {box.shape}, expected int64 (2, 3)")
+            for name in ("plane", "neg", "pos", "label"):
+                if arrays[name].dtype != np.int32 or arrays[name].ndim != 1:
+                    raise GeometryError(f"its array {name!r} must be 1-D int32, got {arrays[name].dtype} "
+                                        f"{arrays[name].shape}")
+            palette = np.zeros(limbs.shape[:2], wide_dtype(grid.width))
+            palette["limbs"] = limbs
+            tree = BSPTree(palette, arrays["plane"], arrays["neg"], arrays["pos"], arrays["label"])  # validated
+            return cls(BSP(tree, box[0], box[1]), grid)
+        except (CsgnbError, TypeError, KeyError) as exc:
+            raise WorkpieceFileError(f"{path} is not a valid BSP workpiece: {exc}") from None
 
     def __repr__(self) -> str:
         return f"BSPWorkpiece(stand-in, {self.n_nodes} BSP nodes, {self.grid})"

@@ -22,6 +22,7 @@ in grid units cubed (``model_volume`` converts).
 
 from __future__ import annotations
 
+import hashlib
 import os
 import time
 from collections.abc import Callable, Iterable
@@ -443,7 +444,10 @@ class Workpiece:
         every ``k`` operations (atomically, with the number done). If that file already holds
         a checkpoint of this run, the workpiece is first restored from it and the operations it
         had done are skipped, so a run killed at any point and started again ends with a
-        result identical to an uninterrupted one. Returns the reports of the operations run.
+        result identical to an uninterrupted one. A checkpoint carries digests of the workpiece
+        the run started from, of the label function and of the tools it has applied; a file
+        written by any other run (another start, operation or tool sequence) is refused with a
+        ``GeometryError`` saying what differs. Returns the reports of the operations run.
         """
         if isinstance(op, str):
             if op not in ("difference", "union", "intersection"):
@@ -455,17 +459,24 @@ class Workpiece:
             raise TypeError(f"op must be a name or a label function, got {type(op).__name__}")
         tools = list(tools)
         done = 0
+        identity = None
         if checkpoint is not None:
             if not (isinstance(checkpoint_every, int | np.integer) and checkpoint_every >= 1):
                 raise ValueError(f"checkpoint_every must be an int >= 1 with a checkpoint, got {checkpoint_every!r}")
             from pathlib import Path
 
+            # what the checkpoint must match: this starting workpiece, the label function, and the tools done
+            prefix = [hashlib.sha256(b"csgnb-tools").hexdigest()]
+            for t in tools:
+                prefix.append(hashlib.sha256((prefix[-1] + self._tool_digest(t)).encode()).hexdigest())
+            table = self._tables.get(fn)
+            if table is None:
+                table = merge_table(fn, [0, 1], [0, 1])
+            op_digest = hashlib.sha256(np.ascontiguousarray(table, np.int64).tobytes()).hexdigest()
+            identity = {"start": self._state_digest(), "op": op_digest}
             if Path(checkpoint).exists():
                 restored = Workpiece.load(checkpoint)
-                done = int(restored._meta.get("completed", 0))
-                if done > len(tools):
-                    raise GeometryError(f"the checkpoint {checkpoint} has {done} operations done, more than the "
-                                        f"{len(tools)} tools given: it belongs to another run")
+                done = self._check_checkpoint(checkpoint, restored, identity, prefix)
                 self._adopt(restored)
         iterator = range(done, len(tools))
         if progress:
@@ -477,71 +488,183 @@ class Workpiece:
         for i in iterator:
             reports.append(self.boolean(tools[i], fn, track_volume=track_volume))
             if checkpoint is not None and ((i + 1) % checkpoint_every == 0 or i + 1 == len(tools)):
-                self.save(checkpoint, completed=i + 1)
+                self.save(checkpoint, completed=i + 1, checkpoint=dict(identity, tools=prefix[i + 1]))
         return reports
+
+    def _check_checkpoint(self, path, restored: Workpiece, identity: dict, prefix: list[str]) -> int:
+        """The number of operations the checkpoint ``restored`` has done; a clear error if it belongs to another run."""
+        meta = restored._meta.get("checkpoint")
+        done = int(restored._meta.get("completed", 0))
+        what = "delete it to start afresh, or pass another checkpoint path"
+        if meta is None:
+            raise GeometryError(f"{path} is a saved workpiece, not a checkpoint of run(): {what}")
+        differ = []
+        if not restored.grid.same_as(self.grid):
+            differ.append(f"the grid ({restored.grid} there, {self.grid} here)")
+        if restored.threshold != self.threshold:
+            differ.append(f"the threshold ({restored.threshold} there, {self.threshold} here)")
+        if meta["start"] != identity["start"]:
+            differ.append("the starting workpiece")
+        if meta["op"] != identity["op"]:
+            differ.append("the operation")
+        if done > len(prefix) - 1:
+            differ.append(f"the tools (it has done {done} operations, {len(prefix) - 1} tools are given)")
+        elif meta["tools"] != prefix[done]:
+            differ.append(f"the tools (its first {done} differ from the ones given)")
+        if differ:
+            raise GeometryError(f"the checkpoint {path} belongs to another run: " + ", ".join(differ)
+                                + f" differ; {what}")
+        return done
+
+    def _tool_digest(self, tool) -> str:
+        """SHA-256 of what defines a tool (its type and arrays), for checkpoint identities."""
+        h = hashlib.sha256()
+
+        def put(*values) -> None:
+            for v in values:
+                if isinstance(v, np.ndarray):
+                    a = np.ascontiguousarray(v)
+                    h.update(f"{a.dtype}{a.shape}".encode())
+                    h.update(repr(a.tolist()).encode() if a.dtype == object else a.tobytes())
+                elif isinstance(v, Grid):
+                    h.update(repr((v.exponent, v.origin.tolist(), v.width, v.max_coordinate)).encode())
+                else:
+                    h.update(repr(v).encode())
+                h.update(b"|")
+
+        if isinstance(tool, ConvexHull):
+            put("hull", tool.planes, tool.lo, tool.hi, tool.width, tool.grid)
+        elif isinstance(tool, SolidBSP):
+            t = tool.tree
+            put("bsp", t.palette.view(np.uint8), t.plane, t.neg, t.pos, t.label, np.asarray(tool.lo),
+                np.asarray(tool.hi))
+        elif isinstance(tool, tuple) and len(tool) == 2:
+            put("mesh", np.asarray(tool[0]), np.asarray(tool[1]))
+        else:
+            t = tool if isinstance(tool, Tool) else self._tool(tool)
+            put("tool", t.kind, np.asarray(t.planes, object), t.lo, t.hi, t.offset, t.grid)
+            if t.polygons is not None:
+                put(t.polygons.support, t.polygons.offsets, t.polygons.edges)
+            if t.tree is not None:
+                put(*(np.asarray(a) for a in t.tree))
+        return h.hexdigest()
 
     # -- persistence -------------------------------------------------------------------
 
+    def _header(self) -> dict:
+        g = self.grid
+        return {"width": self.width, "exponent": int(g.exponent), "origin": [float(x) for x in g.origin],
+                "max_coordinate": int(g.max_coordinate), "threshold": self.threshold, "min_cell": self.min_cell,
+                "max_tool_polygons": self.max_tool_polygons, "seed": self.seed,
+                "root_lo": [int(x) for x in self.root_lo], "root_size": int(self.root_size),
+                "max_normal": str(self._max_normal), "max_offset": str(self._max_offset)}
+
     def _arrays(self) -> dict[str, np.ndarray]:
-        n = int(self.oc.counts[N_NODES])
-        npool = int(self.oc.counts[N_POOL])
-        npal = int(self.oc.counts[N_PAL])
-        a = {f"oc_{name}": np.ascontiguousarray(getattr(self.oc, name)[:n]) for name in
+        """The workpiece's arrays in canonical form: the same solid built the same way gives the same arrays.
+
+        Rows in use only; the fields no query reads are zeroed (free octree nodes entirely; the kind, label,
+        start and length of inner nodes; the start of uniform cells and the label of BSP cells); the BSP pool
+        is compacted (the cells' BSPs back to back in node order, no garbage).
+        """
+        from csgnb.octree.layout import N_FREE_BLOCKS
+
+        oc = self.oc
+        n = int(oc.counts[N_NODES])
+        a = {f"oc_{name}": np.array(getattr(oc, name)[:n]) for name in
              ("child", "parent", "kind", "label", "start", "length", "lo", "size")}
-        a["oc_counts"] = self.oc.counts.copy()
-        a["oc_free_blocks"] = self.oc.free_blocks.copy()
+        n_free = int(oc.counts[N_FREE_BLOCKS])
+        free = np.array(oc.free_blocks[:n_free])
+        dead = (free.astype(np.int64)[:, None] * 8 + 1 + np.arange(8)).reshape(-1)
+        for name in ("child", "parent"):
+            a[f"oc_{name}"][dead] = -1
+        for name in ("kind", "label", "start", "length", "lo", "size"):
+            a[f"oc_{name}"][dead] = 0
+        alive = np.ones(n, bool)
+        alive[dead] = False
+        inner = alive & (a["oc_child"] >= 0)
+        for name in ("kind", "label", "start", "length"):
+            a[f"oc_{name}"][inner] = 0
+        leaf = alive & ~inner
+        uniform = leaf & (a["oc_kind"] == UNIFORM)
+        a["oc_start"][uniform] = 0
+        a["oc_length"][uniform] = 0
+        cells = np.flatnonzero(leaf & (a["oc_kind"] == BSP))
+        lens = a["oc_length"][cells].astype(np.int64)
+        starts = np.concatenate([[0], np.cumsum(lens)[:-1]]).astype(np.int64)
+        rows = (np.repeat(a["oc_start"][cells] - starts, lens) + np.arange(int(lens.sum()))).astype(np.int64)
+        a["oc_start"][cells] = starts
+        a["oc_label"][cells] = 0
         for name in ("plane", "neg", "pos", "label"):
-            a[f"pool_{name}"] = np.ascontiguousarray(getattr(self.pool, name)[:npool])
-        a["palette_limbs"] = np.ascontiguousarray(self.palette[:npal]["limbs"])
+            a[f"pool_{name}"] = getattr(self.pool, name)[rows]
+        counts = oc.counts.copy()
+        counts[N_POOL] = counts[POOL_LIVE] = rows.shape[0]
+        a["oc_counts"] = counts
+        a["oc_free_blocks"] = free
+        a["palette_limbs"] = np.array(self.palette[: int(oc.counts[N_PAL])]["limbs"])
         a["axis_keys"] = self.amap.keys.copy()
         a["axis_rows"] = self.amap.rows.copy()
         return a
 
-    def save(self, path, *, completed: int | None = None) -> None:
-        """Write the workpiece to ``path`` bit for bit (versioned, checksummed, atomic: an interrupted save
-        leaves the previous file intact). :meth:`load` reads it back."""
+    def _state_digest(self) -> str:
+        """SHA-256 of the workpiece's parameters and canonical arrays (the same for the same workpiece)."""
+        from csgnb.octree.persist import _digest
+
+        return _digest(self._header(), self._arrays())
+
+    def save(self, path, *, completed: int | None = None, checkpoint: dict | None = None) -> None:
+        """Write the workpiece to ``path`` bit for bit: versioned, checksummed, atomic (an interrupted save
+        leaves the previous file intact) and deterministic (the same workpiece gives the same bytes).
+
+        :meth:`load` reads it back. ``completed`` and ``checkpoint`` are for :meth:`run`'s checkpoints.
+        """
         from csgnb.octree.persist import write_arrays
 
-        header = {"width": self.width, "scale": self.grid.scale, "origin": self.grid.origin.tolist(),
-                  "max_coordinate": self.grid.max_coordinate, "threshold": self.threshold, "min_cell": self.min_cell,
-                  "seed": self.seed, "root_lo": self.root_lo.tolist(), "root_size": int(self.root_size),
-                  "max_normal": str(self._max_normal), "max_offset": str(self._max_offset)}
+        header = self._header()
         if completed is not None:
             header["completed"] = int(completed)
+        if checkpoint is not None:
+            header["checkpoint"] = dict(checkpoint)
         write_arrays(path, header, self._arrays())
 
     @classmethod
     def load(cls, path) -> Workpiece:
-        """Read a workpiece written by :meth:`save` (a damaged file raises ``WorkpieceFileError``)."""
-        from csgnb.octree.persist import WorkpieceFileError, read_arrays
+        """Read a workpiece written by :meth:`save`.
+
+        The file's checksum and its whole structure are checked first
+        (:func:`csgnb.octree.persist.check_workpiece`): a damaged, truncated, foreign or inconsistent file raises
+        ``WorkpieceFileError`` naming what is wrong; a file that loads is a valid workpiece.
+        """
+        from csgnb.octree.layout import N_FREE_BLOCKS
+        from csgnb.octree.persist import check_workpiece, read_arrays
 
         header, a = read_arrays(path)
-        try:
-            grid = Grid(scale=header["scale"], origin=header["origin"], width=header["width"],
-                        max_coordinate=header["max_coordinate"])
-            w = cls(grid, threshold=header["threshold"], min_cell=header["min_cell"], seed=header["seed"])
-            n = a["oc_child"].shape[0]
-            oc = new_octree(header["root_lo"], header["root_size"], max(n, 16))
-            for name in ("child", "parent", "kind", "label", "start", "length", "lo", "size"):
-                getattr(oc, name)[:n] = a[f"oc_{name}"]
-            oc.counts[:] = a["oc_counts"]
-            fb = a["oc_free_blocks"]
-            oc = oc._replace(free_blocks=np.ascontiguousarray(fb, np.int32) if fb.shape[0] else oc.free_blocks)
-            pool = new_pool(max(a["pool_plane"].shape[0], 64))
-            for name in ("plane", "neg", "pos", "label"):
-                getattr(pool, name)[: a[f"pool_{name}"].shape[0]] = a[f"pool_{name}"]
-            limbs = a["palette_limbs"]
-            palette = np.zeros((max(limbs.shape[0] + 64, 256), 4), wide_dtype(w.width))
-            palette[: limbs.shape[0]]["limbs"] = limbs
-            w.oc, w.pool, w.palette = oc, pool, palette
-            w.amap = AxisMap(np.ascontiguousarray(a["axis_keys"]), np.ascontiguousarray(a["axis_rows"]))
-            w.ws = with_palette(w.ws, palette)
-            w.root_lo = np.asarray(header["root_lo"], np.int64)
-            w.root_size = int(header["root_size"])
-            w._max_normal, w._max_offset = int(header["max_normal"]), int(header["max_offset"])
-            w._meta = header
-        except (KeyError, ValueError, TypeError, IndexError) as exc:
-            raise WorkpieceFileError(f"{path} has an inconsistent workpiece: {exc}") from exc
+        ok = check_workpiece(path, header, a)
+        w = cls(ok["grid"], threshold=ok["threshold"], min_cell=ok["min_cell"],
+                max_tool_polygons=ok["max_tool_polygons"], seed=ok["seed"])
+        n = a["oc_child"].shape[0]
+        cap = max(n, 16)
+        oc = new_octree(ok["root_lo"], ok["root_size"], cap)
+        for name in ("child", "parent", "kind", "label", "start", "length", "lo", "size"):
+            getattr(oc, name)[:n] = a[f"oc_{name}"]
+        oc.counts[:] = a["oc_counts"]
+        n_free = int(oc.counts[N_FREE_BLOCKS])
+        free = np.zeros(max(cap // 8 + 1, n_free, 4), np.int32)
+        free[:n_free] = a["oc_free_blocks"]
+        oc = oc._replace(free_blocks=free)
+        m = a["pool_plane"].shape[0]
+        pool = new_pool(max(m, 64))
+        for name in ("plane", "neg", "pos", "label"):
+            getattr(pool, name)[:m] = a[f"pool_{name}"]
+        limbs = a["palette_limbs"]
+        palette = np.zeros((max(limbs.shape[0] + 64, 256), 4), wide_dtype(w.width))
+        palette[: limbs.shape[0]]["limbs"] = limbs
+        w.oc, w.pool, w.palette = oc, pool, palette
+        w.amap = AxisMap(np.ascontiguousarray(a["axis_keys"]), np.ascontiguousarray(a["axis_rows"]))
+        w.ws = with_palette(w.ws, palette)
+        w.root_lo = ok["root_lo"]
+        w.root_size = ok["root_size"]
+        w._max_normal, w._max_offset = ok["max_normal"], ok["max_offset"]
+        w._meta = header
         return w
 
     def _adopt(self, other: Workpiece) -> None:
