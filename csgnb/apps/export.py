@@ -9,14 +9,16 @@ triangle's corners as float32 and no vertex identity, so
 * two exact vertices closer than a float32 step become one point, and a triangle with two such
   corners has no area (CAM tools reject it, slicers warn); such *collapsed* triangles are dropped
   -- a collapsed triangle's two coinciding corners are glued in every reader anyway, so the
-  remaining triangles still close up -- and counted;
+  remaining triangles still close up -- and counted; a triangle whose three distinct corners
+  become collinear cannot be dropped without opening the mesh (a neighbour's edge passes through
+  its middle corner), so it is kept and counted as *flat*;
 * readers weld corners by position, so an edge that the exact part touches itself along (two
   solid cells meeting only at that edge) is shared by four triangles in every reader, whatever
   the writer duplicated: the part is closed but not 2-manifold there. That is the true shape,
   so it is not hidden: the report counts such edges.
 
 :func:`export_stl` writes the file, reads it back with meshio and reports what a reader sees
-(:class:`StlReport`: triangles, dropped, closed, non-manifold edges, the volume it encloses).
+(:class:`StlReport`: triangles, dropped, flat, closed, non-manifold edges, the volume it encloses).
 """
 
 from __future__ import annotations
@@ -38,7 +40,8 @@ class StlReport:
 
     ``closed``: every edge is used equally often in both directions; ``non_manifold_edges``:
     edges used by more than two triangles; ``dropped``: triangles whose float32 corners
-    coincide (no area), left out; ``volume``: the enclosed volume (model units³, float64 sum).
+    coincide (no area), left out; ``flat``: triangles kept whose float32 corners are distinct but
+    collinear; ``volume``: the enclosed volume (model units³, float64 sum).
     """
 
     path: str
@@ -48,6 +51,7 @@ class StlReport:
     closed: bool
     non_manifold_edges: int
     volume: float
+    flat: int = 0
 
     @property
     def watertight(self) -> bool:
@@ -65,12 +69,14 @@ class StlReport:
                      "touches itself along them)")
         if self.dropped:
             text += f"; {self.dropped} triangles collapsed by float32 rounding dropped"
+        if self.flat:
+            text += f"; {self.flat} triangles flattened by float32 rounding kept (they close the mesh)"
         return text
 
 
 def check_triangle_soup(points: np.ndarray, triangles: np.ndarray) -> tuple[np.ndarray, np.ndarray, dict]:
     """Weld ``points (n, 3)`` by exact position, drop triangles with coinciding corners; return the welded
-    points, the kept triangles and ``{"dropped", "closed", "non_manifold_edges", "volume"}``."""
+    points, the kept triangles and ``{"dropped", "flat", "closed", "non_manifold_edges", "volume"}``."""
     P, inverse = np.unique(np.asarray(points), axis=0, return_inverse=True)
     T = inverse.reshape(-1)[np.asarray(triangles, np.int64)].reshape(-1, 3)
     collapsed = (T[:, 0] == T[:, 1]) | (T[:, 1] == T[:, 2]) | (T[:, 2] == T[:, 0])
@@ -82,7 +88,9 @@ def check_triangle_soup(points: np.ndarray, triangles: np.ndarray) -> tuple[np.n
         undirected[(min(a, b), max(a, b))] += n
     Q = P.astype(np.float64)
     volume = float(np.sum(np.einsum("ij,ij->i", Q[T[:, 0]], np.cross(Q[T[:, 1]], Q[T[:, 2]])))) / 6.0
-    return P, T, {"dropped": int(collapsed.sum()), "closed": bool(closed),
+    # float32 corners as doubles: their differences and cross products are exact enough to see a zero
+    flat = int(np.sum(~np.cross(Q[T[:, 1]] - Q[T[:, 0]], Q[T[:, 2]] - Q[T[:, 0]]).any(axis=1)))
+    return P, T, {"dropped": int(collapsed.sum()), "flat": flat, "closed": bool(closed),
                   "non_manifold_edges": int(sum(1 for n in undirected.values() if n > 2)), "volume": volume}
 
 
@@ -103,11 +111,13 @@ def export_stl(workpiece, path, *, binary: bool = True) -> StlReport:
     path = Path(path)
     tmp = path.with_name(f".{path.name}.writing")
     try:
-        meshio.write(tmp, meshio.Mesh(P.astype(np.float64), [("triangle", kept)]), file_format="stl", binary=binary)
+        with np.errstate(invalid="ignore", divide="ignore"):  # meshio normalises the normal of a flat triangle
+            meshio.write(tmp, meshio.Mesh(P.astype(np.float64), [("triangle", kept)]), file_format="stl",
+                         binary=binary)
         back = meshio.read(tmp, file_format="stl")
         _, T2, seen = check_triangle_soup(back.points.astype(np.float32), back.cells_dict["triangle"])
         tmp.replace(path)
     finally:
         tmp.unlink(missing_ok=True)
     return StlReport(str(path), int(T2.shape[0]), int(P.shape[0]), int(T.shape[0] - T2.shape[0]), seen["closed"],
-                     seen["non_manifold_edges"], seen["volume"])
+                     seen["non_manifold_edges"], seen["volume"], seen["flat"])

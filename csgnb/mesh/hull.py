@@ -425,15 +425,16 @@ def linear_bsp_arrays(k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.nd
     return plane, neg, pos, label
 
 
-def convex_hull(points, *, width: int = DEFAULT_WIDTH, grid=None, name: str = "points") -> ConvexHull:
+def convex_hull(points, *, width: int | None = None, grid=None, name: str = "points") -> ConvexHull:
     """Return the exact convex hull of integer grid points.
 
     Parameters
     ----------
     points : (n, 3) int64
         Grid points within the mesh budget of ``width`` (repeated points are fine).
-    width : {128, 192, 256}
-        The predicate width the facet planes must fit (eq. 8).
+    width : {128, 192, 256}, optional
+        The predicate width the facet planes must fit (eq. 8); default: the grid's, else
+        :data:`csgnb.exact.DEFAULT_WIDTH`.
     grid : csgnb.exact.Grid, optional
         Recorded on the hull, so a workpiece can refuse tools from another grid.
 
@@ -446,6 +447,10 @@ def convex_hull(points, *, width: int = DEFAULT_WIDTH, grid=None, name: str = "p
     TypeError
         Non-integer points.
     """
+    if width is None:
+        width = grid.width if grid is not None else DEFAULT_WIDTH
+    elif grid is not None and width != grid.width:
+        raise GeometryError(f"width={width} but the grid is {grid.width}-bit: pass one of them")
     P = np.unique(_checked_points(points, width, name), axis=0)
     if P.shape[0] < 4:
         raise _flat_error(P, name) if P.shape[0] else GeometryError(f"the convex hull of no {name} is empty")
