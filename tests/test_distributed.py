@@ -68,7 +68,7 @@ def test_a_job_is_plain_data_and_bad_fields_are_refused():
         MillingJob("a/b", SLOT, (1, 1, 1))
     with pytest.raises(ValueError, match="sizes must be positive"):
         MillingJob("s", SLOT, (1, 0, 1))
-    with pytest.raises(ValueError, match="three numbers"):
+    with pytest.raises(ValueError, match="three finite numbers"):
         MillingJob("s", SLOT, (1, 1))
     with pytest.raises(TypeError, match="G-code text"):
         MillingJob("s", Path("x.nc"), (1, 1, 1))

@@ -136,11 +136,11 @@ class MillingJob:
         return cls(name=p.stem if name is None else name, program=p.read_text(encoding="utf-8"), **kw)
 
     @classmethod
-    def example(cls, name: str, **kw) -> MillingJob:
+    def example(cls, program: str, **kw) -> MillingJob:
         """A shipped program (``"pocket.nc"``, ``"relief.nc"``) with its stock, tool and segments; ``kw`` override."""
         from csgnb.apps.examples import EXAMPLES, example_path
 
-        ex = EXAMPLES[example_path(name).name]
+        ex = EXAMPLES[example_path(program).name]
         kw = dict(dict(stock=ex.stock, tools=(ex.tool,)), **({"segments": ex.segments} if ex.segments else {}), **kw)
         return cls.from_file(ex.path, **kw)
 
@@ -368,7 +368,8 @@ def run_job_data(job: dict) -> dict:
                 collisions=[f"line {r.line}: {r.collision}" for r in result.collisions],
                 cut_time_s=result.cut_time_s, wall_s=time.perf_counter() - t0,
                 grid_resolution=float(result.workpiece.grid.resolution), stl=stl_report,
-                stl_bytes=stl_bytes, workpiece_bytes=wp_bytes)
+                stl_bytes=stl_bytes, workpiece_bytes=wp_bytes, stl_sha256=_sha256(stl_bytes),
+                workpiece_sha256=_sha256(wp_bytes))
 
 
 def _error_text(exc: BaseException) -> str:
@@ -409,8 +410,7 @@ def _store(data: dict, out_dir: Path) -> JobResult:
     if stl_bytes is not None:
         _write_atomic(folder / "part.stl", stl_bytes)
         _write_atomic(folder / "part.wp", wp_bytes)
-        data.update(stl_path="part.stl", workpiece_path="part.wp", stl_sha256=_sha256(stl_bytes),
-                    workpiece_sha256=_sha256(wp_bytes))
+        data.update(stl_path="part.stl", workpiece_path="part.wp")
     data["report_path"] = "report.json"
     result = JobResult.from_report(data, folder)
     _write_atomic(folder / "report.json", json.dumps(result.report(), indent=1).encode())

@@ -83,9 +83,14 @@ def connect(client=None, scheduler: str | None = None, n_workers: int | None = N
             client = Client(LocalCluster(**local_cluster_kwargs(n_workers)))
     elif not isinstance(client, Client):
         raise TypeError(f"client must be a distributed.Client, got {type(client).__name__}")
-    if warm:
+    if warm and not client.run_on_scheduler(_has_worker_plugin, name=WarmUpPlugin.name):
         client.register_plugin(WarmUpPlugin(), name=WarmUpPlugin.name)
     return client, owned
+
+
+def _has_worker_plugin(dask_scheduler=None, name: str = "") -> bool:
+    # Registering again would run the warm-up again on every worker: once per cluster is enough.
+    return name in dask_scheduler.worker_plugins
 
 
 def close(client: Client) -> None:
