@@ -360,6 +360,12 @@ def run_job_data(job: dict) -> dict:
             wp_bytes = (Path(tmp) / "part.wp").read_bytes()
     except INPUT_ERRORS as exc:
         return dict(out, error=_error_text(exc), wall_s=time.perf_counter() - t0)
+    except Exception as exc:
+        # Raised to Dask (retried, then reported): without the half-milled workpiece simulate attaches,
+        # which is no plain data.
+        if hasattr(exc, "partial_result"):
+            del exc.partial_result
+        raise
     stl_report = stl.as_dict()
     stl_report.pop("path")
     return dict(out, moves=len(result.records), stock_volume=fraction_text(result.stock_volume),
