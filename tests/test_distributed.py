@@ -80,6 +80,16 @@ def test_a_job_is_plain_data_and_bad_fields_are_refused():
         run_batch([job, job], client="never used")
 
 
+def test_what_a_task_carries_is_a_function_by_name_and_plain_data():
+    import cloudpickle
+
+    from csgnb.distributed.batch import run_job_data
+
+    payload = cloudpickle.dumps((run_job_data, _jobs()[2].as_dict()))
+    assert b"csgnb.distributed.batch" in payload and b"run_job_data" in payload  # by reference, not by code
+    assert b"numba" not in payload and b"Dispatcher" not in payload and len(payload) < 4000
+
+
 def test_results_travel_as_text_and_come_back_exact(in_process):
     r = in_process["slot"]
     assert r.ok and r.stock_volume - r.removed == r.part_volume
@@ -163,6 +173,16 @@ def test_a_rerun_skips_finished_jobs_and_redoes_damaged_or_changed_ones(client, 
     assert [r.skipped for r in third] == [False, False]
     assert third[0].stl_sha256 == first[0].stl_sha256 == _sha(stl)
     assert third[1].digest != first[1].digest and third[1].part_volume != first[1].part_volume
+
+
+def test_without_a_client_a_local_cluster_is_started_and_closed(in_process, tmp_path):
+    import gc
+
+    [r] = run_batch([_jobs()[0]], out_dir=tmp_path, progress=False, n_workers=1)
+    assert r.ok and r.worker.startswith("tcp://127.0.0.1")
+    assert r.stl_sha256 == in_process["slot"].stl_sha256 and r.removed_per_move == in_process["slot"].removed_per_move
+    gc.collect()
+    assert not [c for c in gc.get_objects() if isinstance(c, LocalCluster) and c.status.name == "running"]
 
 
 class KillOnce(WorkerPlugin):

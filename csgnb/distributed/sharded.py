@@ -23,6 +23,10 @@ workpiece run through the same sequence, and
 Tools are :class:`~csgnb.mesh.hull.ConvexHull`\\ s, :class:`~csgnb.octree.Tool`\\ s or integer
 meshes ``(vertices, faces)`` in grid coordinates, as for a workpiece. ``track_volume`` is not
 offered: a shard's change includes its solid outside its box; measure ``volume()`` before and after.
+
+Known limits: a shard lives on one worker (Dask actors are not moved or retried): a lost worker loses its
+shards, and the next call raises Dask's "Worker holding Actor was lost" -- ``save`` regularly and
+:meth:`ShardedWorkpiece.load` to resume. ``volume()`` clips a copy of every shard (a save and a load each).
 """
 
 from __future__ import annotations
