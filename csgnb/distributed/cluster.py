@@ -55,11 +55,12 @@ def worker_environment() -> dict[str, str]:
 
 
 def local_cluster_kwargs(n_workers: int | None = None) -> dict:
-    """Keyword arguments of the embedded ``LocalCluster``: one single-threaded process per core, no dashboard."""
+    """Keyword arguments of the embedded ``LocalCluster``: one single-threaded process per core; the
+    scheduler's HTTP server (dashboard when bokeh is installed) on a free port, so several clusters can run."""
     n = (os.cpu_count() or 1) if n_workers is None else int(n_workers)
     if n < 1:
         raise ValueError(f"n_workers must be at least 1, got {n_workers!r}")
-    return dict(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None,
+    return dict(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0",
                 env=worker_environment())
 
 
