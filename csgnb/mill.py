@@ -15,6 +15,11 @@ The workpiece is :class:`csgnb.octree.Workpiece` (``--reference`` runs the slow
 single-BSP :class:`csgnb.apps.reference.BSPWorkpiece` instead, for comparison).
 A PROGRAM that is not a file but the name of a shipped example (``pocket.nc``,
 ``relief.nc``: :mod:`csgnb.apps.examples`) runs that example.
+
+    python -m csgnb.mill --batch JOBS.toml [--scheduler ADDRESS] [--out-dir DIR]
+
+runs every job of a batch file on Dask (:func:`csgnb.distributed.batch.load_jobs` describes the
+file; :func:`batch_main`).
 """
 
 from __future__ import annotations
@@ -90,6 +95,9 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     """Run the simulation; return the exit status (0 ok, 1 collisions, 2 bad input)."""
+    argv = sys.argv[1:] if argv is None else list(argv)
+    if any(a == "--batch" or a.startswith("--batch=") for a in argv):
+        return batch_main(argv)
     args = build_parser().parse_args(argv)
     try:
         return _run(args)
@@ -148,6 +156,37 @@ def _run(args) -> int:
                              wall_s=r.wall_s, boolean_s=r.boolean_s, cells=r.cells, collision=r.collision)
                         for r in result.records]}, indent=1))
     return 1 if result.collisions else 0
+
+
+# -- batches on Dask ---------------------------------------------------------------
+
+
+def batch_main(argv: list[str]) -> int:
+    """``--batch JOBS.toml``: run the file's jobs on Dask; return 0 (all done), 1 (collisions), 2 (failures)."""
+    p = argparse.ArgumentParser(prog="python -m csgnb.mill --batch", description="Run a batch file's milling jobs "
+                                "on Dask: a LocalCluster of one worker per core, or --scheduler.")
+    p.add_argument("--batch", type=Path, required=True, metavar="JOBS.toml", help="the batch file (TOML)")
+    p.add_argument("--scheduler", default=None, metavar="ADDRESS", help="Dask scheduler, e.g. tcp://host:8786")
+    p.add_argument("--workers", type=int, default=None, help="local workers (default: one per core)")
+    p.add_argument("--out-dir", type=Path, default=None, help="output folder (default: the file's out_dir)")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    args = p.parse_args(argv)
+    from csgnb.distributed.batch import load_jobs, run_batch
+
+    try:
+        jobs, out_dir = load_jobs(args.batch)
+        results = run_batch(jobs, out_dir=args.out_dir or out_dir, scheduler=args.scheduler,
+                            n_workers=args.workers, progress=not args.no_progress)
+    except (CsgnbError, ValueError, OSError) as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    for r in results:
+        print(r.summary())
+    print(f"{sum(r.ok for r in results)} of {len(results)} jobs done ({sum(r.skipped for r in results)} kept from "
+          f"an earlier run); outputs in {args.out_dir or out_dir}")
+    if not all(r.ok for r in results):
+        return 2
+    return 1 if any(r.collisions for r in results) else 0
 
 
 if __name__ == "__main__":

@@ -1,0 +1,320 @@
+"""``csgnb.distributed``: batches of milling jobs on a 2-worker Dask ``LocalCluster``.
+
+The batch must give what the same jobs give one by one in this process -- and what
+``python -m csgnb.mill`` gives -- exactly: volumes compared with ``==`` on Fractions, STL files
+byte for byte. Jobs are tiny (a 6-move slot, the shipped pocket on a 2 mm grid).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import signal
+from fractions import Fraction
+from pathlib import Path
+
+import pytest
+
+distributed = pytest.importorskip("distributed")
+
+from distributed import Client, LocalCluster, WorkerPlugin  # noqa: E402
+
+import csgnb  # noqa: E402
+from csgnb.distributed import JobResult, MillingJob, run_batch, run_job  # noqa: E402
+from csgnb.distributed.batch import load_jobs  # noqa: E402
+from csgnb.distributed.cluster import local_cluster_kwargs  # noqa: E402
+from csgnb.mill import main as mill_main  # noqa: E402
+
+SLOT = "G21 G90\nG0 Z2\nG0 X5 Y5\nM3 S8000\nG1 Z-1 F100\nG1 X15 F300\nG2 X15 Y10 R2.5\nG0 Z5\nM30\n"
+TWO_TOOLS = "G21 G90\nT1 M6\nM3 S8000\nG0 X4 Y4 Z2\nG1 Z-1 F100\nG1 X12 F300\nG0 Z3\nT2 M6\nG0 X6 Y10\nG1 Z-2 F100\n" \
+            "G1 X14 Y10 F300\nG0 Z5\nM30\n"
+
+
+def _jobs() -> list[MillingJob]:
+    return [
+        MillingJob("slot", SLOT, (20, 15, 5), ("flat:3:6",), segments=8),
+        MillingJob("two-tools", TWO_TOOLS, (18, 14, 4), ("1=flat:2:5", "2=ball:3:5"), segments=8),
+        MillingJob.example("pocket.nc", name="pocket-2mm", resolution=2.0, segments=8),
+        MillingJob("broken", "G0 X1\nG28\n", (10, 10, 3)),
+    ]
+
+
+@pytest.fixture(scope="module")
+def client():
+    with LocalCluster(**local_cluster_kwargs(2)) as cluster, Client(cluster) as c:
+        yield c
+
+
+@pytest.fixture(scope="module")
+def in_process():
+    """Each job run here, one by one, without Dask."""
+    return {j.name: run_job(j) for j in _jobs()}
+
+
+def _sha(path: Path) -> str:
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+
+
+# -- jobs as plain data ---------------------------------------------------------------
+
+
+def test_a_job_is_plain_data_and_bad_fields_are_refused():
+    job = _jobs()[1]
+    assert MillingJob.from_dict(json.loads(json.dumps(job.as_dict()))) == job
+    assert job.digest == MillingJob.from_dict(job.as_dict()).digest
+    assert job.digest != MillingJob.from_dict(dict(job.as_dict(), segments=9)).digest
+    with pytest.raises(ValueError, match="job name"):
+        MillingJob("a/b", SLOT, (1, 1, 1))
+    with pytest.raises(ValueError, match="sizes must be positive"):
+        MillingJob("s", SLOT, (1, 0, 1))
+    with pytest.raises(ValueError, match="three finite numbers"):
+        MillingJob("s", SLOT, (1, 1))
+    with pytest.raises(TypeError, match="G-code text"):
+        MillingJob("s", Path("x.nc"), (1, 1, 1))
+    with pytest.raises(ValueError, match="tool specs"):
+        MillingJob("s", SLOT, (1, 1, 1), tools=())
+    with pytest.raises(ValueError, match="unknown key"):
+        MillingJob.from_dict(dict(job.as_dict(), feed=3))
+    with pytest.raises(ValueError, match="two jobs are named"):
+        run_batch([job, job], client="never used")
+
+
+def test_what_a_task_carries_is_a_function_by_name_and_plain_data():
+    import cloudpickle
+
+    from csgnb.distributed.batch import run_job_data
+
+    payload = cloudpickle.dumps((run_job_data, _jobs()[2].as_dict()))
+    assert b"csgnb.distributed.batch" in payload and b"run_job_data" in payload  # by reference, not by code
+    assert b"numba" not in payload and b"Dispatcher" not in payload and len(payload) < 4000
+
+
+def test_results_travel_as_text_and_come_back_exact(in_process):
+    r = in_process["slot"]
+    assert r.ok and r.stock_volume - r.removed == r.part_volume
+    assert r.removed == sum(r.removed_per_move, Fraction(0)) > 0
+    back = JobResult.from_report(json.loads(json.dumps(r.report())))
+    assert back == r
+    assert not in_process["broken"].ok and "G28" in in_process["broken"].error
+
+
+def test_load_jobs_reads_a_batch_file(tmp_path):
+    (tmp_path / "slot.nc").write_text(SLOT)
+    f = tmp_path / "study.toml"
+    f.write_text('[defaults]\nsegments = 8\n[[job]]\nprogram = "slot.nc"\nstock = [20, 15, 5]\ntools = ["flat:3:6"]\n'
+                 '[[job]]\nname = "pocket-2mm"\nprogram = "pocket.nc"\nresolution = 2.0\n')
+    jobs, out = load_jobs(f)
+    assert out == tmp_path / "study-out"
+    assert jobs == [_jobs()[0], _jobs()[2]]
+    f.write_text('[[job]]\nprogram = "slot.nc"\nstock = [1, 1, 1]\nspeed = 3\n')
+    with pytest.raises(ValueError, match="unknown key"):
+        load_jobs(f)
+    f.write_text('[[job]]\nprogram = "missing.nc"\nstock = [1, 1, 1]\n')
+    with pytest.raises(ValueError, match="no G-code file"):
+        load_jobs(f)
+    f.write_text("out_dir = 'x'\n")
+    with pytest.raises(ValueError, match="no jobs"):
+        load_jobs(f)
+
+
+# -- batches on the cluster -----------------------------------------------------------
+
+
+def test_workers_import_this_csgnb_and_share_its_kernel_cache(client):
+    files = client.run(lambda: __import__("csgnb").__file__)
+    assert len(files) == 2 and set(files.values()) == {csgnb.__file__}
+    caches = client.run(lambda: os.environ.get("NUMBA_CACHE_DIR"))
+    assert set(caches.values()) == {os.environ.get("NUMBA_CACHE_DIR")}
+
+
+def test_batch_equals_the_jobs_run_one_by_one(client, in_process, tmp_path):
+    jobs = _jobs()
+    results = run_batch(jobs, client, tmp_path, progress=False)
+    assert [r.name for r in results] == [j.name for j in jobs]
+    for r in results:
+        ref = in_process[r.name]
+        assert r.ok == ref.ok and not r.skipped
+        if not r.ok:
+            assert "unsupported word G28" in r.error and json.loads(r.report_path.read_text())["error"] == r.error
+            continue
+        assert (r.stock_volume, r.removed, r.part_volume, r.removed_per_move) == (
+            ref.stock_volume, ref.removed, ref.part_volume, ref.removed_per_move)
+        assert r.stl_sha256 == ref.stl_sha256 == _sha(r.stl_path)
+        assert r.workpiece_sha256 == _sha(r.workpiece_path)
+        assert r.worker is not None and r.worker.startswith("tcp://")
+    # Both workers took part (4 jobs, 2 single-threaded workers).
+    assert len({r.worker for r in results if r.ok}) == 2
+
+
+def test_batch_equals_the_command_line(client, tmp_path, capsys):
+    job = _jobs()[0]
+    (tmp_path / "slot.nc").write_text(SLOT)
+    stl, js = tmp_path / "cli.stl", tmp_path / "cli.json"
+    assert mill_main([str(tmp_path / "slot.nc"), "--stock", "20", "15", "5", "--tool", "flat:3:6", "--segments", "8",
+                      "--out", str(stl), "--json", str(js), "--no-progress"]) == 0
+    [r] = run_batch([job], client, tmp_path / "batch", progress=False)
+    assert r.stl_path.read_bytes() == stl.read_bytes()
+    assert [Fraction(m["removed_exact"]) for m in json.loads(js.read_text())["records"]] == r.removed_per_move
+
+
+def test_a_rerun_skips_finished_jobs_and_redoes_damaged_or_changed_ones(client, tmp_path):
+    jobs = _jobs()[:2]
+    first = run_batch(jobs, client, tmp_path, progress=False)
+    # Everything finished: no cluster is needed, so a client that is not one is never touched.
+    again = run_batch(jobs, "not a client", tmp_path, progress=False)
+    assert [r.skipped for r in again] == [True, True]
+    for a, b in zip(first, again, strict=True):
+        assert (a.part_volume, a.removed_per_move, a.stl_sha256) == (b.part_volume, b.removed_per_move, b.stl_sha256)
+    stl = tmp_path / "slot" / "part.stl"
+    stl.write_bytes(stl.read_bytes()[:-1])  # a damaged output is redone
+    changed = MillingJob.from_dict(dict(jobs[1].as_dict(), segments=6))  # so is a job whose inputs changed
+    third = run_batch([jobs[0], changed], client, tmp_path, progress=False)
+    assert [r.skipped for r in third] == [False, False]
+    assert third[0].stl_sha256 == first[0].stl_sha256 == _sha(stl)
+    assert third[1].digest != first[1].digest and third[1].part_volume != first[1].part_volume
+
+
+def test_without_a_client_a_local_cluster_is_started_and_closed(in_process, tmp_path):
+    import gc
+
+    def running() -> set[int]:
+        gc.collect()
+        return {id(c) for c in gc.get_objects() if isinstance(c, LocalCluster) and c.status.name == "running"}
+
+    before = running()  # the module's cluster, when the other tests ran first
+    [r] = run_batch([_jobs()[0]], out_dir=tmp_path, progress=False, n_workers=1)
+    assert r.ok and r.worker.startswith("tcp://127.0.0.1")
+    assert r.stl_sha256 == in_process["slot"].stl_sha256 and r.removed_per_move == in_process["slot"].removed_per_move
+    assert running() <= before
+
+
+class KillOnce(WorkerPlugin):
+    """Kills its worker's process when a task whose key starts with ``prefix`` starts, once (a marker file)."""
+
+    name = "test-kill-once"
+
+    def __init__(self, prefix: str, marker: str) -> None:
+        self.prefix, self.marker = prefix, marker
+
+    def transition(self, key, start, finish, **kwargs):
+        if finish == "executing" and str(key).startswith(self.prefix) and not os.path.exists(self.marker):
+            Path(self.marker).write_text(str(os.getpid()))
+            os.kill(os.getpid(), signal.SIGKILL)
+
+
+def test_a_killed_workers_job_is_retried_and_the_batch_completes(client, in_process, tmp_path):
+    marker = tmp_path / "killed"
+    client.register_plugin(KillOnce("csgnb-mill-two-tools-", str(marker)), name=KillOnce.name)
+    try:
+        results = run_batch(_jobs()[:2], client, tmp_path / "out", progress=False)
+    finally:
+        client.unregister_worker_plugin(KillOnce.name)
+    assert marker.exists()  # a worker really died running the job
+    assert all(r.ok for r in results)
+    for r in results:
+        assert r.part_volume == in_process[r.name].part_volume
+        assert r.stl_sha256 == in_process[r.name].stl_sha256
+    client.wait_for_workers(2, timeout=60)
+
+
+def test_command_line_batch_on_a_scheduler(client, tmp_path, capsys):
+    (tmp_path / "slot.nc").write_text(SLOT)
+    f = tmp_path / "jobs.toml"
+    f.write_text('out_dir = "parts"\n[[job]]\nprogram = "slot.nc"\nstock = [20, 15, 5]\ntools = ["flat:3:6"]\n'
+                 'segments = 8\n[[job]]\nname = "bad"\nprogram = "slot.nc"\nstock = [20, 15, 5]\ntools = ["mill:3"]\n')
+    rc = mill_main(["--batch", str(f), "--scheduler", client.scheduler.address, "--no-progress"])
+    out = capsys.readouterr().out
+    assert rc == 2 and "1 of 2 jobs done" in out and "bad: FAILED" in out and "unknown tool kind" in out
+    assert (tmp_path / "parts" / "slot" / "part.stl").exists()
+    assert json.loads((tmp_path / "parts" / "slot" / "report.json").read_text())["digest"] == _jobs()[0].digest
+    f.write_text("[[job]]\n")
+    assert mill_main(["--batch", str(f), "--no-progress"]) == 2
+    assert "needs program" in capsys.readouterr().err
+
+
+# -- the sharded workpiece ---------------------------------------------------------------
+
+
+def _sequence():
+    """Booleans that cross the shards' common faces (x, y, z = 0), with a union and an intersection."""
+    import numpy as np
+
+    from csgnb.bsp.solid import DIFFERENCE, INTERSECTION, UNION
+    from csgnb.mesh.hull import convex_hull
+
+    tet = np.array([[0, 0, 0], [9, 0, 0], [0, 9, 0], [0, 0, 9]])
+    octa = np.array([[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]])
+    box = np.array([[x, y, z] for x in (0, 1) for y in (0, 1) for z in (0, 1)])
+    return [
+        (convex_hull(tet * 2 - [7, 5, 6]), DIFFERENCE),
+        (convex_hull(tet + [3, 4, 5]), DIFFERENCE),   # in the x, y, z > 0 shard only
+        (convex_hull(box * [30, 6, 6] + [-8, -3, 14]), UNION),  # sticks out of the stock
+        (convex_hull(octa * 29 + [1, 0, 0]), INTERSECTION),
+        (convex_hull(octa * 5 + [0, 0, -3]), DIFFERENCE),
+    ]
+
+
+def _points():
+    import numpy as np
+
+    r = np.arange(-21, 22, 3)
+    grid = np.stack(np.meshgrid(r, r, r, indexing="ij"), -1).reshape(-1, 3)
+    faces = np.array([[0, y, z] for y in range(-12, 13, 4) for z in range(-12, 20, 4)])  # on the shards' faces
+    return np.concatenate([grid, faces, faces[:, [1, 0, 2]], faces[:, [1, 2, 0]], [[0, 0, 0], [0, 0, 18]]])
+
+
+@pytest.fixture(scope="module")
+def single():
+    from csgnb.octree import Workpiece
+
+    w = Workpiece.box([-16, -16, -16], [16, 16, 16])
+    volumes = [w.volume()]
+    for tool, fn in _sequence():
+        w.boolean(tool, fn)
+        volumes.append(w.volume())
+    return w, volumes
+
+
+@pytest.mark.parametrize("shards", [1, 2, 8])
+def test_sharded_workpiece_equals_one_workpiece(client, single, shards, tmp_path):
+    from csgnb.distributed.sharded import ShardedWorkpiece
+    from csgnb.octree import Workpiece
+
+    w, volumes = single
+    s = ShardedWorkpiece(Workpiece.box([-16, -16, -16], [16, 16, 16]), client, shards)
+    assert s.volume() == volumes[0]
+    reached = []
+    for (tool, fn), v in zip(_sequence(), volumes[1:], strict=True):
+        reached.append(s.boolean(tool, fn))
+        assert s.volume() == v
+    if shards == 8:  # the second tool lies in the x, y, z > 0 octant: one shard; the intersection: all
+        assert reached[1] == [7] and reached[3] == list(range(8)) and len(reached[0]) == 8
+    if shards == 2:
+        assert reached[1] == [1]
+    pts = _points()
+    expected = w.classify(pts)
+    assert set(expected.tolist()) == {-2, 0, 1}
+    assert s.classify(pts).tolist() == expected.tolist()
+    back = ShardedWorkpiece.load(s.save(tmp_path / "saved"), client)
+    assert back.volume() == volumes[-1]
+    assert back.classify(pts).tolist() == expected.tolist()
+
+
+def test_sharded_workpiece_refuses_bad_input(client, tmp_path):
+    from csgnb.distributed.sharded import ShardedWorkpiece, shard_boxes
+    from csgnb.octree import Workpiece
+
+    with pytest.raises(ValueError, match="power of two"):
+        shard_boxes([0, 0, 0], 16, 3)
+    with pytest.raises(ValueError, match="powers of two"):
+        shard_boxes([0, 0, 0], 16, (3, 1, 1))
+    with pytest.raises(TypeError, match="csgnb.octree.Workpiece"):
+        ShardedWorkpiece("box", client, 2)
+    s = ShardedWorkpiece(Workpiece.box([-4, -4, -4], [4, 4, 4]), client, 2)
+    with pytest.raises(TypeError, match="ConvexHull"):
+        s.difference("tool")
+    folder = s.save(tmp_path / "s")
+    (folder / "shard-001.wp").write_bytes(b"junk")
+    with pytest.raises(ValueError, match="does not match the manifest"):
+        ShardedWorkpiece.load(folder, client)
