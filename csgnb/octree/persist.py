@@ -335,7 +335,7 @@ def check_workpiece(path, header: dict, arrays: dict[str, np.ndarray]) -> dict:
 
 
 def _check(header: dict, arrays: dict[str, np.ndarray]) -> dict:  # noqa: C901 (one list of checks)
-    from csgnb.exact.budgets import _plane_maxima, budget, check_planes
+    from csgnb.exact.budgets import budget, check_planes
     from csgnb.exact.quantization import Grid
     from csgnb.exact.wide import WIDTHS, wide_dtype
     from csgnb.octree.layout import (
@@ -591,7 +591,7 @@ def _check(header: dict, arrays: dict[str, np.ndarray]) -> dict:  # noqa: C901 (
             check_planes(palette, "the palette")
         except CsgnbError as exc:
             raise _Bad(f"array 'palette_limbs': {exc}") from None
-        N, _, D, _ = _plane_maxima(palette)
+        N, D = _max_magnitude(limbs[:, :3]), _max_magnitude(limbs[:, 3:])
         if N > max_normal or D > max_offset:
             raise _Bad(f"the palette's planes (max |normal| {N}, max |offset| {D}) exceed the header's "
                        f"'max_normal' {max_normal} / 'max_offset' {max_offset}")
@@ -639,3 +639,20 @@ def _check(header: dict, arrays: dict[str, np.ndarray]) -> dict:  # noqa: C901 (
     return {"grid": grid, "threshold": threshold, "min_cell": min_cell, "max_tool_polygons": max_tool_polygons,
             "seed": seed, "root_lo": np.array(root_lo, np.int64), "root_size": root_size, "max_normal": max_normal,
             "max_offset": max_offset}
+
+
+def _max_magnitude(limbs: np.ndarray) -> int:
+    """The largest ``|x|`` of the two's complement integers stored as little-endian uint64 limbs ``(..., L)``,
+    exactly: negatives are negated limb by limb (with carries), the magnitudes compared from the top limb."""
+    flat = np.ascontiguousarray(limbs).reshape(-1, limbs.shape[-1])
+    if flat.shape[0] == 0:
+        return 0
+    negative = (flat[:, -1] >> np.uint64(63)).astype(bool)
+    mag = np.where(negative[:, None], ~flat, flat)
+    carry = negative.astype(np.uint64)
+    for k in range(mag.shape[1]):  # + 1 for the negated rows
+        total = mag[:, k] + carry
+        carry = (carry.astype(bool) & (total == 0)).astype(np.uint64)
+        mag[:, k] = total
+    best = int(np.lexsort(mag.T)[-1])  # lexsort's last key is the primary one: the top limb
+    return int.from_bytes(mag[best].astype("<u8").tobytes(), "little")
