@@ -138,8 +138,12 @@ class ToolShape:
         if not isinstance(grid, Grid):
             raise TypeError(f"grid must be a csgnb.exact.Grid, got {type(grid).__name__}")
         offsets = np.rint(self.vertices * grid.scale).astype(np.int64)
+        report: dict = {}
         try:
-            V, F = validate_mesh(offsets, self.faces, grid.width)
+            V, F = validate_mesh(offsets, self.faces, grid.width, report=report)
+            if report.get("collapsed_faces"):  # the grid is too coarse for the design: say so, do not distort it
+                raise GeometryError(f"rounding to the grid merged corners of {report['collapsed_faces']} of its "
+                                    f"{len(self.faces)} faces")
         except GeometryError as exc:
             raise GeometryError(
                 f"tool {self.name!r} is not a valid solid on a grid of resolution {grid.resolution:g} mm: {exc}. "
