@@ -22,6 +22,7 @@ from csgnb.quadric import (
     elliptic_paraboloid,
     hyperbolic_paraboloid,
     parallel_planes,
+    plane,
     signed_distance,
 )
 from csgnb.sampling import sample_csg
@@ -236,11 +237,39 @@ def test_thin_features_get_samples_even_below_the_radius():
     assert np.ptp(side[:, 1]) >= 1.0 - 2 * 0.1
 
 
-def test_min_size_threshold_is_faster_but_may_drop_tiny_parts():
-    shape, _ = _thin()
-    full = sample_csg(shape, 0.1)
-    fast = sample_csg(shape, 0.1, min_size=0.1)
-    assert fast.stats.distance_queries < full.stats.distance_queries
+def _bump(h: float, shift: float = 0.0):
+    """A ball cut by a tilted plane, with a smaller ball poking ``h`` out of the cut face.
+
+    The bump's surface on the CSG object is a cap of radius √(2 · 0.3 · h) (7.7e-4 for h = 1e-6), far
+    below ``min_size · radius``, in a generic direction of the bump's heightfield planes (never at a
+    region corner). Its sphere's box is the whole ball, so pass 1 sees regions with every corner off
+    the surface and no sign change on their edges: deferred, no sample of the bump nearby for the
+    neighbour rule, and only pass 1b's subdivision down to the cap's size finds it — exactly what
+    ``min_size`` cuts short. ``shift`` moves the bump by a few ulps: the premise holds whatever the
+    rounding.
+    """
+    n = np.array([1.0, 2.0, 3.0]) / np.sqrt(14.0)
+    body = csg.sphere((0, 0, 0), 1.0, "body") & csg.leaf(plane(n, 0.0), "cut")
+    return body | csg.sphere(-(0.3 - h) * n + shift, 0.3, "bump"), n
+
+
+@pytest.mark.parametrize("shift", [0.0, 1e-16, 1e-15])
+def test_min_size_threshold_is_faster_but_may_drop_tiny_parts(shift):
+    """``min_size`` only acts on regions still unclassified after the feature search (pass 1b): the
+    former premise (the "thin" model) had such regions only by rounding — around its cone's apex,
+    where d_Qab ≈ 6e-8 is found to √EPS — so moving the apex by 1e-16 (or another BLAS) left none and
+    ``min_size`` changed nothing. Here the dropped part is a real one, and its loss is asserted."""
+    shape, n = _bump(1e-6, shift)
+    full = sample_csg(shape, 0.2)
+    fast = sample_csg(shape, 0.2, min_size=0.1)
+    assert fast.stats.distance_queries < 0.5 * full.stats.distance_queries
+    names = np.array(full.normal_form.names, dtype=object)
+    on_bump = full.positions[names[full.quadric_ids] == "bump"]
+    # the full run covers the cap (it pokes 1e-6 above the cut face): its samples are on it
+    assert len(on_bump) > 0 and np.all(on_bump @ n >= -1e-12)
+    assert np.all(names[fast.quadric_ids] != "bump"), "min_size=0.1 should drop the 7.7e-4 cap"
+    # the rest of the surface is sampled the same way
+    assert full.stats.unresolved == fast.stats.unresolved == 0
 
 
 def test_clip_sets_hold_every_quadric_reaching_into_the_splat():
