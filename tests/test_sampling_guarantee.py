@@ -16,6 +16,7 @@ import pytest
 from scipy.spatial import cKDTree
 
 import csgnb.csg as csg
+from csgnb.errors import CsgnbError
 from csgnb.quadric import (
     elliptic_cone,
     elliptic_cylinder,
@@ -303,6 +304,34 @@ def test_clip_sets_hold_every_quadric_reaching_into_the_splat():
     assert cloud.stats.clip_indices == len(cloud.clip_indices) == sum(len(t) for t in sets)
 
 
+def test_clip_set_hash_wraps_explicitly_and_the_same_jitted_or_not():
+    """The clip-set hash is FNV-1a mod 2⁶³ from 32-bit limbs: no int64 overflow (numpy warned
+    "overflow encountered in scalar multiply" under NUMBA_DISABLE_JIT), same values either way."""
+    import warnings
+
+    from csgnb.sampling.cloud import _FNV_OFFSET, _fnv_step, deduplicate_clip_sets
+
+    prime, mask = 1099511628211, (1 << 63) - 1
+    rng = np.random.default_rng(4)
+    hs = [0, 1, mask, _FNV_OFFSET, *rng.integers(0, mask, 50, dtype=np.int64).tolist()]
+    vs = [0, 1, 7, mask, *rng.integers(0, 1 << 40, 50, dtype=np.int64).tolist()]
+    step_py = getattr(_fnv_step, "py_func", _fnv_step)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        for h, v in zip(hs, vs, strict=False):
+            want = ((h ^ v) * prime) & mask
+            assert int(_fnv_step(np.int64(h), np.int64(v))) == want
+            assert int(step_py(np.int64(h), np.int64(v))) == want
+        big = 2**31 - 1
+        ptr = np.array([0, 2, 4, 5, 7])
+        idx = np.array([3, big, 3, big, 9, 3, big])
+        start, count, buf = deduplicate_clip_sets(ptr, idx)
+    assert count.tolist() == [2, 2, 1, 2]
+    assert start[0] == start[1] == start[3] != start[2] and buf.tolist() == [3, big, 9]
+    with pytest.raises(CsgnbError, match="idx"):
+        deduplicate_clip_sets(np.array([0, 2]), np.array([3, 2**40]))  # would not fit the int32 buffer
+
+
 def test_point_cloud_output():
     shape, _ = _spheres()
     cloud = sample_csg(shape, 0.1)
@@ -336,3 +365,43 @@ def test_the_coverage_check_finds_holes():
                         cloud.normal_form, cloud.stats)
     with pytest.raises(AssertionError, match="uncovered"):
         _check_coverage(shape, holed, center, radius, np.random.default_rng(1), n_rays=3000)
+
+
+def _far_models(o):
+    """Solids built at ``o`` (their constructors move origin-centred quadrics: ``Quadric.placement``)."""
+    return {
+        "sphere": csg.sphere(o, 1.0),
+        "cone": csg.cone(o, o + (0.3, 0.0, 1.0), 0.2, 0.6),
+        "capsule": csg.capsule(o, o + (1.0, 1.0, 0.0), 0.4),
+        "box - sphere": csg.box(o - 1.0, o + 1.0) - csg.sphere(o + 0.5, 0.9),
+    }
+
+
+@pytest.mark.parametrize("distance", [1.0, 1e3, 1e6, 5e7, 1e8, 3e8, 1e9, 1e10, 1e11, 1e12])
+def test_models_far_from_the_origin_are_sampled_on_their_surface_or_refused(distance):
+    """Issue 25: a unit sphere at 10⁹ gave 48 samples at its centre (its world c = 10¹⁸ − 1 lost the
+    radius), at 10⁸ or 10¹⁰ "the CSG surface is empty". Now every sample is within the world rounding
+    bound of the surface and the surface is covered at the radius — or, where doubles cannot place
+    samples within ``FAR_FROM_ORIGIN`` of the radius, a clear refusal."""
+    from csgnb.errors import GeometryError
+    from csgnb.quadric import tolerances as tol
+
+    r = 0.2
+    o = np.array([1.0, -0.3, 0.7]) * distance
+    rounding = tol.WORLD_ROUNDING * tol.EPS * (np.abs(o).max() + 3.0)
+    models = _far_models(o)
+    if rounding > tol.FAR_FROM_ORIGIN * r:
+        for shape in models.values():
+            with pytest.raises(GeometryError, match="too far from the origin for double precision"):
+                sample_csg(shape, r)
+        return
+    near = _far_models(np.zeros(3))
+    for name, shape in models.items():
+        cloud = sample_csg(shape, r)
+        local = cloud.positions - o  # exact (Sterbenz) for points near o
+        off = np.abs(graph_first_order_distance(near[name], local))
+        # the world rounding, plus the sampler's own accuracy (as in _check_on_surface: 1e-9 × model size)
+        assert off.max() <= rounding + 1e-9 * 3.0, f"{name}: samples {off.max():.3g} off the surface at {distance:g}"
+        # coverage at the requested radius, checked on the model built at the origin
+        back = _mapped_back(cloud, near[name], 1.0, o)
+        _check_coverage(near[name], back, (0.2, 0.2, 0.2), 1.8, np.random.default_rng(1), n_rays=800)

@@ -232,6 +232,16 @@ class _Converter:
         Minv = self.inverse.get(mkey)
         if Minv is None:  # a composed path map: checked once (a product of good maps can be singular)
             Minv = self.inverse[mkey] = transform_inverse(M, "the transform along a path to a leaf")
+        placement = q.placement
+        if placement is not None:
+            # a quadric built in its own frame and moved by ``origin``: compose the move with the path
+            # map first, so that the path map (the sampler's frame: near the model) sees its exact shape
+            # rather than world coefficients that lost digits (a unit sphere at 10⁹ has c = 10¹⁸ − 1)
+            local, origin = placement
+            T = np.eye(4)
+            T[:3, 3] = origin
+            return Quadric._trusted(_apply_inverse(local, transform_inverse(M @ T, "the transform along a path "
+                                                                                 "to a leaf")))
         return Quadric._trusted(_apply_inverse(q.matrix, Minv))
 
     def _check(self, terms: list[Term]) -> list[Term]:
