@@ -396,6 +396,9 @@ def test_models_far_from_the_origin_are_sampled_on_their_surface_or_refused(dist
                 sample_csg(shape, r)
         return
     near = _far_models(np.zeros(3))
+    # the world normal form too: its quadrics keep their placement (``Quadric.placement``)
+    models["sphere (normal form)"] = models["sphere"].normal_form()
+    near["sphere (normal form)"] = near["sphere"]
     for name, shape in models.items():
         cloud = sample_csg(shape, r)
         local = cloud.positions - o  # exact (Sterbenz) for points near o

@@ -232,7 +232,8 @@ class Quadric:
         """
         M = as_matrix(M, "transform")
         Minv = transform_inverse(M)
-        if M[3, 0] == 0.0 and M[3, 1] == 0.0 and M[3, 2] == 0.0 and M[3, 3] != 0.0 and np.any(M[:3, 3]):
+        if M[3, 0] == 0.0 and M[3, 1] == 0.0 and M[3, 2] == 0.0 and M[3, 3] != 0.0 and (
+                np.any(M[:3, 3]) or self._origin is not None):
             # affine with a translation: x ↦ L x + t is the linear map, then the move to t (or to
             # L o + t from a placed quadric's origin o) — the shape keeps its digits far away
             L = M[:3, :3] / M[3, 3]
