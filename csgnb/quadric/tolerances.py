@@ -118,6 +118,12 @@ that write round them by at most WORLD_ROUNDING · EPS · D, D = |frame center|�
 roundings of numbers of size D; 1.8e-6 at D = 10¹⁰). The sampler covers with its radius shortened by
 that much, so the guarantee holds at the requested radius wherever the model is."""
 
+COEFFICIENT_ROUNDING = 4.0
+"""A quadric given by its world matrix (no ``Quadric.placement``) carries rounding of about
+COEFFICIENT_ROUNDING · EPS · (|c| + |qᵀb|) in its constant at the center γ = c − qᵀb, which moves its
+surface by that over |∇Q| ≈ 2√(λ_max |γ|): a unit sphere at 10⁹ given by its matrix has c = 10¹⁸ − 1
+and no radius left. The sampler refuses leaves moved more than FAR_FROM_ORIGIN × the radius."""
+
 FAR_FROM_ORIGIN = 1e-3
 """A model whose world rounding (WORLD_ROUNDING · EPS · D) exceeds FAR_FROM_ORIGIN × the splat radius
 is refused: double precision cannot place its samples that close to the surface (a unit sphere at

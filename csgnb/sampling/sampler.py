@@ -139,6 +139,44 @@ def world_rounding(frame: ModelFrame) -> float:
     return tol.WORLD_ROUNDING * tol.EPS * (float(np.max(np.abs(frame.center))) + frame.scale)
 
 
+def coefficient_rounding(q: Quadric) -> float:
+    """Return how far rounding of ``q``'s world coefficients may move its surface (``tolerances.COEFFICIENT_ROUNDING``).
+
+    0 for placed quadrics (:attr:`Quadric.placement`: their shape is exact) and for planes.
+    """
+    if q.placement is not None or not np.any(q.A):
+        return 0.0
+    from csgnb.quadric.frames import principal_frame
+
+    f = principal_frame(q)
+    top = float(np.max(np.abs(f.eigenvalues)))
+    if not top > 0.0:
+        return 0.0
+    noise = tol.COEFFICIENT_ROUNDING * tol.EPS * (abs(q.c) + abs(float(f.center @ q.b)))
+    if noise == 0.0:
+        return 0.0
+    return noise / (2.0 * math.sqrt(top * max(abs(f.constant), noise)))
+
+
+def _check_leaves(shape, r: float) -> None:
+    """Refuse leaves whose world coefficients lost the digits of their shape at this radius."""
+    if isinstance(shape, NormalForm):
+        named = [(q, shape.names[k] or f"quadric {k}") for k, q in enumerate(shape.quadrics)]
+    else:
+        from csgnb.csg.graph import graph_leaves
+
+        named = [(leaf.quadric, leaf.name or "a leaf") for leaf in graph_leaves(shape)]
+    for q, name in named:
+        moved = coefficient_rounding(q)
+        if moved > tol.FAR_FROM_ORIGIN * r:
+            raise GeometryError(
+                f"{name} is given by world coefficients too far from the origin for double precision: their "
+                f"rounding may move its surface by {moved:.3g}, more than {tol.FAR_FROM_ORIGIN:g} of the radius "
+                f"{r:.3g}; build it at the origin and move it (Quadric.translated / .transformed, the csg solids' "
+                "centers, or a CSG edge), which keeps its shape exact"
+            )
+
+
 def _covering_radius(r: float, frame: ModelFrame) -> float:
     """Return the radius to cover with in the normalised frame: ``r`` less the world rounding, or refuse."""
     rounding = world_rounding(frame)
@@ -290,13 +328,18 @@ def sample_csg(
     if max_samples is not None:
         max_samples = as_count(max_samples, "max_samples", 0)
     shape = _as_shape(shape)
-    nf, frame, boxes = _normalised(shape, bounds, max_terms)
+    try:
+        nf, frame, boxes = _normalised(shape, bounds, max_terms)
+    except GeometryError:
+        _check_leaves(shape, r)  # the cause, if a leaf's coefficients lost its shape (then "empty" is wrong)
+        raise
     rn = r / frame.scale
     if rn < tol.MIN_RADIUS:
         raise GeometryError(
             f"splat radius {r:.3g} is below {tol.MIN_RADIUS:g} of the model's size ({frame.scale:.3g}): samples "
             "could not be placed that precisely (and would be far too many); pass a larger radius"
         )
+    _check_leaves(shape, r)
     rn = _covering_radius(r, frame)
     ts = build_task_set(nf, surface_boxes(nf, boxes, 1.0), boxes, rn, 1.0)
     _check_estimate(_estimate_from_tasks(ts, rn), max_samples, False)
