@@ -147,3 +147,127 @@ def test_bad_arguments_raise_clear_errors(mod_name, name):
                 assert str(exc), f"{mod_name}.{name} argument {i} = {bad!r}: an error without a message"
             except Exception as exc:  # noqa: BLE001 - the point of the test
                 pytest.fail(f"{mod_name}.{name} argument {i} = {bad!r} raised {type(exc).__name__}: {exc}")
+
+
+# -- csgnb.render and the keyword options of csgnb.sampling (issue 25, item 5) ------------------------
+
+RENDER_BAD = [None, "abc", 1 + 2j, np.nan, np.inf, -1.0, 0, 0.0, True, [], [[1.0, 2.0], [3.0]], np.zeros((2, 2)),
+              np.full(3, np.inf), object(), {"a": 1}, 10**12, 1e300, np.zeros((0, 3)), (np.zeros(3), 1.0)]
+
+#: How a message may name an argument besides its own name.
+ALIASES = {"fov": ["field of view"], "ortho_height": ["orthographic view height"], "shape": ["CSG"],
+           "cloud": ["SampleCloud"], "camera": ["Camera"], "normal_form": ["NormalForm"]}
+
+
+def _render_calls():
+    import csgnb.render as cr
+
+    shape = csg.sphere((0, 0, 0), 1.0)
+    cloud = cs.sample_csg(shape, 0.5)
+    cam = cr.Camera.look_at((4, 0, 0), (0, 0, 0), (0, 0, 1), 16, 12)
+    fr = cr.raytrace(shape, cam)
+    box = ((-1.0, -1, -1), (1.0, 1, 1))
+    return {
+        "Camera": (cr.Camera, dict(eye=(4.0, 0, 0), target=(0.0, 0, 0), up=(0.0, 0, 1), width=16, height=12,
+                                   fov=40.0, projection="perspective", ortho_height=2.0)),
+        "Camera.look_at": (cr.Camera.look_at, dict(eye=(4.0, 0, 0), target=(0.0, 0, 0), up=(0.0, 0, 1), width=16,
+                                                   height=12, fov=40.0, projection="perspective", ortho_height=None)),
+        "Camera.orbit": (cr.Camera.orbit, dict(target=(0.0, 0, 0), azimuth=10.0, elevation=20.0, distance=4.0,
+                                               width=16, height=12, up=(0.0, 0, 1), fov=40.0)),
+        "Camera.fit": (cr.Camera.fit, dict(bounds=box, width=16, height=12, azimuth=-60.0, elevation=30.0,
+                                           up=(0.0, 0, 1), fov=40.0, projection="perspective", margin=1.05)),
+        "Camera.orbited": (cam.orbited, dict(d_azimuth=1.0, d_elevation=1.0, zoom=1.0)),
+        "Camera.with_size": (cam.with_size, dict(width=8, height=8)),
+        "Camera.rays": (cam.rays, dict(rows=[0, 1], cols=[0, 1])),
+        "Camera.project": (cam.project, dict(points=np.zeros((2, 3)))),
+        "raytrace": (cr.raytrace, dict(shape=shape, camera=cam, color_by="quadric", lit=True)),
+        "render": (cr.render, dict(cloud=cloud, camera=cam, footprint="box", backface_culling=True, local="quadric",
+                                   clip=True, color_by="quadric", lit=True, tile=16)),
+        "SplatRenderer": (cr.SplatRenderer, dict(cloud=cloud)),
+        "renderer_for": (cr.renderer_for, dict(cloud=cloud)),
+        "compare": (cr.compare, dict(frame=fr, reference=fr, rel=1e-9)),
+        "verify": (cr.verify, dict(cloud=cloud, camera=cam, shape=shape)),
+        "edge_mask": (cr.edge_mask, dict(frame=fr)),
+        "overdraw_colors": (cr.overdraw_colors, dict(top=30)),
+        "quadric_colors": (cr.quadric_colors, dict(normal_form=cloud.normal_form)),
+        "Lighting": (cr.Lighting, dict(ambient=0.2, diffuse=0.7, specular=0.2, shininess=16.0)),
+        "Frame.shaded": (fr.shaded, dict(color_by="quadric", lit=True, lighting=None, palette=None)),
+        "Frame.difference": (fr.difference, dict(other=fr)),
+        "Frame.png_bytes": (fr.png_bytes, dict(rgb=None, fmt="png")),
+        "Frame.to_pyvista": (fr.to_pyvista, dict(kind="points")),
+        "sample_csg": (cs.sample_csg, dict(shape=shape, radius=0.5, bounds=None, distortion="bounds", min_size=0.0,
+                                           reduce_radius=False, refine=True, trace=False, max_terms=4096,
+                                           max_samples=10**6)),
+        "estimate_samples": (cs.estimate_samples, dict(shape=shape, radius=0.5, bounds=None, max_terms=4096)),
+    }
+
+
+RENDER_CALLS = ["Camera", "Camera.look_at", "Camera.orbit", "Camera.fit", "Camera.orbited", "Camera.with_size",
+                "Camera.rays", "Camera.project", "raytrace", "render", "SplatRenderer", "renderer_for", "compare",
+                "verify", "edge_mask", "overdraw_colors", "quadric_colors", "Lighting", "Frame.shaded",
+                "Frame.difference", "Frame.png_bytes", "Frame.to_pyvista", "sample_csg", "estimate_samples"]
+
+
+def _split(f, kw):
+    import inspect
+
+    args, kws = [], {}
+    for n, p in inspect.signature(f).parameters.items():
+        if n in kw:
+            (kws.__setitem__(n, kw[n]) if p.kind == p.KEYWORD_ONLY else args.append(kw[n]))
+    return args, kws
+
+
+def test_the_render_catalogue_lists_every_public_callable():
+    import csgnb.render as cr
+
+    listed = set(RENDER_CALLS) | {"Viewer", "Frame", "RenderStats", "Agreement"}  # (widgets and records)
+    missing = [n for n in cr.__all__ if callable(getattr(cr, n)) and n not in listed]
+    assert not missing, f"add these to the render catalogue: {missing}"
+    assert set(_render_calls()) == set(RENDER_CALLS)
+
+
+@pytest.mark.parametrize("name", RENDER_CALLS)
+def test_render_and_sampling_options_name_the_bad_argument(name):
+    """Every argument (positional or keyword) of the render API and of the sampler's options, replaced by
+    each bad value: the call works, or raises a csgnb error or TypeError whose message names the argument
+    — no raw numpy/Python error, no numpy warning (a silent overflow)."""
+    import warnings
+
+    f, kw = _render_calls()[name]
+    a, k = _split(f, kw)
+    f(*a, **k)
+    problems = []
+    for p in kw:
+        for bad in RENDER_BAD:
+            trial = dict(kw)
+            trial[p] = bad
+            a, k = _split(f, trial)
+            try:
+                with warnings.catch_warnings():
+                    warnings.simplefilter("error")
+                    f(*a, **k)
+            except (CsgnbError, TypeError) as exc:
+                if not any(n in str(exc) for n in [p, p.replace("_", " "), *ALIASES.get(p, [])]):
+                    problems.append(f"{p}={bad!r:.30}: {type(exc).__name__} not naming it: {str(exc)[:100]}")
+            except Exception as exc:  # noqa: BLE001 - the point of the test
+                problems.append(f"{p}={bad!r:.30}: raw {type(exc).__name__}: {str(exc)[:100]}")
+    assert not problems, f"{name}:\n" + "\n".join(problems)
+
+
+@pytest.mark.parametrize("radius", [1e-200, 1e200, 1e-76, 1e76])
+@pytest.mark.parametrize("make", ["quadric.sphere", "csg.sphere", "csg.cylinder", "csg.ellipsoid", "csg.capsule"])
+def test_radii_beyond_the_double_range_are_refused_with_the_bound(make, radius):
+    """Item 4: r² underflowed (a sphere of radius 1e-200 became a point; an ellipsoid with a 1e200 axis a
+    cylinder — both without error) or overflowed ("c must be finite, got -inf"). Now the bound and why."""
+    from csgnb.errors import GeometryError
+
+    makers = {"quadric.sphere": lambda r: cq.sphere((0, 0, 0), r), "csg.sphere": lambda r: csg.sphere((0, 0, 0), r),
+              "csg.cylinder": lambda r: csg.cylinder((0, 0, 0), (0, 0, 1), r),
+              "csg.ellipsoid": lambda r: csg.ellipsoid((r, 1.0, 1.0)),
+              "csg.capsule": lambda r: csg.capsule((0, 0, 0), (0, 0, 1), r)}
+    with pytest.raises(GeometryError, match=r"must lie in \[1e-75, 1e\+75\].*normal doubles") as info:
+        makers[make](radius)
+    assert "radius" in str(info.value) or "radii" in str(info.value)
+    makers[make](1e-60)  # inside the range: fine
+    makers[make](1e60)

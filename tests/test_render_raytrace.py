@@ -109,3 +109,32 @@ def test_raytrace_bad_input():
     A = sphere((0, 0, 0), 1.0)
     with pytest.raises(GeometryError, match="empty"):
         raytrace(intersection(A, complement(A)), cam)
+
+
+def test_scenes_far_from_the_origin_render_right_or_are_refused():
+    """Issue 25 for the renderers: they work in world coordinates, where a unit sphere at 10⁹ has
+    c = 10¹⁸ − 1 (the radius lost): it drew every pixel (ray tracer) or none (splats). Now such a
+    scene is refused with a clear error; near enough, it renders as at the origin."""
+    import csgnb.csg as csg
+    from csgnb.render import render
+    from csgnb.sampling import sample_csg
+
+    ref = None
+    for x in (0.0, 1e3, 1e9):
+        o = np.array([x, -0.5 * x, 0.25 * x])
+        shape = csg.sphere(o, 1.0)
+        cam = Camera.fit((o - 1.0, o + 1.0), 64, 48)
+        cloud = sample_csg(shape, 0.2)
+        if x == 1e9:
+            with pytest.raises(GeometryError, match="too far from the origin to render"):
+                raytrace(shape, cam)
+            with pytest.raises(GeometryError, match="too far from the origin to render"):
+                render(cloud, cam)
+            continue
+        traced, splats = raytrace(shape, cam), render(cloud, cam)
+        if ref is None:
+            ref = traced
+        assert np.array_equal(np.isfinite(traced.depth), np.isfinite(ref.depth))
+        hit = np.isfinite(ref.depth)
+        assert np.allclose(traced.depth[hit], ref.depth[hit], rtol=1e-9)
+        assert np.array_equal(np.isfinite(splats.depth), np.isfinite(ref.depth))

@@ -146,3 +146,20 @@ def test_a_wedge_costs_what_its_area_needs():
     wedge = csg.leaf(Quadric.from_abc(np.diag([1.0, -1.0, 0.0]), [0, 0, 0], 0.0)) & csg.sphere()
     n = len(sample_csg(wedge, 0.1))
     assert n < 3 * len(sample_csg(csg.sphere(), 0.1))
+
+
+def test_world_matrix_quadrics_that_lost_their_shape_are_refused():
+    """Issue 25 for quadrics given by their world matrix (no placement to recover the shape from): a sphere of
+    radius 0.7 at 10⁹ has c ≈ 10¹⁸, its radius is rounding. Refused, naming the leaf; near the origin fine."""
+
+    def world_sphere(o):
+        m, T = np.diag([1.0, 1.0, 1.0, -0.49]), np.eye(4)
+        T[:3, 3] = -np.asarray(o)
+        return csg.leaf(Quadric(T.T @ m @ T), "ball")
+
+    for x in (1e6, 1e9):
+        with pytest.raises(GeometryError, match="ball is given by world coefficients too far from the origin"):
+            sample_csg(world_sphere((x, 0.3 * x, 0.0)), 0.2)
+    o = np.array([1e3, 3e2, 0.0])
+    cloud = sample_csg(world_sphere(o), 0.2)
+    assert np.abs(np.linalg.norm(cloud.positions - o, axis=1) - 0.7).max() <= 1e-9

@@ -16,12 +16,14 @@ import pytest
 from scipy.spatial import cKDTree
 
 import csgnb.csg as csg
+from csgnb.errors import CsgnbError
 from csgnb.quadric import (
     elliptic_cone,
     elliptic_cylinder,
     elliptic_paraboloid,
     hyperbolic_paraboloid,
     parallel_planes,
+    plane,
     signed_distance,
 )
 from csgnb.sampling import sample_csg
@@ -236,11 +238,39 @@ def test_thin_features_get_samples_even_below_the_radius():
     assert np.ptp(side[:, 1]) >= 1.0 - 2 * 0.1
 
 
-def test_min_size_threshold_is_faster_but_may_drop_tiny_parts():
-    shape, _ = _thin()
-    full = sample_csg(shape, 0.1)
-    fast = sample_csg(shape, 0.1, min_size=0.1)
-    assert fast.stats.distance_queries < full.stats.distance_queries
+def _bump(h: float, shift: float = 0.0):
+    """A ball cut by a tilted plane, with a smaller ball poking ``h`` out of the cut face.
+
+    The bump's surface on the CSG object is a cap of radius √(2 · 0.3 · h) (7.7e-4 for h = 1e-6), far
+    below ``min_size · radius``, in a generic direction of the bump's heightfield planes (never at a
+    region corner). Its sphere's box is the whole ball, so pass 1 sees regions with every corner off
+    the surface and no sign change on their edges: deferred, no sample of the bump nearby for the
+    neighbour rule, and only pass 1b's subdivision down to the cap's size finds it — exactly what
+    ``min_size`` cuts short. ``shift`` moves the bump by a few ulps: the premise holds whatever the
+    rounding.
+    """
+    n = np.array([1.0, 2.0, 3.0]) / np.sqrt(14.0)
+    body = csg.sphere((0, 0, 0), 1.0, "body") & csg.leaf(plane(n, 0.0), "cut")
+    return body | csg.sphere(-(0.3 - h) * n + shift, 0.3, "bump"), n
+
+
+@pytest.mark.parametrize("shift", [0.0, 1e-16, 1e-15])
+def test_min_size_threshold_is_faster_but_may_drop_tiny_parts(shift):
+    """``min_size`` only acts on regions still unclassified after the feature search (pass 1b): the
+    former premise (the "thin" model) had such regions only by rounding — around its cone's apex,
+    where d_Qab ≈ 6e-8 is found to √EPS — so moving the apex by 1e-16 (or another BLAS) left none and
+    ``min_size`` changed nothing. Here the dropped part is a real one, and its loss is asserted."""
+    shape, n = _bump(1e-6, shift)
+    full = sample_csg(shape, 0.2)
+    fast = sample_csg(shape, 0.2, min_size=0.1)
+    assert fast.stats.distance_queries < 0.5 * full.stats.distance_queries
+    names = np.array(full.normal_form.names, dtype=object)
+    on_bump = full.positions[names[full.quadric_ids] == "bump"]
+    # the full run covers the cap (it pokes 1e-6 above the cut face): its samples are on it
+    assert len(on_bump) > 0 and np.all(on_bump @ n >= -1e-12)
+    assert np.all(names[fast.quadric_ids] != "bump"), "min_size=0.1 should drop the 7.7e-4 cap"
+    # the rest of the surface is sampled the same way
+    assert full.stats.unresolved == fast.stats.unresolved == 0
 
 
 def test_clip_sets_hold_every_quadric_reaching_into_the_splat():
@@ -272,6 +302,34 @@ def test_clip_sets_hold_every_quadric_reaching_into_the_splat():
     starts = {(int(cloud.clip_start[i]), int(cloud.clip_count[i])) for i in with_clip}
     assert len(sets) == len(starts)
     assert cloud.stats.clip_indices == len(cloud.clip_indices) == sum(len(t) for t in sets)
+
+
+def test_clip_set_hash_wraps_explicitly_and_the_same_jitted_or_not():
+    """The clip-set hash is FNV-1a mod 2⁶³ from 32-bit limbs: no int64 overflow (numpy warned
+    "overflow encountered in scalar multiply" under NUMBA_DISABLE_JIT), same values either way."""
+    import warnings
+
+    from csgnb.sampling.cloud import _FNV_OFFSET, _fnv_step, deduplicate_clip_sets
+
+    prime, mask = 1099511628211, (1 << 63) - 1
+    rng = np.random.default_rng(4)
+    hs = [0, 1, mask, _FNV_OFFSET, *rng.integers(0, mask, 50, dtype=np.int64).tolist()]
+    vs = [0, 1, 7, mask, *rng.integers(0, 1 << 40, 50, dtype=np.int64).tolist()]
+    step_py = getattr(_fnv_step, "py_func", _fnv_step)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        for h, v in zip(hs, vs, strict=False):
+            want = ((h ^ v) * prime) & mask
+            assert int(_fnv_step(np.int64(h), np.int64(v))) == want
+            assert int(step_py(np.int64(h), np.int64(v))) == want
+        big = 2**31 - 1
+        ptr = np.array([0, 2, 4, 5, 7])
+        idx = np.array([3, big, 3, big, 9, 3, big])
+        start, count, buf = deduplicate_clip_sets(ptr, idx)
+    assert count.tolist() == [2, 2, 1, 2]
+    assert start[0] == start[1] == start[3] != start[2] and buf.tolist() == [3, big, 9]
+    with pytest.raises(CsgnbError, match="idx"):
+        deduplicate_clip_sets(np.array([0, 2]), np.array([3, 2**40]))  # would not fit the int32 buffer
 
 
 def test_point_cloud_output():
@@ -307,3 +365,46 @@ def test_the_coverage_check_finds_holes():
                         cloud.normal_form, cloud.stats)
     with pytest.raises(AssertionError, match="uncovered"):
         _check_coverage(shape, holed, center, radius, np.random.default_rng(1), n_rays=3000)
+
+
+def _far_models(o):
+    """Solids built at ``o`` (their constructors move origin-centred quadrics: ``Quadric.placement``)."""
+    return {
+        "sphere": csg.sphere(o, 1.0),
+        "cone": csg.cone(o, o + (0.3, 0.0, 1.0), 0.2, 0.6),
+        "capsule": csg.capsule(o, o + (1.0, 1.0, 0.0), 0.4),
+        "box - sphere": csg.box(o - 1.0, o + 1.0) - csg.sphere(o + 0.5, 0.9),
+    }
+
+
+@pytest.mark.parametrize("distance", [1.0, 1e3, 1e6, 5e7, 1e8, 3e8, 1e9, 1e10, 1e11, 1e12])
+def test_models_far_from_the_origin_are_sampled_on_their_surface_or_refused(distance):
+    """Issue 25: a unit sphere at 10⁹ gave 48 samples at its centre (its world c = 10¹⁸ − 1 lost the
+    radius), at 10⁸ or 10¹⁰ "the CSG surface is empty". Now every sample is within the world rounding
+    bound of the surface and the surface is covered at the radius — or, where doubles cannot place
+    samples within ``FAR_FROM_ORIGIN`` of the radius, a clear refusal."""
+    from csgnb.errors import GeometryError
+    from csgnb.quadric import tolerances as tol
+
+    r = 0.2
+    o = np.array([1.0, -0.3, 0.7]) * distance
+    rounding = tol.WORLD_ROUNDING * tol.EPS * (np.abs(o).max() + 3.0)
+    models = _far_models(o)
+    if rounding > tol.FAR_FROM_ORIGIN * r:
+        for shape in models.values():
+            with pytest.raises(GeometryError, match="too far from the origin for double precision"):
+                sample_csg(shape, r)
+        return
+    near = _far_models(np.zeros(3))
+    # the world normal form too: its quadrics keep their placement (``Quadric.placement``)
+    models["sphere (normal form)"] = models["sphere"].normal_form()
+    near["sphere (normal form)"] = near["sphere"]
+    for name, shape in models.items():
+        cloud = sample_csg(shape, r)
+        local = cloud.positions - o  # exact (Sterbenz) for points near o
+        off = np.abs(graph_first_order_distance(near[name], local))
+        # the world rounding, plus the sampler's own accuracy (as in _check_on_surface: 1e-9 × model size)
+        assert off.max() <= rounding + 1e-9 * 3.0, f"{name}: samples {off.max():.3g} off the surface at {distance:g}"
+        # coverage at the requested radius, checked on the model built at the origin
+        back = _mapped_back(cloud, near[name], 1.0, o)
+        _check_coverage(near[name], back, (0.2, 0.2, 0.2), 1.8, np.random.default_rng(1), n_rays=800)

@@ -158,7 +158,10 @@ class NormalForm:
         else:
             out = np.einsum("ji,njk,kl->nil", Minv, M, Minv)
         out = 0.5 * (out + out.transpose(0, 2, 1))
-        qs = tuple(Quadric._trusted(q, symmetric=True) for q in out)
+        affine = Minv[3, 0] == 0.0 and Minv[3, 1] == 0.0 and Minv[3, 2] == 0.0 and Minv[3, 3] == 1.0
+        # placed quadrics (``Quadric.placement``) are mapped through their placement: exact far away
+        qs = tuple(q0.transformed(matrix) if affine and q0.placement is not None else
+                   Quadric._trusted(q, symmetric=True) for q0, q in zip(self.quadrics, out, strict=True))
         return NormalForm(qs, self.term_start, self.names, self.surface, self.orientation)
 
     def __repr__(self) -> str:
@@ -232,6 +235,19 @@ class _Converter:
         Minv = self.inverse.get(mkey)
         if Minv is None:  # a composed path map: checked once (a product of good maps can be singular)
             Minv = self.inverse[mkey] = transform_inverse(M, "the transform along a path to a leaf")
+        placement = q.placement
+        if placement is not None:
+            # a quadric built in its own frame and moved by ``origin``: compose the move with the path
+            # map first, so that the path map (the sampler's frame: near the model) sees its exact shape
+            # rather than world coefficients that lost digits (a unit sphere at 10⁹ has c = 10¹⁸ − 1);
+            # an affine path keeps the placement (mapped back to world, the normal form stays exact)
+            if M[3, 0] == 0.0 and M[3, 1] == 0.0 and M[3, 2] == 0.0 and M[3, 3] != 0.0:
+                return q.transformed(M)
+            local, origin = placement
+            T = np.eye(4)
+            T[:3, 3] = origin
+            return Quadric._trusted(apply_inverse(local, transform_inverse(M @ T, "the transform along a path "
+                                                                                 "to a leaf")))
         return Quadric._trusted(apply_inverse(q.matrix, Minv))
 
     def _check(self, terms: list[Term]) -> list[Term]:
@@ -264,7 +280,7 @@ class _Converter:
             k = self.leaf_memo.get(lk)
             if k is None:
                 q = self._leaf_quadric(node.quadric, M, mkey)
-                k = self.registry.key(Quadric._trusted(-q.matrix) if neg else q, node.name)
+                k = self.registry.key(q.complement() if neg else q, node.name)
                 self.leaf_memo[lk] = k
             out = [frozenset([k])]
         elif isinstance(node, Transformed):

@@ -21,7 +21,7 @@ import numpy as np
 from csgnb.csg.graph import Leaf, Node, Transformed, as_node
 from csgnb.quadric.arguments import as_finite_array, as_positive
 from csgnb.quadric.frames import principal_frame
-from csgnb.quadric.quadric import Quadric
+from csgnb.quadric.quadric import Quadric, _apply_inverse, transform_inverse
 
 __all__ = ["ModelFrame", "graph_frame", "quadrics_frame", "box_frame"]
 
@@ -79,6 +79,11 @@ def _anchor(q: Quadric) -> tuple[np.ndarray, float]:
     cached = q.__dict__.get("_anchor")
     if cached is not None:
         return cached
+    placement = q.placement
+    if placement is not None:  # the shape from its own frame (exact), then the move
+        p, size = _anchor(Quadric._trusted(placement[0], symmetric=True))
+        q.__dict__["_anchor"] = (placement[1] + p, size)
+        return q.__dict__["_anchor"]
     f = principal_frame(q)
     p = f.center.copy()
     k = int(np.argmax(np.abs(f.linear)))
@@ -90,7 +95,34 @@ def _anchor(q: Quadric) -> tuple[np.ndarray, float]:
     return p, size
 
 
-def _frame_of(points: list[np.ndarray], sizes: list[float]) -> ModelFrame:
+def _plane(matrix: np.ndarray) -> tuple[np.ndarray, float] | None:
+    """Return (unit n, d) with the plane n·x = d when ``matrix`` is an exact plane (A = 0), else None."""
+    if np.any(matrix[:3, :3]):
+        return None
+    g = 2.0 * matrix[:3, 3]  # Q(x) = g·x + c
+    norm = float(np.linalg.norm(g))
+    if not norm > 0.0:
+        return None
+    return g / norm, -float(matrix[3, 3]) / norm
+
+
+def _frame_of(points: list[np.ndarray], sizes: list[float],
+              planes: list[tuple[np.ndarray, float]] | None = None) -> ModelFrame:
+    """The frame of anchor ``points`` (with lengths ``sizes``) and of ``planes`` (n, d).
+
+    A plane has no point of its own: it is anchored at the foot of the other anchors' center (or,
+    for planes only, of their least-squares point — a box's center), never at the foot of the
+    world origin, which for a box face far from the origin lies far from the box.
+    """
+    if planes:
+        if points:
+            P = np.array(points)
+            x0 = 0.5 * (P.min(axis=0) + P.max(axis=0))
+        else:
+            N = np.array([n for n, _ in planes])
+            x0 = np.linalg.lstsq(N, np.array([d for _, d in planes]), rcond=None)[0]
+        points = list(points) + [x0 + (d - float(n @ x0)) * n for n, d in planes]
+        sizes = list(sizes) + [0.0] * len(planes)
     if not points:
         return ModelFrame(np.zeros(3), 1.0)
     P = np.array(points)
@@ -104,12 +136,16 @@ def _frame_of(points: list[np.ndarray], sizes: list[float]) -> ModelFrame:
 
 def quadrics_frame(quadrics) -> ModelFrame:
     """Return a first normalised frame from the anchors of world quadrics."""
-    pts, sizes = [], []
+    pts, sizes, planes = [], [], []
     for q in quadrics:
+        pl = _plane(q.matrix)
+        if pl is not None:
+            planes.append(pl)
+            continue
         p, s = _anchor(q)
         pts.append(p)
         sizes.append(s)
-    return _frame_of(pts, sizes)
+    return _frame_of(pts, sizes, planes)
 
 
 def graph_frame(root) -> ModelFrame:
@@ -121,6 +157,7 @@ def graph_frame(root) -> ModelFrame:
     """
     pts: list[np.ndarray] = []
     sizes: list[float] = []
+    planes: list[tuple[np.ndarray, float]] = []
     seen: set[tuple[int, bytes | None]] = set()
     stack: list[tuple[Node, np.ndarray | None]] = [(as_node(root), None)]
     while stack:
@@ -130,6 +167,13 @@ def graph_frame(root) -> ModelFrame:
             continue
         seen.add(key)
         if isinstance(node, Leaf):
+            pl = _plane(node.quadric.matrix)
+            if pl is not None:
+                if M is not None:
+                    pl = _plane(_apply_inverse(node.quadric.matrix, transform_inverse(M)))
+                if pl is not None:
+                    planes.append(pl)
+                continue
             p, s = _anchor(node.quadric)
             if M is not None:
                 h = M @ np.append(p, 1.0)
@@ -143,7 +187,7 @@ def graph_frame(root) -> ModelFrame:
             stack.append((node.child, node.matrix if M is None else M @ node.matrix))
         else:
             stack.extend((c, M) for c in node.children())
-    return _frame_of(pts, sizes)
+    return _frame_of(pts, sizes, planes)
 
 
 def box_frame(boxes: np.ndarray) -> ModelFrame | None:

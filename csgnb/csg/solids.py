@@ -13,6 +13,7 @@ import numpy as np
 from csgnb.csg.graph import Leaf, Node, intersection, union
 from csgnb.errors import GeometryError
 from csgnb.quadric.arguments import as_finite_array, as_positive, as_real
+from csgnb.quadric.quadric import _positive as _length
 from csgnb.quadric.quadric import ellipsoid as _ellipsoid
 from csgnb.quadric.quadric import elliptic_cone, elliptic_cylinder, plane
 from csgnb.quadric.quadric import sphere as _sphere
@@ -25,7 +26,8 @@ def _vec(v, name: str) -> np.ndarray:
 
 
 def _positive(v, name: str) -> float:
-    return as_positive(v, name)
+    """A radius: positive and within ``tolerances.LENGTH_MIN`` … ``LENGTH_MAX`` (see there why)."""
+    return float(_length(as_positive(v, name), 1, name)[0])
 
 
 def frame_to_axis(origin, axis) -> np.ndarray:

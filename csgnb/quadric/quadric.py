@@ -129,6 +129,8 @@ class Quadric:
             )
         q.setflags(write=False)
         self._matrix = q
+        self._local: np.ndarray | None = None
+        self._origin: np.ndarray | None = None
 
     @classmethod
     def _trusted(cls, matrix: np.ndarray, symmetric: bool = False) -> Quadric:
@@ -137,7 +139,37 @@ class Quadric:
         m = np.array(matrix) if symmetric else 0.5 * (matrix + matrix.T)
         m.setflags(write=False)
         out._matrix = m
+        out._local = None
+        out._origin = None
         return out
+
+    @classmethod
+    def _placed(cls, local: np.ndarray, origin: np.ndarray) -> Quadric:
+        """Return the quadric ``local`` moved by ``origin`` and remember both (see :attr:`placement`)."""
+        o = np.array(origin, dtype=np.float64)
+        T = np.eye(4)
+        T[:3, 3] = -o
+        out = cls._trusted(apply_inverse(local, T))
+        loc = np.array(local, dtype=np.float64)
+        loc.setflags(write=False)
+        o.setflags(write=False)
+        out._local, out._origin = loc, o
+        return out
+
+    @property
+    def placement(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """``(local, origin)`` when this quadric was built in a frame of its own and moved by ``origin``.
+
+        ``local`` : (4, 4) is the matrix before the translation, ``origin`` : (3,) the translation.
+        The world :attr:`matrix` of a sphere of radius 1 at 10⁹ has c = 10¹⁸ − 1, where the 1 is
+        lost; the placement keeps it, so that maps composed with ``origin`` first (the sampler's
+        normalised frame, ``csgnb.csg.to_normal_form(frame=)``) see the exact shape. Centered
+        constructors and affine :meth:`transformed` / :meth:`translated` keep one; ``None`` for
+        quadrics given by their world matrix.
+        """
+        if self._origin is None:
+            return None
+        return self._local, self._origin
 
     # -- construction ------------------------------------------------------------------
     @classmethod
@@ -199,7 +231,21 @@ class Quadric:
         blockwise, so a plane stays a plane exactly.
         """
         M = as_matrix(M, "transform")
-        return Quadric(apply_inverse(self._matrix, transform_inverse(M)))
+        Minv = transform_inverse(M)
+        if M[3, 0] == 0.0 and M[3, 1] == 0.0 and M[3, 2] == 0.0 and M[3, 3] != 0.0 and (
+                np.any(M[:3, 3]) or self._origin is not None):
+            # affine with a translation: x ↦ L x + t is the linear map, then the move to t (or to
+            # L o + t from a placed quadric's origin o) — the shape keeps its digits far away
+            L = M[:3, :3] / M[3, 3]
+            t = M[:3, 3] / M[3, 3]
+            local, origin = self.placement or (self._matrix, np.zeros(3))
+            Li = np.zeros((4, 4))
+            Li[:3, :3] = Minv[:3, :3]  # L⁻¹ (blockwise inverse of an affine M)
+            Li[3, 3] = 1.0
+            out = Quadric._placed(apply_inverse(local, Li), L @ origin + t)
+            Quadric(out._matrix)  # the usual validation of the result
+            return out
+        return Quadric(apply_inverse(self._matrix, Minv))
 
     def translated(self, offset) -> Quadric:
         """Return this quadric moved by ``offset`` : (3,)."""
@@ -209,7 +255,12 @@ class Quadric:
 
     def complement(self) -> Quadric:
         """Return the complement (Boolean NOT): same surface, inside and outside swapped."""
-        return Quadric(-self._matrix)
+        out = Quadric(-self._matrix)
+        if self._origin is not None:
+            out._local = -self._local
+            out._local.setflags(write=False)
+            out._origin = self._origin
+        return out
 
     def __neg__(self) -> Quadric:
         return self.complement()
@@ -260,6 +311,13 @@ def _positive(values, n: int, name: str) -> np.ndarray:
     arr = np.broadcast_to(arr, (n,)).copy()
     if np.any(arr <= 0.0):
         raise GeometryError(f"{name} must be positive, got {arr.tolist()}")
+    if np.any(arr < tol.LENGTH_MIN) or np.any(arr > tol.LENGTH_MAX):
+        raise GeometryError(
+            f"{name} must lie in [{tol.LENGTH_MIN:g}, {tol.LENGTH_MAX:g}], got {arr.tolist()}: the quadric's "
+            "coefficients are squares or inverse squares of it and the intersection and distance formulas multiply "
+            "two of them, which must stay normal doubles (r² would underflow to 0 or overflow to inf); build the "
+            "model in other units"
+        )
     return arr
 
 

@@ -34,6 +34,18 @@ PLANE = 1e-13
 is rounding next to the linear one). Exact zeros (planes built by csgnb, affine images of them)
 always pass; the sampler asks in its normalised frame, where the unit length is the model size."""
 
+LENGTH_MIN = 1e-75
+LENGTH_MAX = 1e75
+"""Radii and slopes given to the quadric constructors lie in [LENGTH_MIN, LENGTH_MAX]: coefficients are
+their squares or inverse squares (a sphere's c = −r², an ellipsoid's A = diag(1/rᵢ²)), and the
+intersection discriminants (eq. 5–6) and distances (eq. 10–12) multiply two coefficients, i.e. up to
+fourth powers, which must stay normal doubles (1e-308 … 1e308). Beyond, r² underflows to 0 (a sphere of
+radius 1e-200 becomes a point) or overflows (1e200: c = −inf) — rescale the model instead."""
+
+COORDINATE_LIMIT = 1e150
+"""Camera positions and distances (``csgnb.render.Camera``) are refused beyond ±COORDINATE_LIMIT: the
+ray arithmetic squares coordinates, and 1e150² is near the top of the double range (1.8e308)."""
+
 # -- principal frames (csgnb.quadric.frames) ----------------------------------------------------
 
 EIGENVALUE_NOISE = 2.0**-40
@@ -99,6 +111,30 @@ CURVED_SIDE = 1e-12
 MIN_RADIUS = 1e-9
 """Splat radii below MIN_RADIUS × model size are refused: samples would be lifted with less
 precision than their own radius (and would need > 1e18 samples)."""
+
+WORLD_ROUNDING = 8.0
+"""Samples are computed in the normalised frame and written in world coordinates: the frame's map and
+that write round them by at most WORLD_ROUNDING · EPS · D, D = |frame center|∞ + model size (a few
+roundings of numbers of size D; 1.8e-6 at D = 10¹⁰). The sampler covers with its radius shortened by
+that much, so the guarantee holds at the requested radius wherever the model is."""
+
+COEFFICIENT_ROUNDING = 4.0
+"""A quadric given by its world matrix (no ``Quadric.placement``) carries rounding of about
+COEFFICIENT_ROUNDING · EPS · (|c| + |qᵀb|) in its constant at the center γ = c − qᵀb, which moves its
+surface by that over |∇Q| ≈ 2√(λ_max |γ|): a unit sphere at 10⁹ given by its matrix has c = 10¹⁸ − 1
+and no radius left. The sampler refuses leaves moved more than FAR_FROM_ORIGIN × the radius."""
+
+FAR_FROM_ORIGIN = 1e-3
+"""A model whose world rounding (WORLD_ROUNDING · EPS · D) exceeds FAR_FROM_ORIGIN × the splat radius
+is refused: double precision cannot place its samples that close to the surface (a unit sphere at
+10¹² with radius 0.2: coordinates there are 1.2e-4 apart). Move it nearer the origin, or sample
+with a larger radius."""
+
+RENDER_ROUNDING = 0.1
+"""The renderers (``csgnb.render``) work in world coordinates: a quadric of size L at distance D from
+the origin has coefficients of size D² (a sphere's c = D² − L²), whose rounding EPS · D² moves its
+surface by EPS · D² / L. A scene where that exceeds RENDER_ROUNDING of a pixel (2 L / the larger
+image side: the scene filling the view) is refused rather than drawn wrong."""
 
 FEATURE_REGION = 0.25
 """Regions with all corners off the surface but not proven off, once smaller than FEATURE_REGION of a

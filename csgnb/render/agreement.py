@@ -14,6 +14,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from csgnb.errors import CsgnbError, GeometryError
+from csgnb.quadric.arguments import as_real
+
 __all__ = ["Agreement", "compare", "verify", "edge_mask", "DEPTH_TOLERANCE", "REQUIRED_FRACTION", "DEPTH_JUMP"]
 
 #: Relative depth tolerance of an agreeing pixel.
@@ -41,6 +44,9 @@ def edge_mask(frame) -> np.ndarray:
     outside the image while the pixel shows a surface), or the same quadric at a depth more than
     ``DEPTH_JUMP`` relative away.
     """
+    from csgnb.render.scene import check_frame
+
+    check_frame(frame, "frame")
     q = frame.quadric
     d = np.where(np.isfinite(frame.depth), frame.depth, 0.0)
     out = np.zeros(q.shape, dtype=bool)
@@ -112,8 +118,15 @@ def compare(frame, reference, *, rel: float = DEPTH_TOLERANCE) -> Agreement:
 
     Raises ValueError if the two frames differ in size.
     """
+    from csgnb.render.scene import check_frame
+
+    check_frame(frame, "frame")
+    check_frame(reference, "reference")
+    rel = as_real(rel, "rel")
+    if rel < 0.0:
+        raise GeometryError(f"rel must be ≥ 0 (a relative depth tolerance), got {rel}")
     if frame.shape != reference.shape:
-        raise ValueError(f"frames differ in size: {frame.shape} vs {reference.shape}")
+        raise CsgnbError(f"frame and reference differ in size: {frame.shape} vs {reference.shape}")
     rq, fq = reference.quadric, frame.quadric
     rc, fc = rq >= 0, fq >= 0
     with np.errstate(invalid="ignore"):

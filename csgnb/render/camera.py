@@ -21,7 +21,9 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from csgnb.errors import GeometryError
+from csgnb.errors import CsgnbError, GeometryError
+from csgnb.quadric import tolerances as tol
+from csgnb.quadric.arguments import as_finite_array, as_points, as_real
 
 __all__ = ["Camera", "PROJECTIONS", "CAMERA_FIELDS"]
 
@@ -37,11 +39,15 @@ CAMERA_FIELDS = {"eye": 0, "forward": 3, "right": 6, "up": 9, "tx": 14, "ty": 15
 
 def _vec3(v, name: str) -> np.ndarray:
     try:
-        a = np.asarray(v, dtype=np.float64).reshape(3)
-    except (TypeError, ValueError) as exc:
-        raise TypeError(f"{name} must be a 3-vector of numbers, got {v!r}") from exc
+        a = as_finite_array(v, (3,), f"camera {name}", finite=False)
+    except CsgnbError as exc:  # a wrong shape: name the argument and what it must be
+        raise TypeError(f"camera {name} must be a 3-vector of numbers, got {v!r:.80}") from exc
     if not np.all(np.isfinite(a)):
         raise GeometryError(f"camera {name} must be finite, got {a.tolist()}")
+    a = a.copy()
+    if np.max(np.abs(a)) > tol.COORDINATE_LIMIT:
+        raise GeometryError(f"camera {name} {a.tolist()} is beyond ±{tol.COORDINATE_LIMIT:g}: its products with "
+                            "other coordinates would overflow; move the scene nearer the origin")
     return a
 
 
@@ -49,10 +55,23 @@ def _size(v, name: str) -> int:
     if isinstance(v, bool) or not isinstance(v, int | np.integer):
         raise TypeError(f"camera {name} must be an int (pixels), got {type(v).__name__}")
     if v <= 0:
-        raise ValueError(f"camera {name} must be at least 1 pixel, got {v}")
+        raise CsgnbError(f"camera {name} must be at least 1 pixel, got {v}")
     if v > 16384:
-        raise ValueError(f"camera {name} of {v} pixels exceeds the limit of 16384")
+        raise CsgnbError(f"camera {name} of {v} pixels exceeds the limit of 16384")
     return int(v)
+
+
+def _projection(v) -> str:
+    if not isinstance(v, str):
+        raise TypeError(f"projection must be a str, one of {PROJECTIONS}, got {type(v).__name__}")
+    if v not in PROJECTIONS:
+        raise CsgnbError(f"projection must be one of {PROJECTIONS}, got {v!r}")
+    return v
+
+
+def _angle(v, name: str) -> float:
+    """An angle in degrees: a finite real number."""
+    return as_real(v, name)
 
 
 @dataclass(frozen=True, eq=False)
@@ -85,9 +104,9 @@ class Camera:
         object.__setattr__(self, "up", _vec3(self.up, "up"))
         object.__setattr__(self, "width", _size(self.width, "width"))
         object.__setattr__(self, "height", _size(self.height, "height"))
-        if self.projection not in PROJECTIONS:
-            raise ValueError(f"projection must be one of {PROJECTIONS}, got {self.projection!r}")
-        fov, oh = float(self.fov), float(self.ortho_height)
+        _projection(self.projection)
+        fov = as_real(self.fov, "fov (field of view, degrees)", finite=False)
+        oh = as_real(self.ortho_height, "ortho_height (orthographic view height)", finite=False)
         if not (math.isfinite(fov) and 0.0 < fov < 180.0):
             raise GeometryError(f"field of view must be in (0, 180) degrees, got {self.fov!r}")
         if not (math.isfinite(oh) and oh > 0.0):
@@ -125,8 +144,12 @@ class Camera:
         perspective camera of field of view ``fov`` sees at the target's distance.
         """
         if ortho_height is None:
-            d = float(np.linalg.norm(np.asarray(target, dtype=float) - np.asarray(eye, dtype=float)))
-            ortho_height = 2.0 * max(d, 1e-300) * math.tan(math.radians(float(fov)) / 2.0)
+            e, t = _vec3(eye, "eye"), _vec3(target, "target")
+            fv = as_real(fov, "fov (field of view, degrees)")
+            if not 0.0 < fv < 180.0:
+                raise GeometryError(f"field of view must be in (0, 180) degrees, got {fov!r}")
+            d = float(np.linalg.norm(t - e))
+            ortho_height = 2.0 * max(d, 1e-300) * math.tan(math.radians(fv) / 2.0)
         return cls(eye, target, up, width, height, fov, projection, ortho_height)
 
     @classmethod
@@ -138,19 +161,21 @@ class Camera:
         azimuth : angle of the eye around the ``up`` axis, from the x axis (for ``up`` = +z: 0 puts
             the eye on +x, 90 on +y); elevation : above the plane ⟂ ``up``, in (-90, 90).
         """
-        el = float(elevation)
+        el = as_real(elevation, "elevation", finite=False)
         if not -90.0 < el < 90.0:
             raise GeometryError(f"orbit elevation must be in (-90, 90) degrees, got {elevation!r}")
-        dist = float(distance)
-        if not (math.isfinite(dist) and dist > 0.0):
-            raise GeometryError(f"orbit distance must be positive and finite, got {distance!r}")
+        dist = as_real(distance, "distance", finite=False)
+        if not (math.isfinite(dist) and 0.0 < dist <= tol.COORDINATE_LIMIT):
+            raise GeometryError(f"orbit distance must be positive, finite and at most {tol.COORDINATE_LIMIT:g}, "
+                                f"got {distance!r}")
+        azimuth = _angle(azimuth, "azimuth")
         z = _vec3(up, "up")
         zn = float(np.linalg.norm(z))
         if zn == 0.0:
             raise GeometryError("camera up vector is zero; pass a direction such as (0, 0, 1)")
         z = z / zn
         x, y = _plane_axes(z)
-        a, e = math.radians(float(azimuth)), math.radians(el)
+        a, e = math.radians(azimuth), math.radians(el)
         offset = dist * (math.cos(e) * (math.cos(a) * x + math.sin(a) * y) + math.sin(e) * z)
         t = _vec3(target, "target")
         return cls.look_at(t + offset, t, z, width, height, fov=fov, projection=projection,
@@ -166,11 +191,20 @@ class Camera:
         orbit direction until the box's corners, with ``margin``, just fit the view.
         """
         lo, hi = _bounds(bounds)
+        azimuth, elevation = _angle(azimuth, "azimuth"), as_real(elevation, "elevation")
+        fov = as_real(fov, "fov (field of view, degrees)")
+        if not 0.0 < fov < 180.0:
+            raise GeometryError(f"field of view must be in (0, 180) degrees, got {fov!r}")
+        margin = as_real(margin, "margin")
+        _projection(projection)
         center = 0.5 * (lo + hi)
         radius = max(0.5 * float(np.linalg.norm(hi - lo)), 1e-12 * max(1.0, float(np.max(np.abs(center)))))
-        radius *= float(margin)
+        if not (0.0 < margin and radius * margin <= tol.COORDINATE_LIMIT):
+            raise GeometryError(f"margin must be positive, and the box times it within ±{tol.COORDINATE_LIMIT:g}, "
+                                f"got {margin!r}")
+        radius *= margin
         _ = _size(width, "width"), _size(height, "height")
-        half = math.radians(float(fov)) / 2.0
+        half = math.radians(fov) / 2.0
         half_narrow = math.atan(math.tan(half) * min(1.0, width / height))
         dist = radius / math.sin(half_narrow)
         oh = 2.0 * radius * max(1.0, height / width)
@@ -261,11 +295,14 @@ class Camera:
         el = math.degrees(math.asin(max(-1.0, min(1.0, float(off @ up) / dist))))
         x, y = _plane_axes(up)
         az = math.degrees(math.atan2(float(off @ y), float(off @ x)))
-        z = float(zoom)
+        z = as_real(zoom, "zoom", finite=False)
         if not (math.isfinite(z) and z > 0.0):
             raise GeometryError(f"zoom must be positive and finite, got {zoom!r}")
-        new_el = max(-89.0, min(89.0, el + float(d_elevation)))
-        return Camera.orbit(self.target, az + float(d_azimuth), new_el, dist / z, self.width, self.height,
+        if not dist / z > 1e-12 * max(float(np.max(np.abs(self.target))), dist):
+            raise GeometryError(f"zoom {zoom!r} would put the eye on the target (distance {dist:.3g}); zoom less")
+        new_el = max(-89.0, min(89.0, el + _angle(d_elevation, "d_elevation")))
+        return Camera.orbit(self.target, az + _angle(d_azimuth, "d_azimuth"), new_el, dist / z, self.width,
+                            self.height,
                             up=self.up, fov=self.fov, projection=self.projection,
                             ortho_height=self.ortho_height / z)
 
@@ -275,11 +312,14 @@ class Camera:
 
         rows, cols : (n,) int arrays (default: every pixel, row-major).
         """
-        if rows is None:
+        if rows is None and cols is None:
             rows, cols = (a.ravel() for a in np.indices(self.shape))
+        rows, cols = _pixels(rows, "rows", self.height), _pixels(cols, "cols", self.width)
+        if rows.shape != cols.shape:
+            raise CsgnbError(f"rows and cols must have the same length, got {len(rows)} and {len(cols)}")
         X, Y = self.screen_axes()
-        x = X[np.asarray(cols, dtype=np.int64)]
-        y = Y[np.asarray(rows, dtype=np.int64)]
+        x = X[cols]
+        y = Y[rows]
         f, r, u, _ = self._frame
         if self.projection == "perspective":
             d = f + x[:, None] * r + y[:, None] * u
@@ -294,7 +334,10 @@ class Camera:
         points : (n, 3). Returns (n, 2) float64 (pixel centres are integers) and (n,) float64
         (distance along ``forward``; ≤ 0 behind the eye).
         """
-        p = np.asarray(points, dtype=np.float64).reshape(-1, 3) - self.eye
+        p = as_points(points, "points")
+        if not np.all(np.isfinite(p)):
+            raise GeometryError("points must be finite to be projected")
+        p = p - self.eye
         f, r, u, _ = self._frame
         xc, yc, zc = p @ r, p @ u, p @ f
         tx, ty = self.half_extents
@@ -311,6 +354,16 @@ class Camera:
         return f"Camera({self.projection}, {self.width}x{self.height}, eye={e}, target={t}, {extra})"
 
 
+def _pixels(v, name: str, n: int) -> np.ndarray:
+    """Return pixel indices ``v`` : (k,) int64 in [0, n), or raise naming the argument."""
+    if v is None or isinstance(v, str | bytes):
+        raise TypeError(f"{name} must be an array of pixel indices, got {type(v).__name__}")
+    a = as_finite_array(v, None, name).reshape(-1)
+    if np.any(a != np.round(a)) or (len(a) and (a.min() < 0 or a.max() >= n)):
+        raise CsgnbError(f"{name} must hold integer pixel indices in [0, {n})")
+    return a.astype(np.int64)
+
+
 def _plane_axes(z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Return unit x, y spanning the plane ⟂ unit z (x = +x axis for z = +z)."""
     x = np.cross([0.0, 1.0, 0.0] if abs(z[1]) < 0.9 else [0.0, 0.0, 1.0], z)
@@ -325,7 +378,14 @@ def _bounds(bounds) -> tuple[np.ndarray, np.ndarray]:
         if len(pts) == 0:
             raise GeometryError("cannot fit a camera to an empty cloud")
         return pts.min(axis=0), pts.max(axis=0)
-    arr = np.asarray(bounds, dtype=np.float64)
+    if bounds is None or isinstance(bounds, str | bytes):
+        raise TypeError(f"bounds must be (lo, hi), a (6,) box, (n, 3) points or a SampleCloud, got "
+                        f"{type(bounds).__name__}")
+    try:
+        arr = np.asarray(bounds, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise TypeError(f"bounds must be (lo, hi), a (6,) box, (n, 3) points or a SampleCloud of numbers, got "
+                        f"{bounds!r:.80}") from exc
     if arr.shape == (6,):
         lo, hi = arr[:3], arr[3:]
     elif arr.shape == (2, 3):
@@ -336,4 +396,6 @@ def _bounds(bounds) -> tuple[np.ndarray, np.ndarray]:
         raise GeometryError(f"bounds must be (lo, hi), a (6,) box or (n, 3) points, got shape {arr.shape}")
     if not (np.all(np.isfinite(lo)) and np.all(np.isfinite(hi)) and np.all(hi >= lo)):
         raise GeometryError(f"bounds must be finite with lo <= hi, got {lo.tolist()}, {hi.tolist()}")
+    if max(float(np.max(np.abs(lo))), float(np.max(np.abs(hi)))) > tol.COORDINATE_LIMIT:
+        raise GeometryError(f"bounds reach beyond ±{tol.COORDINATE_LIMIT:g}; move the scene nearer the origin")
     return lo, hi

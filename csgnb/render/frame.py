@@ -7,6 +7,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from csgnb.errors import CsgnbError
+from csgnb.quadric.arguments import as_finite_array, as_flag, as_instance
 from csgnb.render.camera import Camera
 from csgnb.render.shading import (
     CLIP_COLORS,
@@ -100,6 +102,9 @@ class Frame:
 
         ``palette`` (k, 3) in [0, 1] overrides the mode's colours (indexed by the mode's key).
         """
+        lit = as_flag(lit, "lit")
+        if lighting is not None:
+            as_instance(lighting, Lighting, "lighting", "a csgnb.render.Lighting or None")
         key, pal, lit_mode = _key_and_palette(self, color_by, palette)
         cam = self.camera.params()
         X, Y = self.camera.screen_axes()
@@ -112,14 +117,20 @@ class Frame:
         or depth; blue: covered here only; yellow: covered in ``other`` only (a hole here).
         """
         from csgnb.render.agreement import compare
+        from csgnb.render.scene import check_frame
 
-        return compare(self, other).picture()
+        return compare(self, check_frame(other, "other")).picture()
 
     # -- export ------------------------------------------------------------------------------------
     def png_bytes(self, rgb=None, fmt: str = "png") -> bytes:
         """Return the image (or ``rgb``) encoded as PNG (``fmt="jpeg"`` for a faster, lossy one)."""
         from PIL import Image
 
+        from csgnb.render.scene import check_choice
+
+        check_choice(fmt.lower() if isinstance(fmt, str) else fmt, ("png", "jpeg", "jpg"), "fmt")
+        if rgb is not None:
+            rgb = _as_rgb(rgb)
         buf = io.BytesIO()
         Image.fromarray(np.ascontiguousarray(self.rgb if rgb is None else rgb)).save(
             buf, format=fmt.upper(), **({"quality": 90} if fmt.lower() in ("jpeg", "jpg") else {"compress_level": 1}))
@@ -141,6 +152,9 @@ class Frame:
         """
         import pyvista as pv
 
+        from csgnb.render.scene import check_choice
+
+        check_choice(kind, ("points", "image"), "kind")
         names = ("quadric", "term", "depth", "overdraw", "clip_count")
         if kind == "points":
             mask = self.covered
@@ -168,9 +182,25 @@ class Frame:
         return f"Frame({s.method}, {W}x{H}, {s.covered} covered pixels{extra}, {s.ms:.1f} ms)"
 
 
+def _as_rgb(rgb) -> np.ndarray:
+    """Return an image ``rgb`` : (H, W, 3) or (H, W) uint8, or raise naming the argument."""
+    if isinstance(rgb, str | bytes) or not hasattr(rgb, "__len__"):
+        raise TypeError(f"rgb must be an (H, W, 3) uint8 image, got {type(rgb).__name__}")
+    try:
+        arr = np.asarray(rgb)
+    except ValueError as exc:
+        raise TypeError(f"rgb must be an (H, W, 3) uint8 image, got a ragged {type(rgb).__name__}") from exc
+    if arr.dtype != np.uint8:
+        raise TypeError(f"rgb must be an (H, W, 3) uint8 image, got dtype {arr.dtype}")
+    if not (arr.ndim == 2 or (arr.ndim == 3 and arr.shape[2] == 3)) or arr.size == 0:
+        raise CsgnbError(f"rgb must be an (H, W, 3) uint8 image, got shape {arr.shape}")
+    return arr
+
+
 def _key_and_palette(frame: Frame, color_by: str, palette):
-    if color_by not in COLOR_MODES:
-        raise ValueError(f"color_by must be one of {COLOR_MODES}, got {color_by!r}")
+    from csgnb.render.scene import check_choice
+
+    check_choice(color_by, COLOR_MODES, "color_by")
     q = frame.quadric
     empty = q < 0
     lit = True
@@ -191,7 +221,9 @@ def _key_and_palette(frame: Frame, color_by: str, palette):
     else:
         key, pal = np.where(empty, -1, 0), np.ones((1, 3))
     if palette is not None:
-        pal = np.asarray(palette, dtype=np.float64).reshape(-1, 3)
+        pal = as_finite_array(palette, None, "palette")
+        if pal.ndim != 2 or pal.shape[1] != 3 or np.any(pal < 0.0) or np.any(pal > 1.0):
+            raise CsgnbError(f"palette must be (k, 3) colours in [0, 1], got shape {pal.shape}")
     if len(pal) == 0:
         pal = np.ones((1, 3))
     return np.ascontiguousarray(key, dtype=np.int32), pal, lit

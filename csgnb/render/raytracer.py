@@ -19,11 +19,12 @@ import numpy as np
 from numba import prange
 
 from csgnb._jit import jit
+from csgnb.quadric.arguments import as_flag
 from csgnb.render.camera import Camera
 from csgnb.render.frame import Frame, RenderStats
 from csgnb.render.rays import quadric_rows, ray_polynomials, ray_roots
-from csgnb.render.scene import as_normal_form, check_camera
-from csgnb.render.shading import quadric_colors, shade, surface_normals
+from csgnb.render.scene import as_normal_form, check_camera, check_choice, check_precision, scene_box
+from csgnb.render.shading import COLOR_MODES, quadric_colors, shade, surface_normals
 
 __all__ = ["raytrace", "RAYTRACE_TILE"]
 
@@ -130,7 +131,10 @@ def raytrace(shape, camera: Camera, *, color_by: str = "quadric", lit: bool = Tr
     """
     t0 = time.perf_counter()
     check_camera(camera)
+    check_choice(color_by, COLOR_MODES, "color_by")
+    lit = as_flag(lit, "lit")
     nf = as_normal_form(shape)
+    check_precision(camera, *scene_box(shape))
     Q = quadric_rows(nf.quadrics)
     ts = np.ascontiguousarray(nf.term_start, dtype=np.int64)
     max_term = int(np.max(np.diff(ts))) if nf.n_terms else 1

@@ -5,11 +5,14 @@ from __future__ import annotations
 import numpy as np
 
 from csgnb.csg.normal_form import NormalForm, to_normal_form
-from csgnb.errors import GeometryError
+from csgnb.errors import CsgnbError, GeometryError
+from csgnb.quadric import tolerances as tol
+from csgnb.quadric.quadric import Quadric
 from csgnb.render.camera import Camera
 from csgnb.render.rays import quadric_rows
 
-__all__ = ["as_normal_form", "check_camera", "check_cloud", "check_same_shape", "ON_QUADRIC"]
+__all__ = ["as_normal_form", "check_camera", "check_cloud", "check_same_shape", "check_precision", "scene_box",
+           "check_choice", "check_frame", "ON_QUADRIC"]
 
 #: A sample is on its quadric when |Q(s)| ≤ ON_QUADRIC · (|∇Q(s)| · scale + |Q|-scale) — far
 #: above rounding, far below any offset between different surfaces.
@@ -37,6 +40,24 @@ def as_normal_form(shape) -> NormalForm:
     if nf.n_terms == 0:
         raise GeometryError("the CSG object is empty: its normal form has no term (e.g. A ∩ ¬A); nothing to render")
     return nf
+
+
+def check_choice(value, choices: tuple, name: str) -> str:
+    """Return ``value`` if it is one of the string ``choices``: TypeError for a non-str, CsgnbError else."""
+    if not isinstance(value, str):
+        raise TypeError(f"{name} must be a str, one of {choices}, got {type(value).__name__}")
+    if value not in choices:
+        raise CsgnbError(f"{name} must be one of {choices}, got {value!r}")
+    return value
+
+
+def check_frame(frame, name: str = "frame"):
+    """Return ``frame`` if it is a :class:`csgnb.render.Frame`, else raise TypeError naming ``name``."""
+    from csgnb.render.frame import Frame
+
+    if not isinstance(frame, Frame):
+        raise TypeError(f"{name} must be a csgnb.render.Frame (from raytrace or render), got {type(frame).__name__}")
+    return frame
 
 
 def check_camera(camera) -> Camera:
@@ -121,3 +142,39 @@ def check_same_shape(cloud, shape) -> NormalForm:
             "sample this shape (sample_csg) or pass the cloud's own shape"
         )
     return mine
+
+
+def scene_box(shape) -> tuple[np.ndarray, float]:
+    """Return (center (3,), half-diagonal) of what a renderer draws: a cloud's positions, else the frame
+    of the shape's leaves (``csgnb.csg.normalisation``)."""
+    from csgnb.csg.normalisation import graph_frame, quadrics_frame
+    from csgnb.sampling.cloud import SampleCloud
+
+    if isinstance(shape, SampleCloud):
+        pos = np.asarray(shape.positions, dtype=np.float64)
+        lo, hi = pos.min(axis=0), pos.max(axis=0)
+        return 0.5 * (lo + hi), max(0.5 * float(np.linalg.norm(hi - lo)), float(np.max(shape.radii)))
+    if isinstance(shape, NormalForm):
+        F = quadrics_frame(shape.quadrics)
+    elif isinstance(shape, Quadric):
+        F = quadrics_frame([shape])
+    else:
+        F = graph_frame(shape)
+    return F.center, F.scale
+
+
+def check_precision(camera: Camera, center, size: float) -> None:
+    """Refuse a scene too far from the origin for world-coordinate rendering (``tolerances.RENDER_ROUNDING``).
+
+    ``center`` (3,) and ``size`` (half-diagonal) describe the scene; the eye counts too (rays start there).
+    """
+    D = max(float(np.max(np.abs(center))) + size, float(np.max(np.abs(camera.eye))))
+    size = max(size, np.finfo(float).tiny)
+    pixel = 2.0 * size / max(camera.shape)
+    error = tol.EPS * D * D / size
+    if error > tol.RENDER_ROUNDING * pixel:
+        raise GeometryError(
+            f"the scene is too far from the origin to render in double precision: at distance {D:.3g} a surface "
+            f"of size {size:.3g} is only placed to {error:.3g}, more than {tol.RENDER_ROUNDING:g} pixel "
+            f"({pixel:.3g}) at {camera.shape[1]}×{camera.shape[0]}; build the model (and camera) nearer the origin"
+        )

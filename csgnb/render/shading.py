@@ -14,6 +14,8 @@ import numpy as np
 from numba import prange
 
 from csgnb._jit import jit
+from csgnb.errors import CsgnbError, GeometryError
+from csgnb.quadric.arguments import as_count, as_instance, as_real
 from csgnb.render.rays import ray_direction, ray_point, row_gradient
 
 __all__ = [
@@ -52,7 +54,13 @@ class Lighting:
 
     def __init__(self, ambient: float = 0.22, diffuse: float = 0.78, specular: float = 0.25,
                  shininess: float = 32.0) -> None:
-        self.ambient, self.diffuse, self.specular, self.shininess = ambient, diffuse, specular, shininess
+        vals = {n: as_real(v, n) for n, v in (("ambient", ambient), ("diffuse", diffuse), ("specular", specular),
+                                                ("shininess", shininess))}
+        for n, v in vals.items():
+            if v < 0.0:
+                raise GeometryError(f"{n} must be ≥ 0, got {v}")
+        self.ambient, self.diffuse, self.specular, self.shininess = (vals["ambient"], vals["diffuse"],
+                                                                     vals["specular"], vals["shininess"])
 
     def array(self) -> np.ndarray:
         squarings = int(round(math.log2(min(max(float(self.shininess), 1.0), 1024.0))))
@@ -61,6 +69,9 @@ class Lighting:
 
 def quadric_colors(normal_form) -> np.ndarray:
     """Return a colour per quadric : (n, 3) float64 — by surface id, so shared surfaces match."""
+    from csgnb.csg.normal_form import NormalForm
+
+    as_instance(normal_form, NormalForm, "normal_form", "a csgnb.csg.NormalForm")
     sid = np.asarray(normal_form.surface, dtype=np.int64)
     return _TAB20[sid % len(_TAB20)].copy() if len(sid) else np.zeros((0, 3))
 
@@ -72,6 +83,9 @@ def index_colors(n: int) -> np.ndarray:
 
 def overdraw_colors(top: int = 30) -> np.ndarray:
     """Return the Figure 13 ramp : (top + 1, 3) float64 — index 0 unused, green at 1, red at ``top``+."""
+    top = as_count(top, "top", 2)
+    if top > 1 << 16:
+        raise CsgnbError(f"top must be at most {1 << 16} (a colour per overdraw count), got {top}")
     s = np.clip((np.arange(top + 1) - 1.0) / (top - 1.0), 0.0, 1.0)
     # green → yellow → red through the HSV hue
     hue = (1.0 - s) * (1.0 / 3.0)
@@ -161,6 +175,8 @@ def shade(cam: np.ndarray, X, Y, normal, key, palette, *, lit: bool = True, ligh
 
     key : (H, W) int32 — palette row per pixel, negative for background; palette : (k, 3) in [0, 1].
     """
+    if lighting is not None:
+        as_instance(lighting, Lighting, "lighting", "a csgnb.render.Lighting or None")
     light = (lighting or Lighting()).array()
     out = np.empty(key.shape + (3,), dtype=np.uint8)
     _shade_kernel(cam, X, Y, normal, np.ascontiguousarray(key, dtype=np.int32),

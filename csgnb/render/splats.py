@@ -31,11 +31,13 @@ import numpy as np
 from numba import prange
 
 from csgnb._jit import jit
+from csgnb.errors import CsgnbError
+from csgnb.quadric.arguments import as_count, as_flag
 from csgnb.render.camera import Camera
 from csgnb.render.frame import Frame, RenderStats
 from csgnb.render.rays import EPS, ray_direction, ray_point, ray_polynomials, ray_roots, row_gradient, row_value
-from csgnb.render.scene import check_camera, check_cloud
-from csgnb.render.shading import quadric_colors, shade, surface_normals
+from csgnb.render.scene import check_camera, check_choice, check_cloud, check_precision, scene_box
+from csgnb.render.shading import COLOR_MODES, quadric_colors, shade, surface_normals
 
 __all__ = [
     "SplatRenderer", "render", "renderer_for", "FOOTPRINTS", "LOCAL_MODES", "TILE", "FOOTPRINT_MARGIN",
@@ -478,6 +480,7 @@ class SplatRenderer:
         self.normals = np.ascontiguousarray(cloud.normals, dtype=np.float64)
         self.palette = quadric_colors(nf)
         self.extent = float(np.max(np.abs(cloud.positions)) + np.max(cloud.radii))
+        self._scene = scene_box(cloud)
         # scratch, reused across frames
         self._hull = np.empty((n, 12))
         self._bbox = np.empty((n, 4), dtype=np.int32)
@@ -532,13 +535,15 @@ class SplatRenderer:
         """
         t0 = time.perf_counter()
         check_camera(camera)
-        if footprint not in FOOTPRINTS:
-            raise ValueError(f"footprint must be one of {FOOTPRINTS}, got {footprint!r}")
-        if local not in LOCAL_MODES:
-            raise ValueError(f"local must be one of {LOCAL_MODES}, got {local!r}")
-        tile = int(tile)
+        check_precision(camera, *self._scene)
+        check_choice(footprint, FOOTPRINTS, "footprint")
+        check_choice(local, LOCAL_MODES, "local")
+        check_choice(color_by, COLOR_MODES, "color_by")
+        backface_culling, clip, lit = (as_flag(backface_culling, "backface_culling"), as_flag(clip, "clip"),
+                                       as_flag(lit, "lit"))
+        tile = as_count(tile, "tile", 4)
         if not 4 <= tile <= 1024:
-            raise ValueError(f"tile must be in [4, 1024] pixels, got {tile}")
+            raise CsgnbError(f"tile must be in [4, 1024] pixels, got {tile}")
         cam = camera.params()
         X, Y = camera.screen_axes()
         H, W = camera.shape

@@ -169,12 +169,33 @@ class SampleCloud:
         )
 
 
+#: FNV-1a on 63 bits, written so that no operation overflows an int64 (jitted or not, the same hashes):
+#: the offset basis masked to 63 bits, the prime 2⁴⁰ + 435 split into 32-bit limbs.
+_MASK63 = (1 << 63) - 1
+_MASK32 = (1 << 32) - 1
+_MASK31 = (1 << 31) - 1
+_FNV_OFFSET = 0xCBF29CE484222325 & _MASK63
+_FNV_PRIME_LO = 435
+_FNV_PRIME_HI = 1 << 8
+
+
+@jit
+def _fnv_step(h, v):
+    """Return (h ^ v) · FNV prime mod 2⁶³ for 0 ≤ h, v < 2⁶³, from 32-bit limbs (every product < 2⁴³)."""
+    x = h ^ v
+    lo = x & _MASK32
+    hi = x >> 32
+    p = lo * _FNV_PRIME_LO
+    mid = (p >> 32) + hi * _FNV_PRIME_LO + lo * _FNV_PRIME_HI
+    return ((mid & _MASK31) << 32) | (p & _MASK32)
+
+
 @jit
 def _dedup_kernel(ptr, idx, start, count, buf):
     """Store each distinct clip set once in ``buf``; returns the buffer length.
 
-    Sets are hashed (FNV-1a over their ascending indices) into a dict of buffer offsets and
-    compared element-wise, with linear probing on a hash collision.
+    Sets are hashed (FNV-1a on 63 bits, ``_fnv_step``, over their ascending indices) into a dict of
+    buffer offsets and compared element-wise, with linear probing on a hash collision.
     """
     offsets = Dict.empty(key_type=types.int64, value_type=types.int64)
     lengths = Dict.empty(key_type=types.int64, value_type=types.int64)
@@ -186,9 +207,9 @@ def _dedup_kernel(ptr, idx, start, count, buf):
         if c == 0:
             start[i] = 0
             continue
-        h = np.int64(-3750763034362895579)
+        h = _FNV_OFFSET
         for k in range(a, b):
-            h = (h ^ idx[k]) * np.int64(1099511628211)
+            h = _fnv_step(h, idx[k])
         h = h ^ c
         while True:
             if h in offsets:
@@ -202,7 +223,7 @@ def _dedup_kernel(ptr, idx, start, count, buf):
                 if same:
                     start[i] = s
                     break
-                h += 1
+                h = (h + 1) & _MASK63
             else:
                 offsets[h] = nb
                 lengths[h] = c
@@ -232,6 +253,9 @@ def deduplicate_clip_sets(ptr: np.ndarray, idx: np.ndarray) -> tuple[np.ndarray,
     idx = _as_index_array(idx, "idx")
     if len(ptr) == 0 or ptr[0] != 0 or np.any(np.diff(ptr) < 0) or ptr[-1] != len(idx):
         raise CsgnbError("ptr must start at 0, be non-decreasing and end at len(idx)")
+    if len(idx) and (idx.min() < 0 or idx.max() > np.iinfo(np.int32).max):
+        raise CsgnbError(f"idx must hold quadric indices in [0, 2**31) (the buffer is int32), got values in "
+                         f"[{idx.min()}, {idx.max()}]")
     return _deduplicate(ptr, idx)
 
 

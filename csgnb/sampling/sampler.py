@@ -45,6 +45,19 @@ _SAMPLES_PER_AREA = 2.0
 _SAMPLES_PER_JOB = 4.0
 
 
+def _as_shape(shape):
+    """Return ``shape`` as a NormalForm or a CSG node, or raise TypeError naming the argument."""
+    if isinstance(shape, NormalForm):
+        return shape
+    from csgnb.csg.graph import as_node
+
+    try:
+        return as_node(shape)
+    except TypeError as exc:
+        raise TypeError(f"shape must be a csgnb.csg Node or a Quadric (or a NormalForm), got {type(shape).__name__}") \
+            from exc
+
+
 def _bounds_frame(bounds) -> tuple[ModelFrame, np.ndarray]:
     try:
         center, r = bounds
@@ -121,6 +134,63 @@ def _normalised(shape, bounds, max_terms):
     return _flatten_planes(nf), F, boxes
 
 
+def world_rounding(frame: ModelFrame) -> float:
+    """Return the bound on the rounding of a sample's world position (``tolerances.WORLD_ROUNDING``)."""
+    return tol.WORLD_ROUNDING * tol.EPS * (float(np.max(np.abs(frame.center))) + frame.scale)
+
+
+def coefficient_rounding(q: Quadric) -> float:
+    """Return how far rounding of ``q``'s world coefficients may move its surface (``tolerances.COEFFICIENT_ROUNDING``).
+
+    0 for placed quadrics (:attr:`Quadric.placement`: their shape is exact) and for planes.
+    """
+    if q.placement is not None or not np.any(q.A):
+        return 0.0
+    from csgnb.quadric.frames import principal_frame
+
+    f = principal_frame(q)
+    top = float(np.max(np.abs(f.eigenvalues)))
+    if not top > 0.0:
+        return 0.0
+    noise = tol.COEFFICIENT_ROUNDING * tol.EPS * (abs(q.c) + abs(float(f.center @ q.b)))
+    if noise == 0.0:
+        return 0.0
+    return noise / (2.0 * math.sqrt(top * max(abs(f.constant), noise)))
+
+
+def _check_leaves(shape, r: float) -> None:
+    """Refuse leaves whose world coefficients lost the digits of their shape at this radius."""
+    if isinstance(shape, NormalForm):
+        named = [(q, shape.names[k] or f"quadric {k}") for k, q in enumerate(shape.quadrics)]
+    else:
+        from csgnb.csg.graph import graph_leaves
+
+        named = [(leaf.quadric, leaf.name or "a leaf") for leaf in graph_leaves(shape)]
+    for q, name in named:
+        moved = coefficient_rounding(q)
+        if moved > tol.FAR_FROM_ORIGIN * r:
+            raise GeometryError(
+                f"{name} is given by world coefficients too far from the origin for double precision: their "
+                f"rounding may move its surface by {moved:.3g}, more than {tol.FAR_FROM_ORIGIN:g} of the radius "
+                f"{r:.3g}; build it at the origin and move it (Quadric.translated / .transformed, the csg solids' "
+                "centers, or a CSG edge), which keeps its shape exact"
+            )
+
+
+def _covering_radius(r: float, frame: ModelFrame) -> float:
+    """Return the radius to cover with in the normalised frame: ``r`` less the world rounding, or refuse."""
+    rounding = world_rounding(frame)
+    if rounding > tol.FAR_FROM_ORIGIN * r:
+        far = float(np.max(np.abs(frame.center)))
+        raise GeometryError(
+            f"the model is too far from the origin for double precision at this splat radius: its coordinates "
+            f"reach {far:.3g}, where doubles are {np.spacing(far):.3g} apart, so samples could be off the surface by "
+            f"up to {rounding:.3g}, more than {tol.FAR_FROM_ORIGIN:g} of the radius {r:.3g}; move the model nearer "
+            "the origin (sample it there and add the offset yourself) or pass a larger radius"
+        )
+    return (r - rounding) / frame.scale
+
+
 def _estimate_from_tasks(ts: TaskSet, radius: float) -> float:
     """Return an estimate of the samples of a task set at splat radius ``radius`` (its units).
 
@@ -146,14 +216,12 @@ def estimate_samples(shape, radius: float, *, bounds=None, max_terms: int = 4096
     """
     r = as_positive(radius, "radius")
     max_terms = as_count(max_terms, "max_terms", 1)
-    if not isinstance(shape, NormalForm):
-        from csgnb.csg.graph import as_node
-
-        shape = as_node(shape)
+    shape = _as_shape(shape)
     nf, frame, boxes = _normalised(shape, bounds, max_terms)
     rn = r / frame.scale
     if rn < tol.MIN_RADIUS:
         return math.inf
+    rn = _covering_radius(r, frame)
     ts = build_task_set(nf, surface_boxes(nf, boxes, 1.0), boxes, rn, 1.0)
     return _estimate_from_tasks(ts, rn)
 
@@ -229,13 +297,19 @@ def sample_csg(
         If an argument has the wrong type (a string or None radius, a non-bool flag, ...).
     GeometryError
         If the object is empty, unbounded without ``bounds``, or has no surface in the bounds; if
-        the radius is not positive or below ``tolerances.MIN_RADIUS`` of the model's size.
+        the radius is not positive or below ``tolerances.MIN_RADIUS`` of the model's size; if the
+        model is so far from the origin that double precision cannot place samples within
+        ``tolerances.FAR_FROM_ORIGIN`` of the radius (a unit sphere at 10¹² with radius 0.2).
     CsgnbError
         If an option is unknown, or the sample count is above ``max_samples``.
 
     All tolerances are relative to the model: it is sampled in a normalised frame (its box
     centered at 0 with half-diagonal 1, :mod:`csgnb.csg.normalisation`), so a model and a scaled
-    or translated copy give the same samples up to the map.
+    or translated copy give the same samples up to the map. Leaves built in a frame of their own and
+    moved (``csg.sphere(center=...)``, ``.translated``; see ``Quadric.placement``) keep their shape's
+    digits however far away; the samples' world coordinates are rounded by at most
+    ``world_rounding(frame)`` (two millionths at 10¹⁰), which the sampler takes off the radius it covers
+    with, so the guarantee holds at ``radius``.
     """
     t0 = time.perf_counter()
     r = as_positive(radius, "radius")
@@ -253,24 +327,27 @@ def sample_csg(
     max_terms = as_count(max_terms, "max_terms", 1)
     if max_samples is not None:
         max_samples = as_count(max_samples, "max_samples", 0)
-    if not isinstance(shape, NormalForm):
-        from csgnb.csg.graph import as_node
-
-        shape = as_node(shape)
-    nf, frame, boxes = _normalised(shape, bounds, max_terms)
+    shape = _as_shape(shape)
+    try:
+        nf, frame, boxes = _normalised(shape, bounds, max_terms)
+    except GeometryError:
+        _check_leaves(shape, r)  # the cause, if a leaf's coefficients lost its shape (then "empty" is wrong)
+        raise
     rn = r / frame.scale
     if rn < tol.MIN_RADIUS:
         raise GeometryError(
             f"splat radius {r:.3g} is below {tol.MIN_RADIUS:g} of the model's size ({frame.scale:.3g}): samples "
             "could not be placed that precisely (and would be far too many); pass a larger radius"
         )
+    _check_leaves(shape, r)
+    rn = _covering_radius(r, frame)
     ts = build_task_set(nf, surface_boxes(nf, boxes, 1.0), boxes, rn, 1.0)
     _check_estimate(_estimate_from_tasks(ts, rn), max_samples, False)
     C = np.ascontiguousarray(nf.coefficients)
     ts, leaves = _subdivide(C, ts, rn, min_size * rn, distortion == "sqrt3", refine, trace, progress, reduce_radius,
                             max_samples)
     _check_estimate(leaves.samples, max_samples, True)
-    return _emit(nf, C, ts, leaves, rn, reduce_radius, trace, frame, t0)
+    return _emit(nf, C, ts, leaves, rn, reduce_radius, trace, frame, t0, r)
 
 
 class _Leaves:
@@ -395,7 +472,7 @@ def _trace_neighbours(lv: _Leaves, done: np.ndarray) -> None:
 
 
 def _emit(nf: NormalForm, C, ts: TaskSet, lv: _Leaves, radius: float, reduce_radius: bool, trace: bool,
-          frame: ModelFrame, t0: float):
+          frame: ModelFrame, t0: float, world_radius: float):
     n = lv.samples
     if n == 0:
         raise GeometryError(
@@ -436,8 +513,7 @@ def _emit(nf: NormalForm, C, ts: TaskSet, lv: _Leaves, radius: float, reduce_rad
         feature_points=int(counters[6]),
         covered_by_neighbours=lv.by_neighbours,
     )
-    return SampleCloud(positions, normals, ids, radii, start, count, buf, radius * frame.scale, world, stats, tr,
-                       frame)
+    return SampleCloud(positions, normals, ids, radii, start, count, buf, world_radius, world, stats, tr, frame)
 
 
 def _world_plane(ts: TaskSet, t: int, k: int, frame: ModelFrame):
