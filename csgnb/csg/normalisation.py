@@ -21,7 +21,7 @@ import numpy as np
 from csgnb.csg.graph import Leaf, Node, Transformed, as_node
 from csgnb.quadric.arguments import as_finite_array, as_positive
 from csgnb.quadric.frames import principal_frame
-from csgnb.quadric.quadric import Quadric, _apply_inverse, transform_inverse
+from csgnb.quadric.quadric import Quadric, apply_inverse, transform_inverse
 
 __all__ = ["ModelFrame", "graph_frame", "quadrics_frame", "box_frame"]
 
@@ -170,7 +170,7 @@ def graph_frame(root) -> ModelFrame:
             pl = _plane(node.quadric.matrix)
             if pl is not None:
                 if M is not None:
-                    pl = _plane(_apply_inverse(node.quadric.matrix, transform_inverse(M)))
+                    pl = _plane(apply_inverse(node.quadric.matrix, transform_inverse(M)))
                 if pl is not None:
                     planes.append(pl)
                 continue
