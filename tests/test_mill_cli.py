@@ -86,3 +86,92 @@ def test_shipped_programs_simulate_exactly(tmp_path, name):
     assert run.returncode == 0, run.stderr
     assert "stock - removed == part: True (exact)" in run.stdout
     assert out.stat().st_size > 0
+
+
+# -- arguments, tools, dialects (no simulation: they fail or are decided before it) ---------------------------------
+
+
+@pytest.mark.parametrize("extra, match", [
+    (["--rapid-rate", "0"], "--rapid-rate"), (["--rapid-rate", "-100"], "--rapid-rate"),
+    (["--rapid-rate", "nan"], "--rapid-rate"), (["--checkpoint-every", "-3"], "--checkpoint-every"),
+    (["--checkpoint-every", "0"], "--checkpoint-every"), (["--chord-tolerance", "1e-12"], "--chord-tolerance"),
+    (["--chord-tolerance", "0"], "--chord-tolerance"), (["--chord-tolerance", "inf"], "--chord-tolerance"),
+    (["--resolution", "-1"], "--resolution"), (["--start", "0", "nan", "0"], "--start"),
+    (["--segments", "2"], "--segments"),
+])
+def test_bad_numeric_options_are_refused(tmp_path, capsys, extra, match):
+    prog = tmp_path / "p.nc"
+    prog.write_text("M3\nG1 X1 F100\n")
+    assert main([str(prog), "--stock", "10", "10", "3", "--no-progress", *extra]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: ") and match in err
+
+
+@pytest.mark.parametrize("text, tools, match", [
+    ("T2 M6\nM3\nG1 X1 F100\n", ["--tool", "1=flat:3"], "line 1: the program loads tool 2 (T2 M6)"),
+    ("T1 M6\nG0 X1\nT2 M6\nG0 X2\n", ["--tool", "flat:3"], "line 1: the program loads tool 1"),
+    ("T1 M6\nG0 X1\nT2 M6\nG0 X2\n", ["--tool", "1=flat:3", "--tool", "flat:2"], "line 3: the program loads tool 2"),
+    ("G0 X1\n", ["--tool", "1=flat:3", "--tool", "2=flat:2"], "loads no tool"),
+    ("G0 X1\nG41 X2\n", ["--skip-unsupported"], "line 2: unsupported word G41"),
+    ("G0 X1\n/G0 X2\n", [], "line 2: the line starts with '/'"),
+])
+def test_missing_tools_and_unskippable_words_are_errors_before_milling(tmp_path, capsys, text, tools, match):
+    prog = tmp_path / "p.nc"
+    prog.write_text(text)
+    assert main([str(prog), "--stock", "10", "10", "3", "--no-progress", *tools]) == 2
+    assert match in capsys.readouterr().err
+
+
+def test_tool_tables_map_numbers_to_specs_and_lengths(tmp_path):
+    from csgnb.apps import gcode, tools
+    from csgnb.apps.tooltable import read_tool_table
+    from csgnb.mill import resolve_tools
+
+    tbl = tmp_path / "tool.tbl"
+    tbl.write_text("; a LinuxCNC tool table\nT1 P1 Z30 D6 ;6 mm end mill\nT2 P2 Z+40.5 D4 ;ball:4 ball nose\n"
+                   "T3 P3 Z0 ;vbit:6:90\n")
+    table = read_tool_table(tbl)
+    assert {k: (e.spec, e.length, e.spec_from) for k, e in table.items()} == {
+        1: ("flat:6", 30.0, "diameter"), 2: ("ball:4", 40.5, "comment"), 3: ("vbit:6:90", 0.0, "comment")}
+    csv = tmp_path / "tools.csv"
+    csv.write_text("tool,spec,length\n1,flat:6,30\n2,bull:6:1,\n")
+    assert {k: (e.spec, e.length) for k, e in read_tool_table(csv).items()} == {1: ("flat:6", 30.0),
+                                                                               2: ("bull:6:1", 0.0)}
+    for text, match in [("T1 D6\nT1 D4\n", "listed twice"), ("T1 Z3\n", "neither a diameter"),
+                        ("T1 D6 ;ball:4\n", "disagrees"), ("T1.5 D6\n", "non-negative integer"),
+                        ("T1 D6 %\n", "cannot read"), ("T1 D1e999\n", "cannot read")]:
+        tbl.write_text(text)
+        with pytest.raises(ValueError, match=match):
+            read_tool_table(tbl)
+    shapes = {k: tools.parse_tool(e.spec, segments=6) for k, e in table.items()}
+    program = gcode.parse("G0 Z5\nT2 M6\nG43\nG0 X1 Z0\nT1 M6\nG43 H1\nG0 X2\n", start=(0, 0, 50),
+                          tool_lengths={k: e.length for k, e in table.items()})
+    chosen, notes = resolve_tools(program, {}, shapes)
+    assert chosen == {2: shapes[2], 1: shapes[1], None: shapes[2]} and "tool 2" in notes[0]
+    assert [(m.tool, m.end[2]) for m in program] == [(None, 5.0), (2, 0.0), (1, 0.0)]
+
+
+def test_tool_table_dialect_and_skipped_words_end_to_end(tmp_path, capsys):
+    """A GRBL program without M3 (spindle switched by hand), two tools from a table, a skipped override word."""
+    prog = tmp_path / "grbl.nc"
+    prog.write_text("G21 G90\nT1 M6\nG0 X5 Y5 Z2\nM48\nG1 Z-1 F100\nG1 X10\nG0 Z2\nT2 M6\nG0 X3 Y10\nG1 Z-1\n"
+                    "G1 X12\nM48\nG0 Z5\n")
+    tbl = tmp_path / "tools.csv"
+    tbl.write_text("tool,spec\n1,flat:3:6\n2,ball:2:6\n")
+    js = tmp_path / "moves.json"
+    args = [str(prog), "--stock", "15", "15", "3", "--tool-table", str(tbl), "--segments", "6", "--no-progress",
+            "--json", str(js)]
+    assert main(args) == 2  # M48 is not skipped unless asked
+    assert "line 4: unsupported word M48" in capsys.readouterr().err
+    assert main([*args, "--skip-unsupported"]) == 1  # no M3: cutting with the spindle stopped
+    out, err = capsys.readouterr()
+    assert "4 collision(s), first at line(s) 5, 6, 10, 11" in err and "M48" in out
+    assert main([*args, "--skip-unsupported", "--dialect", "grbl"]) == 0
+    out = capsys.readouterr().out
+    assert "collisions       0" in out and "stock - removed == part: True (exact)" in out
+    assert "M48            2           4" in out
+    data = json.loads(js.read_text())
+    assert data["skipped"] == [{"word": "M48", "count": 2, "first_line": 4, "why": "overrides"}]
+    assert data["dialect"] == "grbl" and data["collision_lines"] == []
+    cutting = [r for r in data["records"] if r["removed_mm3"] > 0]
+    assert {r["line"] for r in cutting} == {5, 6, 10, 11}
