@@ -144,11 +144,12 @@ def test_tool_tables_map_numbers_to_specs_and_lengths(tmp_path):
         with pytest.raises(ValueError, match=match):
             read_tool_table(tbl)
     shapes = {k: tools.parse_tool(e.spec, segments=6) for k, e in table.items()}
-    program = gcode.parse("G0 Z5\nT2 M6\nG43\nG0 X1 Z0\nT1 M6\nG43 H1\nG0 X2\n", start=(0, 0, 50),
+    program = gcode.parse("G0 Z5\nT2 M6\nG43\nG0 X1 Z0\nT1 M6\nG43 H1\nG0 X2\nG0 Z0\n", start=(0, 0, 50),
                           tool_lengths={k: e.length for k, e in table.items()})
     chosen, notes = resolve_tools(program, {}, shapes)
     assert chosen == {2: shapes[2], 1: shapes[1], None: shapes[2]} and "tool 2" in notes[0]
-    assert [(m.tool, m.end[2]) for m in program] == [(None, 5.0), (2, 0.0), (1, 0.0)]
+    # T1 is 10.5 shorter than T2: after the change its tip hangs 10.5 higher until Z is programmed again
+    assert [(m.tool, m.end[2]) for m in program] == [(None, 5.0), (2, 0.0), (1, 10.5), (1, 0.0)]
 
 
 def test_tool_table_dialect_and_skipped_words_end_to_end(tmp_path, capsys):
