@@ -35,11 +35,12 @@ def test_collisions_set_the_exit_status_and_bad_input_is_reported(tmp_path, caps
     prog = tmp_path / "crash.nc"
     prog.write_text("G0 X5 Y5 Z-1\nG0 Z5\n")
     assert main([str(prog), "--stock", "10", "10", "3", "--tool", "flat:2", "--segments", "6", "--no-progress"]) == 1
-    assert "line 1: rapid move (G0) cuts material" in capsys.readouterr().out
+    out, err = capsys.readouterr()
+    assert "line 1: rapid move (G0) cuts material" in out and "1 collision(s), first at line(s) 1" in err
     bad = tmp_path / "bad.nc"
-    bad.write_text("G0 X1\nG28\n")
+    bad.write_text("G0 X1\nG41 D1\n")
     assert main([str(bad), "--stock", "10", "10", "3", "--no-progress"]) == 2
-    assert "line 2: unsupported word G28" in capsys.readouterr().err
+    assert "line 2: unsupported word G41" in capsys.readouterr().err
     assert main([str(bad), "--stock", "10", "10", "3", "--tool", "mill:3", "--no-progress"]) == 2
     assert "unknown tool kind" in capsys.readouterr().err
 
@@ -176,3 +177,16 @@ def test_tool_table_dialect_and_skipped_words_end_to_end(tmp_path, capsys):
     assert data["dialect"] == "grbl" and data["collision_lines"] == []
     cutting = [r for r in data["records"] if r["removed_mm3"] > 0]
     assert {r["line"] for r in cutting} == {5, 6, 10, 11}
+
+
+@pytest.mark.parametrize("code", ["G2", "G3"])
+def test_a_full_circle_cuts_the_whole_ring(tmp_path, code):
+    """Issue 20's program: the circle ends where it starts; the old parser cut only the plunge (3.12 mm³) with G2."""
+    prog = tmp_path / "circle.nc"
+    prog.write_text(f"G0 X0 Y1.5 Z5\nM3\nG1 Z-1 F100\n{code} X0 Y1.5 I-1.5 J-2.598076 F300\nG0 Z5\n")
+    js = tmp_path / "moves.json"
+    assert main([str(prog), "--stock", "10", "10", "3", "--stock-origin", "-6", "-4", "-3", "--tool", "flat:2",
+                 "--segments", "16", "--no-progress", "--json", str(js)]) == 0
+    arc = json.loads(js.read_text())["records"][3]
+    # a 2 mm cutter on a radius-3 circle, 1 mm deep: the ring pi (4² - 2²) = 37.7 mm³ less the plunge's 3.1 mm³
+    assert arc["kind"] == "arc" and 32 < arc["removed_mm3"] < 35

@@ -120,7 +120,7 @@ _M_SKIPPABLE = {19: "spindle orientation", 48: "overrides", 49: "overrides", 50:
                 63: "digital output", 64: "digital output", 65: "digital output", 66: "wait on input",
                 67: "analog output", 68: "analog output"}
 _M_GROUPS = {"stopping": {0, 1, 2, 30}, "tool change": {6}, "spindle": {3, 4, 5}}
-_LETTERS = set("FGHIJKLMNPQRSTXYZD")
+_LETTERS = set("DEFGHIJKLMNPQRSTXYZ")
 
 
 class Skipped:
@@ -346,7 +346,7 @@ class _Interpreter:
         self.g28, self.g30 = h.copy(), h.copy()
         self.cycle = {}
         self.numbered: dict[int, float] = {}
-        self.globals: dict[str, float] = {}
+        self.globals: dict[str, float] = {"_value": 0.0, "_value_returned": 0.0}
         self.frames: list[_Frame] = []
         self.main_locals: dict[str, float] = {}
         self.moves: list[Move] = []
@@ -496,6 +496,9 @@ class _Interpreter:
     def _control(self, pc: int, b: Block) -> int | None:
         """The next block index after an O-word line (None: the program ends)."""
         name, kw, args = b.oword
+        if kw == "program":
+            self._skip(b.line, f"O{name}", "a program number (Fanuc/Haas header), no motion")
+            return pc + 1
         ev = [evaluate(a, self, b.line, f"o{name}") for a in args]
         if kw == "sub":
             return self.match[pc] + 1
@@ -510,6 +513,11 @@ class _Interpreter:
             self.numbered.update(frame.numbered)
             return frame.return_pc
         if kw == "call":
+            if isinstance(name, tuple):
+                v = evaluate(name[1], self, b.line, "o[")
+                if v != int(v) or v < 0:
+                    raise GCodeError(b.line, f"o[...] call: the computed number {v:g} is no O-word number", "o[")
+                name = str(int(v))
             if name not in self.subs:
                 raise GCodeError(b.line, f"o{name} call: this file defines no o{name} sub (subroutine files are not "
                                  "searched; paste the subroutine into the program)", f"o{name}")
@@ -740,6 +748,8 @@ class _Interpreter:
                 if code in _M_SKIPPABLE or 100 <= code <= 199:
                     if 100 <= code <= 199:
                         used.update("PQ")  # a user M code's two arguments
+                    if 62 <= code <= 68:
+                        used.update("PLQE")  # I/O pin, wait mode, value or timeout, analog channel
                     self._skip(line, f"M{code}", _M_SKIPPABLE.get(code, "a user-defined M code (no axis motion)"))
                     continue
                 why = {60: "pallet change", 70: "modal state save", 71: "modal state", 72: "modal state restore",
@@ -823,6 +833,9 @@ class _Interpreter:
             self._motion(line, label, values, axes, motion_code, nonmodal == 530, used)
         for letter, (_, w) in values.items():
             if letter not in used:
+                if letter == "E":
+                    raise GCodeError(line, f"unsupported word {w} (E is an extruder or analog channel, not a milling "
+                                     "axis)", w)
                 raise GCodeError(line, f"the word {w} is used by no code on this line", w)
         # -- stop --------------------------------------------------------------------------------------
         return m_modal.get("stopping", (None,))[0] in (2, 30)

@@ -244,6 +244,8 @@ def read_block(raw: str, line: int) -> Block:
     if r.take("o"):
         if r.take("<"):
             name = "<" + r.name() + ">"
+        elif r.peek("["):
+            name = ("expr", r.bracket())  # o[150 + 50] call: a computed number, for calls only
         else:
             m = re.compile(r"\d+").match(code, r.pos)
             if m is None:
@@ -251,6 +253,9 @@ def read_block(raw: str, line: int) -> Block:
             name = str(int(m.group(0)))
             r.pos = m.end()
         keyword = next((k for k in _KEYWORDS if code.startswith(k, r.pos)), None)
+        if keyword is None and r.pos == len(code) and isinstance(name, str) and name.isdigit():
+            block.oword = (name, "program", [])  # O1001 alone: a Fanuc/Haas program number
+            return block
         if keyword is None:
             r.fail("expected an O-word keyword (sub, endsub, call, return, if, elseif, else, endif, while, "
                    "endwhile, do, repeat, endrepeat, break, continue)")
@@ -260,6 +265,9 @@ def read_block(raw: str, line: int) -> Block:
             args.append(r.bracket())
         if r.pos != len(code):
             r.fail(f"nothing may follow o{name} {keyword} but its [ ] arguments")
+        if isinstance(name, tuple) and keyword != "call":
+            raise GCodeError(line, f"a computed O-word number o[...] is supported with call only, not {keyword}",
+                             "o[")
         takes = {"call": None, "if": 1, "elseif": 1, "while": 1, "repeat": 1, "return": (0, 1), "endsub": (0, 1)}
         want = takes.get(keyword, 0)
         if want is not None:
@@ -285,6 +293,8 @@ def read_block(raw: str, line: int) -> Block:
             start = r.pos
             value = r.real()
             block.words.append((ch.upper(), value, ch.upper() + code[start:r.pos]))
+        elif ch in "@^":
+            r.fail("polar coordinates (@ radius, ^ angle) are not supported: give X Y")
         else:
             r.fail("every word is a letter followed by a number (e.g. X1.5), [expression] or #parameter")
     return block
