@@ -93,7 +93,7 @@ def test_numbers_that_overflow_a_double_are_errors_naming_the_line(text, word_st
     with pytest.raises(GCodeError, match="too large for a double") as exc:
         parse(text)
     assert exc.value.line == 2 and exc.value.word.startswith(word_start)
-    assert time.perf_counter() - t0 < 5
+    assert time.perf_counter() - t0 < 20  # linear work, not a hang (about 1 s on a shared core)
 
 
 @pytest.mark.parametrize("text, match", [

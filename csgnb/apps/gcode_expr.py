@@ -84,6 +84,8 @@ class Block:
 
 def strip_comments(text: str, line: int) -> str:
     """The line without its ``( ... )`` and ``; ...`` comments (nested or unclosed ones are errors)."""
+    if "(" not in text and ")" not in text and ";" not in text:
+        return text
     out = []
     depth = False
     for ch in text:
