@@ -171,7 +171,10 @@ def test_expressions_evaluate_as_rs274ngc(expr, value):
     ("G0 X LN[0]", "LN"), ("G0 X ACOS[2]", "ACOS"), ("G0 X#<nope>", "before any value"), ("G0 X#0", "#0"),
     ("#6000 = 1", "#6000"), ("#5221 = 1", "system parameter"), ("G0 X[1 + ]", "cannot read"),
     ("G0 X[1 + 2", "cannot read"), ("G0 X ATAN[1]", "ATAN"), ("G0 X[-1 ** 0.5]", "negative base"),
-    ("G0 X EXP[1000]", "overflows"), ("#1 2", "cannot read"),
+    ("G0 X EXP[1000]", "overflows"), ("#1 2", "cannot read"), ("G0 X" + "-" * 5000 + "1", "too deeply"),
+    ("G0 X" + "#" * 5000 + "1", "too deeply"), ("G0 X[" + "1+" * 5000 + "1]", "too deeply"),
+    ("G0 X" + "[" * 100 + "1" + "]" * 100, "nest deeper"), ("G92.1 X1", "takes no axis words"),
+    ("G91 G53 G0 X1", "needs G90"), ("G0 X1 @2 ^30", "polar"), ("o[1] sub", "call only"),
 ])
 def test_expression_errors_name_the_line(text, match):
     with pytest.raises(GCodeError, match=match) as exc:

@@ -819,6 +819,7 @@ class _Interpreter:
         # -- G10, G28, G30, G92 ------------------------------------------------------------------------
         if nonmodal in (100, 280, 281, 300, 301, 920, 921, 922, 923):
             used.update("XYZ")
+            axis_user = True
             self._nonmodal(line, label, nonmodal, modal["non-modal"][1], values, used)
         # -- motion ------------------------------------------------------------------------------------
         if motion_code is not None:
@@ -910,6 +911,8 @@ class _Interpreter:
                 self.g92[i] = base[i] - v
             self._check_position(self.g92, line, "the G92 offset")
             self.g92_on, self.g92_saved = True, self.g92.copy()
+        elif given and code in (921, 922, 923):
+            raise GCodeError(line, f"{word} takes no axis words", word)
         elif code == 921:
             self.g92, self.g92_saved, self.g92_on = np.zeros(3), np.zeros(3), False
         elif code == 922:
@@ -942,6 +945,8 @@ class _Interpreter:
             raise GCodeError(line, "axis words under G80 (no motion mode): give G0 or G1", next(iter(axes.values()))[1])
         if machine and motion not in (0, 10):
             raise GCodeError(line, "G53 applies to G0 and G1 only", "G53")
+        if machine and not self.absolute:
+            raise GCodeError(line, "G53 (machine coordinates) needs G90: it is absolute", "G53")
         if cycle:
             from csgnb.apps.gcode_cycles import run_cycle
 

@@ -230,6 +230,13 @@ class _Reader:
 
 def read_block(raw: str, line: int) -> Block:
     """The :class:`Block` of one source line (comments removed; syntax errors name the line)."""
+    try:
+        return _read_block(raw, line)
+    except RecursionError:
+        raise GCodeError(line, "the line nests signs, parameters or brackets too deeply to read") from None
+
+
+def _read_block(raw: str, line: int) -> Block:
     code = re.sub(r"\s+", "", strip_comments(raw, line)).lower()
     block = Block(line)
     r = _Reader(code, line)
@@ -400,7 +407,10 @@ def evaluate(node: tuple, env, line: int, word: str | None = None) -> float:
                 return 1.0 if (a != 0) != (b != 0) else 0.0
         raise AssertionError(f"unknown expression node {n!r}")
 
-    value = ev(node)
+    try:
+        value = ev(node)
+    except RecursionError:
+        bad("the expression nests too deeply to evaluate")
     if not math.isfinite(value):
         bad("the value overflows a double (it is infinite or NaN)")
     return value
