@@ -360,7 +360,7 @@ class _Interpreter(FlowMixin):
         return mpos - np.array([0.0, 0.0, self._length(self.loaded)])
 
     def _check_position(self, p: np.ndarray, line: int, what: str) -> None:
-        if not np.all(np.isfinite(p)) or np.any(np.abs(p) > LIMIT_MM):
+        if not all(-LIMIT_MM <= v <= LIMIT_MM for v in p.tolist()):  # NaN fails the comparison too
             raise GCodeError(line, f"{what} at {np.round(p, 6).tolist()} mm lies beyond ±{LIMIT_MM:g} mm (1 km); "
                              "check the program's units and values")
 

@@ -108,6 +108,19 @@ def strip_comments(text: str, line: int) -> str:
     return "".join(out)
 
 
+_SIMPLE_LINE = re.compile(r"(?:[a-np-z][+-]?(?:\d+\.?\d*|\.\d+))+")
+_SIMPLE_WORD = re.compile(r"([a-z])([+-]?)(\d+\.?\d*|\.\d+)")
+
+
+def _finite_number(text: str, line: int) -> float:
+    value = float(text)
+    if not math.isfinite(value):
+        shown = text if len(text) <= 16 else f"{text[:8]}...({len(text)} digits)"
+        raise GCodeError(line, f"the number {shown} is too large for a double (it overflows to infinity); "
+                         "write a value of a sensible size", shown)
+    return value
+
+
 class _Reader:
     def __init__(self, s: str, line: int) -> None:
         self.s, self.pos, self.line, self.depth = s, 0, line, 0
@@ -130,13 +143,7 @@ class _Reader:
         if m is None:
             self.fail("expected a number")
         self.pos = m.end()
-        text = m.group(0)
-        value = float(text)
-        if not math.isfinite(value):
-            shown = text if len(text) <= 16 else f"{text[:8]}...({len(text)} digits)"
-            raise GCodeError(self.line, f"the number {shown} is too large for a double (it overflows to infinity); "
-                             "write a value of a sensible size", shown)
-        return ("num", value)
+        return ("num", _finite_number(m.group(0), self.line))
 
     def real(self) -> tuple:
         """A real value: a number, ``[expression]``, ``#parameter``, a signed value, or a function call."""
@@ -239,6 +246,14 @@ def read_block(raw: str, line: int) -> Block:
 def _read_block(raw: str, line: int) -> Block:
     code = re.sub(r"\s+", "", strip_comments(raw, line)).lower()
     block = Block(line)
+    if _SIMPLE_LINE.fullmatch(code):
+        # The common line (letters and plain numbers only): the same words as the general reader, without it.
+        # N stays a word here; the interpreter reads it as the label.
+        for letter, sign, digits in _SIMPLE_WORD.findall(code):
+            value = _finite_number(digits, line)
+            block.words.append((letter.upper(), ("num", -value if sign == "-" else value),
+                                letter.upper() + sign + digits))
+        return block
     r = _Reader(code, line)
     if r.take("/"):
         block.delete = True
