@@ -169,7 +169,8 @@ def test_expressions_evaluate_as_rs274ngc(expr, value):
 @pytest.mark.parametrize("text, match", [
     ("G0 X[1/0]", "division by zero"), ("G0 X[2 MOD 0]", "modulo by zero"), ("G0 X SQRT[-1]", "SQRT"),
     ("G0 X LN[0]", "LN"), ("G0 X ACOS[2]", "ACOS"), ("G0 X#<nope>", "before any value"), ("G0 X#0", "#0"),
-    ("#6000 = 1", "#6000"), ("#5221 = 1", "system parameter"), ("G0 X[1 + ]", "cannot read"),
+    ("#6000 = 1", "#6000"), ("#5221 = 1", "system parameter"), ("G0 X#5410", "does not track"),
+    ("G0 X#5061", "does not track"), ("G0 X[1 + ]", "cannot read"),
     ("G0 X[1 + 2", "cannot read"), ("G0 X ATAN[1]", "ATAN"), ("G0 X[-1 ** 0.5]", "negative base"),
     ("G0 X EXP[1000]", "overflows"), ("#1 2", "cannot read"), ("G0 X" + "-" * 5000 + "1", "too deeply"),
     ("G0 X" + "#" * 5000 + "1", "too deeply"), ("G0 X[" + "1+" * 5000 + "1]", "too deeply"),
@@ -423,3 +424,21 @@ def test_canned_cycles_in_the_zx_and_yz_planes():
 def test_canned_cycle_errors(text, match):
     with pytest.raises(GCodeError, match=match):
         parse(text)
+
+
+def test_system_parameters_read_the_interpreter_state():
+    # #5220 system, #5221+ G54 offsets, #5241+ G55, #5211+ G92, #5161+ G28, #5400 tool, #5420+ position (program
+    # units: the G20 line reads inches)
+    p = parse("""G10 L2 P2 X10 Y20
+G55 G0 X1 Y2 Z3
+G92 Z0
+T4 M6
+G28.1
+G0 X#5220 Y#5241
+G0 X#5242 Y#5213
+G0 X#5400 Y[#5420 + #5163]
+G20 G0 Y#5241
+G0 X#5241
+""", start=(0, 0, 0))
+    # words are read before their line runs: the G20 line reads #5241 in mm (10, then taken as inches)
+    assert ends(p) == [[11, 22, 3], [12, 30, 3], [30, 23, 3], [14, 43, 3], [14, 274, 3], [20, 274, 3]]

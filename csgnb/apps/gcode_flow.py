@@ -65,6 +65,9 @@ class FlowMixin:
         c = self._computed(index)
         if c is not None:
             return float(c)
+        if index >= 5000:
+            raise GCodeError(line, f"#{index} is a system parameter this simulator does not track (probe results, "
+                             "tool diameter, I/O results, ...): the program's value would be a guess", f"#{index}")
         return self.numbered.get(index, 0.0)
 
     def _index(self, value: float, line: int) -> int:
