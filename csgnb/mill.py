@@ -187,10 +187,11 @@ def resolve_tools(program: gcode.Program, given: dict, table: dict) -> tuple[dic
             out[None] = default
         elif first_load:
             tool, line = next(iter(first_load.items()))
-            if tool not in out:
+            shape = out.get(tool, numbered.get(tool))
+            if shape is None:
                 raise ValueError(f"line {line}: the program loads tool {tool} (T{tool} M6), but no tool {tool} was "
                                  f"given: add --tool {tool}=SPEC or a tool-table entry")
-            out[None] = out[tool]
+            out[None] = shape
             notes.append(f"moves before line {line}'s M6: tool {tool} (the first the program loads; give an "
                          "unnumbered --tool for another)")
         elif len(numbered) == 1:

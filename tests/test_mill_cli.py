@@ -151,6 +151,10 @@ def test_tool_tables_map_numbers_to_specs_and_lengths(tmp_path):
     assert chosen == {2: shapes[2], 1: shapes[1], None: shapes[2]} and "tool 2" in notes[0]
     # T1 is 10.5 shorter than T2: after the change its tip hangs 10.5 higher until Z is programmed again
     assert [(m.tool, m.end[2]) for m in program] == [(None, 5.0), (2, 0.0), (1, 10.5), (1, 0.0)]
+    # the first tool loaded moves nothing: the moves before it still get its shape
+    program = gcode.parse("G0 Z5\nT3 M6\nT1 M6\nG0 X1\n")
+    chosen, notes = resolve_tools(program, {}, shapes)
+    assert chosen == {1: shapes[1], None: shapes[3]} and "tool 3" in notes[0]
 
 
 def test_tool_table_dialect_and_skipped_words_end_to_end(tmp_path, capsys):
