@@ -442,3 +442,35 @@ G0 X#5241
 """, start=(0, 0, 0))
     # words are read before their line runs: the G20 line reads #5241 in mm (10, then taken as inches)
     assert ends(p) == [[11, 22, 3], [12, 30, 3], [30, 23, 3], [14, 43, 3], [14, 274, 3], [20, 274, 3]]
+
+
+def test_computed_call_numbers_io_words_and_more_refusals():
+    p = parse("o101 sub\nG0 X#1\no101 endsub\no[100 + 1] call [7]\n")
+    assert ends(p) == [[7, 0, 0]]
+    with pytest.warns(UserWarning) as caught:
+        p = parse("M64 P1\nM66 P2 L0 Q5\nM68 E2 Q3\nG0 X1\n", on_unsupported="warn")
+    assert len(caught) == 3
+    assert {w: s.count for w, s in p.skipped.items()} == {"M64": 1, "M66": 1, "M68": 1} and ends(p) == [[1, 0, 0]]
+    for text, line, match in [("G0 X1\nG1 G28 X0 F1\n", 2, "both use the axis words"),
+                              ("G0 X1\nG28.1 X2\n", 2, "takes no axis words"),
+                              ("G0 X1\nG10 L1 P1 Z3\n", 2, "L2 / G10 L20"),
+                              ("G0 X1\nG10 L2 P1 R30 X1\n", 2, "rotated"),
+                              ("G0 X1\nG92\n", 2, "at least one axis"),
+                              ("G0 X1\nM61 Q2\n", 2, "unsupported word M61"),
+                              ("G0 X1\nM70\n", 2, "unsupported word M70"),
+                              ("G0 X1\nG2 X1 Y1 R1 P1.5 F1\n", 2, "turns")]:
+        with pytest.raises(GCodeError, match=match) as exc:
+            parse(text)
+        assert exc.value.line == line
+    with pytest.raises(GCodeError, match="jogging"):
+        parse("$J=G91 X10 F100\n", dialect="grbl", on_unsupported="warn")
+
+
+def test_helical_turns_and_g30_positions():
+    # P2: two full turns about (5, 0) while Z falls 4 mm; the polyline turns -4π (clockwise) and falls linearly
+    (arc,) = parse("G0 X10 Y0 Z0\nG2 X10 Y0 Z-4 I-5 J0 P2 F100\n").moves[1:]
+    assert arc.angle == pytest.approx(4 * math.pi) and _turn(arc) == pytest.approx(-4 * math.pi, abs=1e-9)
+    pts = arc.points(0.01)
+    assert np.all(np.diff(pts[:, 2]) < 0) and arc.length(1e-5) == pytest.approx(math.hypot(20 * math.pi, 4), 1e-5)
+    p = parse("G0 X1 Y2 Z3\nG30.1\nG0 X9 Y9 Z9\nG30 X5\n")
+    assert ends(p)[2:] == [[5, 9, 9], [1, 9, 9]]
