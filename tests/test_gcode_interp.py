@@ -341,6 +341,7 @@ G2 X10 Y0 I10 J0 M30
     assert arc.center.tolist() == [0, 0, 0] and arc.angle == pytest.approx(math.pi) and not arc.clockwise
     assert p[5].center.tolist() == [0, 0, 0] and p.end_line == 12 and p.dwell_s == 2.5
     for text, match in [("G93 G1 X1 F2\nG1 X2\n", "G93"), ("G95 G1 X1 F1\n", "spindle speed"),
+                        ("G93 G1 X1 F2\nG94\nG1 X2\n", "feed rate"), ("F100\nG95 S100\nG1 X2\n", "feed rate"),
                         ("G4\n", "dwell"), ("G1 X1 F1 P3\n", "used by no code"), ("G0 X1 H2\n", "used by no code")]:
         with pytest.raises(GCodeError, match=match):
             parse(text)

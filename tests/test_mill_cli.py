@@ -171,10 +171,12 @@ def test_tool_table_dialect_and_skipped_words_end_to_end(tmp_path, capsys):
             "--json", str(js)]
     assert main(args) == 2  # M48 is not skipped unless asked
     assert "line 4: unsupported word M48" in capsys.readouterr().err
-    assert main([*args, "--skip-unsupported"]) == 1  # no M3: cutting with the spindle stopped
+    with pytest.warns(UserWarning, match="M48"):
+        assert main([*args, "--skip-unsupported"]) == 1  # no M3: cutting with the spindle stopped
     out, err = capsys.readouterr()
     assert "4 collision(s), first at line(s) 5, 6, 10, 11" in err and "M48" in out
-    assert main([*args, "--skip-unsupported", "--dialect", "grbl"]) == 0
+    with pytest.warns(UserWarning, match="M48"):
+        assert main([*args, "--skip-unsupported", "--dialect", "grbl"]) == 0
     out = capsys.readouterr().out
     assert "collisions       0" in out and "stock - removed == part: True (exact)" in out
     assert re.search(r"^M48\s+2\s+4\s+overrides$", out, re.M)

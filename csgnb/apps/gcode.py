@@ -531,6 +531,8 @@ class _Interpreter(FlowMixin):
         # -- feed mode, F, S, T, M6, spindle -------------------------------------------------------------
         if "feed rate mode" in g:
             self.feed_mode = g["feed rate mode"]
+            if self.feed_mode in (940, 950):
+                self.feed = None  # LinuxCNC's convert_feed_mode: G94 / G95 need a new F (an old one meant another mode)
         if "F" in values:
             f = values["F"][0]
             if f < 0:
