@@ -36,7 +36,7 @@ def _jobs() -> list[MillingJob]:
         MillingJob("slot", SLOT, (20, 15, 5), ("flat:3:6",), segments=8),
         MillingJob("two-tools", TWO_TOOLS, (18, 14, 4), ("1=flat:2:5", "2=ball:3:5"), segments=8),
         MillingJob.example("pocket.nc", name="pocket-2mm", resolution=2.0, segments=8),
-        MillingJob("broken", "G0 X1\nG28\n", (10, 10, 3)),
+        MillingJob("broken", "G0 X1\nG33 Z-1 K1\n", (10, 10, 3)),
     ]
 
 
@@ -96,7 +96,7 @@ def test_results_travel_as_text_and_come_back_exact(in_process):
     assert r.removed == sum(r.removed_per_move, Fraction(0)) > 0
     back = JobResult.from_report(json.loads(json.dumps(r.report())))
     assert back == r
-    assert not in_process["broken"].ok and "G28" in in_process["broken"].error
+    assert not in_process["broken"].ok and "G33" in in_process["broken"].error
 
 
 def test_load_jobs_reads_a_batch_file(tmp_path):
@@ -136,7 +136,7 @@ def test_batch_equals_the_jobs_run_one_by_one(client, in_process, tmp_path):
         ref = in_process[r.name]
         assert r.ok == ref.ok and not r.skipped
         if not r.ok:
-            assert "unsupported word G28" in r.error and json.loads(r.report_path.read_text())["error"] == r.error
+            assert "G33" in r.error and json.loads(r.report_path.read_text())["error"] == r.error
             continue
         assert (r.stock_volume, r.removed, r.part_volume, r.removed_per_move) == (
             ref.stock_volume, ref.removed, ref.part_volume, ref.removed_per_move)

@@ -140,28 +140,37 @@ def test_tool_and_spindle_state_travels_with_moves():
 
 
 @pytest.mark.parametrize("text, line, word", [
-    ("G0 X1\nG28 X0\n", 2, "G28"),
     ("G0 X1\nG0 A10\n", 2, "A10"),
-    ("G17\n\nG90.1\n", 3, "G90.1"),
-    ("M0\n", 1, "M0"),
-    ("G0 X0\n/G0 X5\n", 2, "/"),
-    ("G55 G0 X1\n", 1, "G55"),
+    ("G0 X1\nG1 X2 W3 F5\n", 2, "W3"),
+    ("G17\n\nG41 D1\n", 3, "G41"),
+    ("G42.1 D6\n", 1, "G42.1"),
+    ("G33 Z-5 K1\n", 1, "G33"),
+    ("G38.2 Z-5 F10\n", 1, "G38.2"),
+    ("G76 P1 Z-5\n", 1, "G76"),
+    ("G12 I5\n", 1, "G12"),
+    ("M60\n", 1, "M60"),
+    ("G1 X1 E5 F10\n", 1, "E5"),
 ])
-def test_unsupported_words_are_errors_naming_line_and_word(text, line, word):
+def test_words_that_change_the_cut_are_errors_never_skipped(text, line, word):
+    for mode in ("error", "warn"):
+        with pytest.raises(GCodeError) as exc:
+            parse(text, on_unsupported=mode)
+        assert exc.value.line == line and exc.value.word == word
+        assert str(exc.value).startswith(f"line {line}: unsupported word {word}")
+
+
+def test_skippable_words_are_errors_or_counted_in_the_skipped_table():
+    text = "G97 S100\nM48\nG0 X1\nM48\nM100 P1\nM48 G0 Y1\n"
     with pytest.raises(GCodeError) as exc:
         parse(text)
-    assert exc.value.line == line and exc.value.word == word
-    assert str(exc.value).startswith(f"line {line}: unsupported word {word}")
-    assert "on_unsupported='warn'" in str(exc.value)
-
-
-def test_unsupported_words_can_be_skipped_with_a_warning():
-    with pytest.warns(UserWarning, match="line 2: unsupported word G28"):
-        p = parse("G0 X1\nG28 X0\nG0 Y1\n", on_unsupported="warn")
-    # The line's other words still count: the X0 moves with the modal G0.
-    assert [m.end.tolist() for m in p] == [[1, 0, 0], [0, 0, 0], [0, 1, 0]]
-    assert p.warnings == ["line 2: unsupported word G28 (not in G0-G3, G17-G19, G20/G21, G90/G91, G40, G49, G54, "
-                          "G80, G94): skipped"]
+    assert exc.value.line == 1 and exc.value.word == "G97" and "on_unsupported='warn'" in str(exc.value)
+    with pytest.warns(UserWarning, match="unsupported word") as caught:
+        p = parse(text, on_unsupported="warn")
+    assert [str(w.message).split(":")[0] for w in caught] == ["line 1", "line 2", "line 5"]  # once per word
+    assert [m.end.tolist() for m in p] == [[1, 0, 0], [1, 1, 0]]  # the line's other words still count
+    assert {w: (s.count, s.first_line) for w, s in p.skipped.items()} == {"G97": (1, 1), "M48": (3, 2),
+                                                                          "M100": (1, 5)}
+    assert "M48" in p.skipped_table() and len(p.warnings) == 3
     with pytest.raises(ValueError, match="on_unsupported"):
         parse("G0 X1", on_unsupported="ignore")
 
@@ -171,7 +180,7 @@ def test_unsupported_words_can_be_skipped_with_a_warning():
     ("G1 X2 F0\n", 1, "feed rate"),
     ("F100\nX5\n", 2, "without a motion mode"),
     ("G0 X1 X2\n", 1, "appears twice"),
-    ("G0 G1 X1 F10\n", 1, "two motion codes"),
+    ("G0 G1 X1 F10\n", 1, "both in the motion modal group"),
     ("G1 X1.2.3 F10\n", 1, "cannot read"),
     ("G1 X F10\n", 1, "cannot read"),
     ("G1 X1 F10 #1\n", 1, "cannot read"),
@@ -191,7 +200,7 @@ def test_unsupported_words_can_be_skipped_with_a_warning():
     ("G0 X1 (open comment\n", 1, "not closed"),
     ("G0 X1 (a (nested) one)\n", 1, "nested"),
     ("G0 X1 )\n", 1, "closes no comment"),
-    ("M3 M5\n", 1, "two spindle codes"),
+    ("M3 M5\n", 1, "both in the spindle group"),
 ])
 def test_malformed_lines_are_errors_with_their_line(text, line, match):
     with pytest.raises(GCodeError, match=match) as exc:

@@ -1,47 +1,58 @@
-"""A G-code parser for the subset 3-axis milling programs use, into typed moves in absolute millimetres.
+"""A G-code interpreter for 3-axis milling programs (RS274NGC as LinuxCNC reads it), into typed tool-tip moves in mm.
 
-Supported (RS274/NGC semantics, as LinuxCNC reads them):
+:func:`parse` runs a program and returns a :class:`Program` of :class:`Rapid`, :class:`Linear`
+and :class:`Arc` moves of the **tool tip** in the stock's (machine) frame, absolute millimetres.
+Supported:
 
-* motion ``G0`` (rapid), ``G1`` (linear), ``G2``/``G3`` (clockwise / counter-clockwise arcs,
-  helical when the axis normal to the plane moves) in the centre form (``I J K``, offsets
-  from the start point) and the radius form (``R``; negative for arcs over 180°);
-* planes ``G17`` (XY, offsets I J), ``G18`` (ZX, offsets K I), ``G19`` (YZ, offsets J K); a
-  clockwise arc turns clockwise seen from the plane normal's positive end (+Z, +Y, +X);
-* units ``G20`` (inch) / ``G21`` (mm), distance ``G90`` (absolute) / ``G91`` (incremental; arc
-  offsets are always incremental);
-* ``F`` (feed, units per minute), ``S`` (spindle speed), ``T`` with ``M6`` (tool change),
-  ``M3``/``M4``/``M5`` (spindle on / on reversed / stop), ``M2``/``M30`` (end of program);
-* comments ``( ... )`` and ``; ...``, line numbers ``N``, ``%`` tape marks;
-* codes that only restate the state this simulation assumes are accepted as no-ops:
-  ``G94`` (feed per minute), ``G40`` (no cutter compensation), ``G49`` (no tool length
-  offset), ``G80`` (no canned cycle), ``G54`` (the one work coordinate system), and coolant
-  ``M7``/``M8``/``M9``.
+* motion ``G0 G1 G2 G3`` (arcs in the centre form ``I J K`` -- incremental, or absolute under
+  ``G90.1`` -- and the radius form ``R``; helical when the plane's normal axis moves; ``P`` full
+  turns). An arc whose end lies on its start within LinuxCNC's ``CIRCLE_FUZZ`` (1e-6 rad of turn)
+  is a full 360° circle, in every plane and both directions, as in LinuxCNC's ``pmCircleInit``;
+* planes ``G17 G18 G19``, units ``G20 G21``, distance ``G90 G91``, arc centres ``G90.1 G91.1``,
+  feed modes ``G93`` (inverse time) ``G94`` (per minute) ``G95`` (per revolution; times only);
+* canned cycles ``G81 G82 G83 G73 G85 G89`` with ``G98``/``G99``, ``L`` repeats and ``G80``, in
+  all three planes (:mod:`csgnb.apps.gcode_cycles`);
+* coordinate systems: ``G53`` (machine coordinates, one line), ``G54``-``G59.3`` with offsets
+  from ``G10 L2`` / ``G10 L20``; ``G92 G92.1 G92.2 G92.3``; ``G28 G30`` (via an intermediate
+  point to the stored position) and ``G28.1 G30.1`` (store it); the stored positions start at
+  ``home`` (default: the start position);
+* tool length ``G43 [H]``, ``G43.1``, ``G49`` with the lengths of ``tool_lengths``: the machine
+  moves the controlled point (gauge line) to program + offsets + tool length offset, and the tip
+  hangs the *loaded* tool's length below it -- so with ``G43 H<loaded tool>`` the tip is at the
+  programmed point, and without a tool table (every length 0) always;
+* ``F S T M6 M3 M4 M5``, ``G4 P`` dwell (time only), ``M0 M1`` (pauses), ``M2 M30`` (end);
+* no-ops by design (they do not change a 3-axis swept volume): ``G61 G61.1 G64 [P Q]`` (path
+  blending only moves the path within the machine's tolerance, which this exact simulator does
+  not model), ``G40`` (compensation off), coolant ``M7 M8 M9``;
+* parameters ``#1``, ``#<name>``, ``#<_global>``, ``[ ]`` expressions and O-word control flow
+  (:mod:`csgnb.apps.gcode_expr`), with a bound on loop passes.
 
-Anything else is an **unsupported word**: a :class:`GCodeError` naming the line and the
-word, or -- with ``on_unsupported="warn"`` -- a warning and the word skipped. A malformed
-line (text that is not a word, a word given twice, two motions on one line, an arc without
-centre or radius, a feed move without a feed rate, an arc whose end is not on its circle)
-is always an error with its line number.
+Anything else is refused with a :class:`GCodeError` naming the line and the word. Words that
+cannot change the swept volume (spindle-speed modes ``G96 G97``, overrides ``M48``-``M53``,
+``M19``, I/O ``M62``-``M68``, user codes ``M100``-``M199``) may instead be skipped with
+``on_unsupported="warn"``: each is counted in :attr:`Program.skipped` (count and first line).
+Words that change the cut (cutter compensation ``G41 G42``, other axes ``A B C U V W``, ``G33``,
+``G38.x``, unknown codes) are never skipped.
 
-Within a line the RS274/NGC order applies: F, S, T, M6, spindle, plane, units,
-distance mode, then the motion, so ``G20 G91 X1`` moves one inch incrementally. A feed
-rate is a number read in the units in force at each move (``F`` is inches per minute
-under G20), as LinuxCNC does.
+Within a line the RS274NGC order applies: feed mode, F, S, T, M6, spindle, coolant, dwell,
+plane, units, cutter compensation, tool length, coordinate system, path mode, distance modes,
+retract mode, G10/G28/G30/G92, motion, stop. Two codes of one modal group on a line are an error.
 """
 
 from __future__ import annotations
 
 import math
-import re
 import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-from csgnb.apps.sweep import arc_polyline
+from csgnb.apps.gcode_expr import Block, GCodeError, evaluate, read_block
+from csgnb.apps.gcode_flow import MAX_LOOP_PASSES, FlowMixin
+from csgnb.apps.sweep import arc_polyline, arc_segments
 
-__all__ = ["Arc", "GCodeError", "Linear", "Move", "Program", "Rapid", "parse", "parse_file"]
+__all__ = ["Arc", "GCodeError", "Linear", "Move", "Program", "Rapid", "Skipped", "parse", "parse_file", "read_text"]
 
 INCH = 25.4
 """Millimetres per inch (G20)."""
@@ -49,27 +60,82 @@ INCH = 25.4
 RADIUS_TOLERANCE_MM = 0.002
 """An arc's end may be this far (or 0.1 % of the radius, whichever is larger) off its circle."""
 
-_NO_OP_G = {94.0: "feed per minute", 40.0: "cutter compensation off", 49.0: "tool length offset off",
-            80.0: "canned cycle off", 54.0: "work coordinate system 1"}
-_NO_OP_M = {7.0: "mist coolant", 8.0: "flood coolant", 9.0: "coolant off"}
-_PLANES = {17.0: ("XY", (0, 1), 2, "IJ"), 18.0: ("ZX", (2, 0), 1, "KI"), 19.0: ("YZ", (1, 2), 0, "JK")}
+CIRCLE_FUZZ = 1e-6
+"""An arc turning less than this (radians) from its start to its end is a full circle (LinuxCNC's ``CIRCLE_FUZZ``)."""
+
+LIMIT_MM = 1e6
+"""Every position, centre and offset must lie within ±1 km: beyond that no milling program is meant, and doubles
+lose the precision a chord tolerance needs (an arc of radius 1e15 mm would need 10^9 chords)."""
+
+MAX_ARC_CHORDS = 100_000
+"""Most chords one arc may be split into; a finer chord tolerance is an error, not a hang."""
+
+RAPID_DELTA_MM = 0.254
+"""G73/G83 back-off and re-entry clearance (LinuxCNC: 0.010 inch)."""
+
+_PLANES = {170: ("XY", (0, 1), 2, "IJ"), 180: ("ZX", (2, 0), 1, "KI"), 190: ("YZ", (1, 2), 0, "JK")}
 _AXES = "XYZ"
 _OFFSETS = "IJK"
-_WORD = re.compile(r"([A-Za-z])([+-]?(?:\d+\.?\d*|\.\d+))")
+
+# Modal groups (G codes as integers x 10: G92.1 -> 921). Two codes of one group on a line are an error.
+_G_GROUPS = {
+    "motion": {0, 10, 20, 30, 800, 810, 820, 830, 730, 850, 890},
+    "plane": {170, 180, 190},
+    "distance": {900, 910},
+    "arc distance": {901, 911},
+    "feed rate mode": {930, 940, 950},
+    "units": {200, 210},
+    "cutter compensation": {400},
+    "tool length offset": {430, 431, 490},
+    "canned cycle return": {980, 990},
+    "coordinate system": {540, 550, 560, 570, 580, 590, 591, 592, 593},
+    "path control": {610, 611, 640},
+    "non-modal": {40, 100, 280, 281, 300, 301, 530, 920, 921, 922, 923},
+}
+_G_GROUP_OF = {code: group for group, codes in _G_GROUPS.items() for code in codes}
+_CS_NUMBER = {540: 1, 550: 2, 560: 3, 570: 4, 580: 5, 590: 6, 591: 7, 592: 8, 593: 9}
+_CYCLES = {810, 820, 830, 730, 850, 890}
+_AXIS_USERS = {100, 280, 300, 920, 431}  # codes that read X Y Z themselves (no motion from them)
+
+# Known but refused: they change the cut, so they are never skipped.
+_G_REFUSED = {
+    410: "cutter radius compensation changes the tool path (offset the path in CAM instead)",
+    420: "cutter radius compensation changes the tool path (offset the path in CAM instead)",
+    411: "cutter radius compensation changes the tool path", 421: "cutter radius compensation changes the tool path",
+    432: "additive tool length offsets are not supported", 330: "spindle-synchronised motion (threading)",
+    331: "rigid tapping", 760: "a lathe threading cycle", 382: "probing", 383: "probing", 384: "probing",
+    385: "probing", 50: "splines", 51: "splines", 52: "NURBS", 70: "lathe diameter mode", 80: "lathe radius mode",
+    171: "UVW planes", 181: "UVW planes", 191: "UVW planes", 840: "tapping", 740: "tapping", 860: "boring",
+    870: "back boring", 880: "boring with a manual retract",
+}
+# Known, unsupported, and without effect on a 3-axis swept volume: skippable with on_unsupported="warn".
+_G_SKIPPABLE = {960: "constant surface speed (spindle speed only)", 970: "spindle speed mode (RPM only)"}
+_M_SKIPPABLE = {19: "spindle orientation", 48: "overrides", 49: "overrides", 50: "feed override",
+                51: "spindle override", 52: "adaptive feed", 53: "feed stop", 62: "digital output",
+                63: "digital output", 64: "digital output", 65: "digital output", 66: "wait on input",
+                67: "analog output", 68: "analog output"}
+_M_GROUPS = {"stopping": {0, 1, 2, 30}, "tool change": {6}, "spindle": {3, 4, 5}}
+_LETTERS = set("DEFGHIJKLMNPQRSTXYZ")
 
 
-class GCodeError(ValueError):
-    """A G-code line could not be used; ``line`` is its 1-based number, ``word`` the offending word (if one)."""
+class Skipped:
+    """A word skipped under ``on_unsupported="warn"``: how often, where first, and why it may be skipped."""
 
-    def __init__(self, line: int, message: str, word: str | None = None) -> None:
-        self.line = line
-        self.word = word
-        super().__init__(f"line {line}: {message}")
+    __slots__ = ("count", "first_line", "why", "word")
+
+    def __init__(self, word: str, first_line: int, why: str) -> None:
+        self.word, self.first_line, self.why, self.count = word, first_line, why, 0
+
+    def as_dict(self) -> dict:
+        return {"word": self.word, "count": self.count, "first_line": self.first_line, "why": self.why}
+
+    def __repr__(self) -> str:
+        return f"Skipped({self.word!r}, count={self.count}, first_line={self.first_line})"
 
 
 @dataclass(frozen=True)
 class Move:
-    """A motion of the tool tip from ``start`` to ``end`` (absolute mm).
+    """A motion of the tool tip from ``start`` to ``end`` (absolute mm, the stock's frame).
 
     Attributes
     ----------
@@ -79,13 +145,15 @@ class Move:
     spindle : float
         Spindle speed (the last ``S``).
     spindle_on : bool
-        Whether ``M3``/``M4`` is in effect.
+        Whether ``M3``/``M4`` is in effect (always True under ``dialect="grbl"``).
     tool : int or None
         The tool loaded by the last ``M6`` (None before any).
     line : int
         1-based source line.
     label : int or None
         The line's ``N`` number.
+    origin : str or None
+        The code that generated the move when it is not the line's own G0-G3 (``G81``, ``G28``, ...).
     """
 
     start: np.ndarray
@@ -96,6 +164,7 @@ class Move:
     tool: int | None
     line: int
     label: int | None
+    origin: str | None = None
 
     kind = "move"
 
@@ -125,11 +194,16 @@ class Linear(Move):
 
 @dataclass(frozen=True)
 class Arc(Move):
-    """``G2``/``G3``: a circular (helical) cut about ``center`` in ``plane`` ('XY', 'ZX' or 'YZ')."""
+    """``G2``/``G3``: a circular (helical) cut about ``center`` in ``plane`` ('XY', 'ZX' or 'YZ').
+
+    ``angle`` is the total turn in radians (> 0; 2π for a full circle, more with ``P`` turns), decided
+    once by the parser; None only for arcs built by hand, whose turn :func:`arc_polyline` decides.
+    """
 
     center: np.ndarray = field(default=None)
     plane: str = "XY"
     clockwise: bool = True
+    angle: float | None = None
 
     kind = "arc"
 
@@ -148,17 +222,67 @@ class Arc(Move):
         return float(np.linalg.norm(r - (r @ n) * n))
 
     def points(self, tolerance: float = 0.01) -> np.ndarray:
-        """Points along the arc with every chord within ``tolerance`` mm of it (:func:`arc_polyline`)."""
-        return arc_polyline(self.start, self.end, self.center, self.normal, self.clockwise, tolerance=tolerance)
+        """Points along the arc with every chord within ``tolerance`` mm of it (at most :data:`MAX_ARC_CHORDS`)."""
+        if self.angle is None:
+            return arc_polyline(self.start, self.end, self.center, self.normal, self.clockwise, tolerance=tolerance)
+        r = self.radius
+        k = _chords(r, self.angle, tolerance, self.line)
+        n = self.normal
+        s, e, c = self.start, self.end, self.center
+        rs, re_ = s - c, e - c
+        rs_p, re_p = rs - (rs @ n) * n, re_ - (re_ @ n) * n
+        u = rs_p / r
+        v = np.cross(n, u)
+        theta = -self.angle if self.clockwise else self.angle
+        t = np.linspace(0.0, 1.0, k + 1)[:, None]
+        rad = r + (float(np.linalg.norm(re_p)) - r) * t  # an end radius within the parser's tolerance blends in
+        h = (rs @ n) + ((re_ @ n) - (rs @ n)) * t
+        pts = c + rad * (np.cos(theta * t) * u + np.sin(theta * t) * v) + h * n
+        pts[0], pts[-1] = s, e
+        return pts
+
+
+def _chords(radius: float, angle: float, tolerance: float, line: int) -> int:
+    if not (isinstance(tolerance, (int, float)) and math.isfinite(tolerance) and tolerance > 0):
+        raise ValueError(f"the chord tolerance must be a positive finite number of mm, got {tolerance!r}")
+    if radius <= tolerance:
+        return max(1, math.ceil(angle / (math.pi / 2)))
+    step = 2 * math.acos(max(1 - tolerance / radius, -1.0))
+    need = angle / step if step > 0 else math.inf
+    if not need <= MAX_ARC_CHORDS:
+        raise GCodeError(line, f"the arc (radius {radius:.6g} mm, {math.degrees(angle):.6g}°) needs "
+                         f"{need:.3g} chords at a chord tolerance of {tolerance:g} mm, more than the "
+                         f"{MAX_ARC_CHORDS} allowed: use a larger chord tolerance")
+    return max(1, arc_segments(radius, angle, tolerance))
 
 
 @dataclass
 class Program:
-    """A parsed program: its moves, the warnings for skipped words, and where it ended."""
+    """A parsed program: its moves, where it ended, and what was skipped.
+
+    Attributes
+    ----------
+    moves : list of Move
+    warnings : list of str
+        One line per skipped word kind (first occurrence).
+    end_line : int or None
+        The M2/M30 (or closing ``%``) line, if any.
+    skipped : dict
+        Word -> :class:`Skipped` (count, first line, why it does not change the cut).
+    dwell_s : float
+        Total G4 / G82 / G89 dwell (seconds).
+    dialect : str
+    tool_changes : list of (line, tool)
+        Every ``M6`` in execution order.
+    """
 
     moves: list[Move]
     warnings: list[str]
-    end_line: int | None  # the M2/M30 line, if any
+    end_line: int | None
+    skipped: dict = field(default_factory=dict)
+    dwell_s: float = 0.0
+    dialect: str = "linuxcnc"
+    tool_changes: list = field(default_factory=list)
 
     def __len__(self) -> int:
         return len(self.moves)
@@ -174,55 +298,547 @@ class Program:
         pts = np.vstack([m.points() for m in self.moves]) if self.moves else np.zeros((1, 3))
         return pts.min(axis=0), pts.max(axis=0)
 
+    def skipped_table(self) -> str:
+        """The skipped words as a plain-text table (empty string when none)."""
+        if not self.skipped:
+            return ""
+        rows = [f"{'skipped':<10}{'count':>7}{'first line':>12}  why it does not change the cut"]
+        rows += [f"{s.word:<10}{s.count:>7}{s.first_line:>12}  {s.why}" for s in self.skipped.values()]
+        return "\n".join(rows)
 
-def _strip_comments(text: str, line: int) -> str:
-    out = []
-    depth = False
-    for ch in text:
-        if depth:
-            if ch == "(":
-                raise GCodeError(line, "a comment opens inside a comment '(' ... '(' (nested comments are not G-code)")
-            if ch == ")":
-                depth = False
-            continue
-        if ch == "(":
-            depth = True
-        elif ch == ";":
-            break
-        elif ch == ")":
-            raise GCodeError(line, "a ')' closes no comment")
+
+def _code_text(code: int) -> str:
+    return f"{code // 10}" if code % 10 == 0 else f"{code // 10}.{code % 10}"
+
+
+class _Interpreter(FlowMixin):
+    def __init__(self, blocks: list[Block], *, start, on_unsupported, dialect, tool_lengths, home, block_delete,
+                 max_loop_passes):
+        self.blocks = blocks
+        self.on_unsupported, self.dialect, self.block_delete = on_unsupported, dialect, block_delete
+        self.tool_lengths = dict(tool_lengths or {})
+        self.max_loop_passes = max_loop_passes
+        self.mpos = np.asarray(start, float).copy()  # the controlled point (gauge line) in machine coordinates
+        self.factor, self.absolute, self.arc_absolute, self.plane = 1.0, True, False, 170
+        self.feed_mode, self.retract_r = 940, False
+        self.motion: int | None = None
+        self.feed: float | None = None
+        self.spindle, self.spindle_on = 0.0, False
+        self.selected: int | None = None
+        self.loaded: int | None = None
+        self.cs = 1
+        self.g5x = {k: np.zeros(3) for k in range(1, 10)}
+        self.g92, self.g92_saved, self.g92_on = np.zeros(3), np.zeros(3), False
+        self.tlo = np.zeros(3)
+        h = np.asarray(start if home is None else home, float)
+        self.g28, self.g30 = h.copy(), h.copy()
+        self.cycle = {}
+        self.numbered: dict[int, float] = {}
+        self.globals: dict[str, float] = {"_value": 0.0, "_value_returned": 0.0}
+        self.frames: list = []  # gcode_flow._Frame per active call
+        self.main_locals: dict[str, float] = {}
+        self.moves: list[Move] = []
+        self.skipped: dict[str, Skipped] = {}
+        self.notes: list[str] = []
+        self.dwell = 0.0
+        self.passes = 0
+        self.tool_changes: list = []
+        self.repeat_left: dict = {}
+        self._structure()
+
+    # -- positions -----------------------------------------------------------------------------------------
+    def _offset(self) -> np.ndarray:
+        return self.g5x[self.cs] + self.g92 + self.tlo
+
+    def _program_position(self) -> np.ndarray:
+        return self.mpos - self._offset()
+
+    def _length(self, tool) -> float:
+        return float(self.tool_lengths.get(tool, 0.0)) if tool is not None else 0.0
+
+    def _tip(self, mpos: np.ndarray) -> np.ndarray:
+        return mpos - np.array([0.0, 0.0, self._length(self.loaded)])
+
+    def _check_position(self, p: np.ndarray, line: int, what: str) -> None:
+        if not all(-LIMIT_MM <= v <= LIMIT_MM for v in p.tolist()):  # NaN fails the comparison too
+            raise GCodeError(line, f"{what} at {np.round(p, 6).tolist()} mm lies beyond ±{LIMIT_MM:g} mm (1 km); "
+                             "check the program's units and values")
+
+    # -- skipping ------------------------------------------------------------------------------------------
+    def _skip(self, line: int, word: str, why: str) -> None:
+        if self.on_unsupported == "error":
+            raise GCodeError(line, f"unsupported word {word} ({why}); remove it, or parse with on_unsupported='warn' "
+                             "(--skip-unsupported) to skip it: it does not change the cut", word)
+        s = self.skipped.get(word)
+        if s is None:
+            s = self.skipped[word] = Skipped(word, line, why)
+            note = f"line {line}: unsupported word {word} ({why}): skipped (no effect on the cut)"
+            self.notes.append(note)
+            warnings.warn(note, stacklevel=4)
+        s.count += 1
+
+    # -- moves ---------------------------------------------------------------------------------------------
+    def _emit(self, cls, end_mpos: np.ndarray, line: int, label, *, feed=None, origin=None, skip_zero=False,
+              **extra) -> None:
+        self._check_position(end_mpos, line, "the move's end")
+        start, end = self._tip(self.mpos), self._tip(end_mpos)
+        self.mpos = end_mpos.copy()
+        if skip_zero and np.array_equal(start, end):
+            return
+        self.moves.append(cls(start=start, end=end, feed=feed, spindle=self.spindle,
+                              spindle_on=self.spindle_on or self.dialect == "grbl", tool=self.loaded, line=line,
+                              label=label, origin=origin, **extra))
+
+    def _feed_rate(self, line: int, values: dict, length: float | None = None) -> float:
+        """mm/min of a feed move (G93: from the move's length, G95: from S)."""
+        if self.feed_mode == 930:
+            if "F" not in values:
+                raise GCodeError(line, "G93 (inverse time) needs an F word on every feed move line", "F")
+            f = values["F"][0]
+            if not f > 0:
+                raise GCodeError(line, "a G93 F word must be positive (1/minutes for the move)", values["F"][1])
+            return (length or 0.0) * f
+        if not self.feed:
+            raise GCodeError(line, "a feed move (G1/G2/G3/canned cycle) needs a positive feed rate: give an F word",
+                             "F")
+        if self.feed_mode == 950:
+            if not self.spindle > 0:
+                raise GCodeError(line, "G95 (feed per revolution) needs a spindle speed: give an S word", "F")
+            return self.feed * self.factor * self.spindle
+        return self.feed * self.factor
+
+    # -- one line ------------------------------------------------------------------------------------------
+    def run(self) -> Program:
+        pc, n = 0, len(self.blocks)
+        end_line = None
+        percent_seen = False
+        while pc < n:
+            b = self.blocks[pc]
+            if b.percent:
+                if percent_seen:  # the second '%' ends the program
+                    end_line = b.line
+                    break
+                percent_seen = True
+                pc += 1
+                continue
+            if b.delete:
+                if self.block_delete is None:
+                    raise GCodeError(b.line, "the line starts with '/' (block delete): say whether such lines are "
+                                     "skipped (block_delete=True, --block-delete on) or run (False, off)", "/")
+                if self.block_delete:
+                    pc += 1
+                    continue
+            if b.oword is not None:
+                nxt = self._control(pc, b)
+                pc = nxt
+                continue
+            if self._line(b):
+                end_line = b.line
+                break
+            pc += 1
+        return Program(self.moves, self.notes, end_line, self.skipped, self.dwell, self.dialect, self.tool_changes)
+
+    def _line(self, b: Block) -> bool:
+        """Execute one line; True when it ends the program."""
+        line = b.line
+        values: dict[str, tuple[float, str]] = {}
+        g_codes: list[tuple[int, str]] = []
+        m_codes: list[tuple[int, str]] = []
+        label = b.label
+        for letter, node, text in b.words:
+            value = evaluate(node, self, line, text)
+            if letter == "G":
+                code = round(value * 10)
+                if abs(value * 10 - code) > 1e-6 or code < 0:
+                    raise GCodeError(line, f"unknown G code {text}", text)
+                g_codes.append((code, text))
+            elif letter == "M":
+                if value != int(value) or value < 0:
+                    raise GCodeError(line, f"unknown M code {text}", text)
+                m_codes.append((int(value), text))
+            elif letter == "N":
+                if label is not None:
+                    raise GCodeError(line, "the word N appears twice", text)
+                if value != int(value) or value < 0:
+                    raise GCodeError(line, f"a line number must be a non-negative integer, got {text}", text)
+                label = int(value)
+            elif letter in _LETTERS:
+                if letter in values:
+                    raise GCodeError(line, f"the word {letter} appears twice", text)
+                values[letter] = (value, text)
+            elif letter in "ABCUVW":
+                raise GCodeError(line, f"unsupported word {text} (the {letter} axis: this simulator has the three "
+                                 "axes X Y Z; post-process the program for a 3-axis machine)", text)
+            else:
+                raise GCodeError(line, f"unsupported word {text} (the letter {letter} is not RS274NGC milling G-code)",
+                                 text)
+        assigned = [(ref if isinstance(ref, str) else evaluate(ref, self, line, text),
+                     evaluate(node, self, line, text), text) for ref, node, text in b.assigns]
+        for ref, value, text in assigned:
+            self._assign(ref, value, line, text)
+        if not b.words:
+            return False
+        return self._execute(line, label, values, g_codes, m_codes)
+
+    def _execute(self, line, label, values, g_codes, m_codes) -> bool:
+        used = set("FSTN")
+        modal: dict[str, tuple[int, str]] = {}
+        for code, w in g_codes:
+            group = _G_GROUP_OF.get(code)
+            if group is None:
+                if code in _G_SKIPPABLE:
+                    self._skip(line, f"G{_code_text(code)}", _G_SKIPPABLE[code])
+                    continue
+                why = _G_REFUSED.get(code) or "not a G code this simulator knows"
+                raise GCodeError(line, f"unsupported word {w} ({why}; it would change the cut, so it cannot be "
+                                 "skipped)", w)
+            if group in modal:
+                raise GCodeError(line, f"{modal[group][1]} and {w} are both in the {group} modal group: one per line "
+                                 "(RS274NGC)", w)
+            modal[group] = (code, w)
+        m_modal: dict[str, tuple[int, str]] = {}
+        coolant = []
+        for code, w in m_codes:
+            group = next((g for g, codes in _M_GROUPS.items() if code in codes), None)
+            if group is None:
+                if code in (7, 8, 9):
+                    coolant.append(code)
+                    continue
+                if code in _M_SKIPPABLE or 100 <= code <= 199:
+                    if 100 <= code <= 199:
+                        used.update("PQ")  # a user M code's two arguments
+                    if 62 <= code <= 68:
+                        used.update("PLQE")  # I/O pin, wait mode, value or timeout, analog channel
+                    self._skip(line, f"M{code}", _M_SKIPPABLE.get(code, "a user-defined M code (no axis motion)"))
+                    continue
+                why = {60: "pallet change", 70: "modal state save", 71: "modal state", 72: "modal state restore",
+                       73: "modal state", 98: "subroutine call (Fanuc)", 99: "subroutine return (Fanuc)"}.get(
+                    code, "not an M code this simulator knows")
+                raise GCodeError(line, f"unsupported word {w} ({why}; it may change the cut, so it cannot be skipped)",
+                                 w)
+            if group in m_modal:
+                raise GCodeError(line, f"{m_modal[group][1]} and {w} are both in the {group} group: one per line", w)
+            m_modal[group] = (code, w)
+        g = {grp: c for grp, (c, _) in modal.items()}
+        nonmodal = g.get("non-modal")
+        motion_code = g.get("motion")
+        axis_user = nonmodal in _AXIS_USERS or g.get("tool length offset") == 431
+        axes = {a: values[a] for a in _AXES if a in values}
+        if axis_user and motion_code is not None and axes:
+            other = modal.get("non-modal", modal.get("tool length offset"))[1]
+            raise GCodeError(line, f"{modal['motion'][1]} and {other} both use the axis words of the line: put them "
+                             "on separate lines", modal["motion"][1])
+        # -- feed mode, F, S, T, M6, spindle -------------------------------------------------------------
+        if "feed rate mode" in g:
+            self.feed_mode = g["feed rate mode"]
+            if self.feed_mode in (940, 950):
+                self.feed = None  # LinuxCNC's convert_feed_mode: G94 / G95 need a new F (an old one meant another mode)
+        if "F" in values:
+            f = values["F"][0]
+            if f < 0:
+                raise GCodeError(line, f"a feed rate must not be negative, got {values['F'][1]}", values["F"][1])
+            self.feed = f
+        if "S" in values:
+            if values["S"][0] < 0:
+                raise GCodeError(line, f"a spindle speed must not be negative, got {values['S'][1]}", values["S"][1])
+            self.spindle = values["S"][0]
+        if "T" in values:
+            t = values["T"][0]
+            if t != int(t) or t < 0:
+                raise GCodeError(line, f"a tool number must be a non-negative integer, got {values['T'][1]}",
+                                 values["T"][1])
+            self.selected = int(t)
+        if "tool change" in m_modal:
+            if self.selected is None:
+                raise GCodeError(line, "M6 changes to the selected tool, but no T word selected one", "M6")
+            self.loaded = self.selected
+            self.tool_changes.append((line, self.loaded))
+        if "spindle" in m_modal:
+            self.spindle_on = m_modal["spindle"][0] != 5
+        # -- dwell, plane, units, compensation, length, coordinate system, path, distance, retract ------
+        if nonmodal == 40:
+            used.add("P")
+            if "P" not in values or values["P"][0] < 0:
+                raise GCodeError(line, "G4 needs a dwell time P (seconds, not negative)", "G4")
+            self.dwell += values["P"][0]
+        if "plane" in g:
+            self.plane = g["plane"]
+        if "units" in g:
+            self.factor = INCH if g["units"] == 200 else 1.0
+        if "tool length offset" in g:
+            self._tool_length(line, g["tool length offset"], values, used)
+        if "coordinate system" in g:
+            self.cs = _CS_NUMBER[g["coordinate system"]]
+        if "path control" in g:
+            used.update("PQ")  # G64 P Q: the blending tolerance; no effect on the swept volume here
+        if "distance" in g:
+            self.absolute = g["distance"] == 900
+        if "arc distance" in g:
+            self.arc_absolute = g["arc distance"] == 901
+        if "canned cycle return" in g:
+            self.retract_r = g["canned cycle return"] == 990
+        # -- G10, G28, G30, G92 ------------------------------------------------------------------------
+        if nonmodal in (100, 280, 281, 300, 301, 920, 921, 922, 923):
+            used.update("XYZ")
+            axis_user = True
+            self._nonmodal(line, label, nonmodal, modal["non-modal"][1], values, used)
+        # -- motion ------------------------------------------------------------------------------------
+        if motion_code is not None:
+            self.motion = motion_code
+            if motion_code not in _CYCLES:
+                self.cycle = {}  # R, Z, Q, P of canned cycles are sticky only while cycles follow each other
+            if motion_code == 800:
+                if axes:
+                    w = next(iter(axes.values()))[1]
+                    raise GCodeError(line, "G80 (cancel canned cycle) takes no axis words", w)
+        if not axis_user:
+            self._motion(line, label, values, axes, motion_code, nonmodal == 530, used)
+        for letter, (_, w) in values.items():
+            if letter not in used:
+                if letter == "E":
+                    raise GCodeError(line, f"unsupported word {w} (E is an extruder or analog channel, not a milling "
+                                     "axis)", w)
+                raise GCodeError(line, f"the word {w} is used by no code on this line", w)
+        # -- stop --------------------------------------------------------------------------------------
+        return m_modal.get("stopping", (None,))[0] in (2, 30)
+
+    def _tool_length(self, line, code, values, used) -> None:
+        if code == 490:
+            self.tlo = np.zeros(3)
+        elif code == 430:
+            used.add("H")
+            if "H" in values:
+                h = values["H"][0]
+                if h != int(h) or h < 0:
+                    raise GCodeError(line, f"H must be a tool number, got {values['H'][1]}", values["H"][1])
+                tool = int(h)
+            else:
+                tool = self.loaded
+            if tool and self.tool_lengths and tool not in self.tool_lengths:
+                raise GCodeError(line, f"G43 H{tool}: tool {tool} is not in the tool table",
+                                 values.get("H", ("", "G43"))[1])
+            self.tlo = np.array([0.0, 0.0, self._length(tool) if tool else 0.0])
+        else:  # G43.1: dynamic offset from the axis words
+            used.update("XYZ")
+            tlo = np.zeros(3)
+            for a in _AXES:
+                if a in values:
+                    tlo[_AXES.index(a)] = values[a][0] * self.factor
+            self.tlo = tlo
+
+    def _nonmodal(self, line, label, code, word, values, used) -> None:
+        f = self.factor
+        given = {_AXES.index(a): values[a][0] * f for a in _AXES if a in values}
+        if code == 100:
+            used.update("LPR")
+            if "L" not in values or values["L"][0] not in (2.0, 20.0):
+                raise GCodeError(line, "G10 is supported as G10 L2 / G10 L20 (coordinate system offsets); other L "
+                                 "forms (tool table, L1/L10/L11) are not", word)
+            if "P" not in values or values["P"][0] not in range(0, 10):
+                raise GCodeError(line, "G10 L2/L20 needs P0..P9 (0: the current coordinate system)", word)
+            if "R" in values and values["R"][0] != 0:
+                raise GCodeError(line, "G10 R (rotated coordinate systems) is not supported", values["R"][1])
+            p = int(values["P"][0]) or self.cs
+            off = self.g5x[p].copy()
+            for i, v in given.items():
+                if values["L"][0] == 2.0:
+                    off[i] = v
+                else:  # L20: the current position becomes v in system p
+                    off[i] = self.mpos[i] - self.tlo[i] - self.g92[i] - v
+            self._check_position(off, line, f"the G5x offset of system {p}")
+            self.g5x[p] = off
+        elif code in (280, 300):
+            # Through the intermediate point (program coordinates, G90/G91), then the named axes (all when none)
+            # to the stored position.
+            mid = self.mpos.copy()
+            prog = self._program_position()
+            for i, v in given.items():
+                mid[i] = (v if self.absolute else prog[i] + v) + self._offset()[i]
+            self._emit(Rapid, mid, line, label, origin=word.upper(), skip_zero=True)
+            target = self.mpos.copy()
+            stored = self.g28 if code == 280 else self.g30
+            for i in (given or range(3)):
+                target[i] = stored[i]
+            self._emit(Rapid, target, line, label, origin=word.upper(), skip_zero=True)
+        elif code in (281, 301):
+            if given:
+                raise GCodeError(line, f"{word} stores the current position and takes no axis words", word)
+            (self.g28 if code == 281 else self.g30)[:] = self.mpos
+        elif code == 920:
+            if not given:
+                raise GCodeError(line, "G92 needs at least one axis word", word)
+            base = self.mpos - self.g5x[self.cs] - self.tlo
+            for i, v in given.items():
+                self.g92[i] = base[i] - v
+            self._check_position(self.g92, line, "the G92 offset")
+            self.g92_on, self.g92_saved = True, self.g92.copy()
+        elif given and code in (921, 922, 923):
+            raise GCodeError(line, f"{word} takes no axis words", word)
+        elif code == 921:
+            self.g92, self.g92_saved, self.g92_on = np.zeros(3), np.zeros(3), False
+        elif code == 922:
+            self.g92, self.g92_on = np.zeros(3), False
+        elif code == 923:
+            self.g92, self.g92_on = self.g92_saved.copy(), True
+
+    def _motion(self, line, label, values, axes, motion_code, machine, used) -> None:
+        motion = self.motion
+        cycle = motion in _CYCLES
+        arc = motion in (20, 30)
+        used.update("XYZ")
+        if arc:
+            used.update("IJKRP")
+        if cycle:
+            used.update("RLPQ")
+        stray = [values[a][1] for a in ("" if arc else "IJK" if cycle else "IJKR") if a in values]
+        if stray:
+            raise GCodeError(line, f"{stray[0]} gives an arc centre or radius, but the line is no G2/G3 arc", stray[0])
+        arc_words = arc and (any(a in values for a in _OFFSETS) or "R" in values)
+        moving = bool(axes) or (motion_code in (20, 30) and arc_words) or (motion_code in _CYCLES)
+        if not moving:
+            if arc_words:
+                raise GCodeError(line, "arc centre or radius words without an axis word or an explicit G2/G3", "G2")
+            return
+        if motion is None:
+            w = next(iter(axes.values()))[1]
+            raise GCodeError(line, f"axis word {w} without a motion mode: start with G0, G1, G2 or G3", w)
+        if motion == 800:
+            raise GCodeError(line, "axis words under G80 (no motion mode): give G0 or G1", next(iter(axes.values()))[1])
+        if machine and motion not in (0, 10):
+            raise GCodeError(line, "G53 applies to G0 and G1 only", "G53")
+        if machine and not self.absolute:
+            raise GCodeError(line, "G53 (machine coordinates) needs G90: it is absolute", "G53")
+        if cycle:
+            from csgnb.apps.gcode_cycles import run_cycle
+
+            run_cycle(self, line, label, motion, values, axes)
+            return
+        end = self.mpos.copy()
+        if machine:
+            for a, (v, _) in axes.items():
+                end[_AXES.index(a)] = v * self.factor
         else:
-            out.append(ch)
-    if depth:
-        raise GCodeError(line, "a comment '(' is not closed on its line")
-    return "".join(out)
+            prog = self._program_position()
+            off = self._offset()
+            for a, (v, _) in axes.items():
+                i = _AXES.index(a)
+                end[i] = (v * self.factor if self.absolute else prog[i] + v * self.factor) + off[i]
+        if motion == 0:
+            self._emit(Rapid, end, line, label)
+        elif motion == 10:
+            length = float(np.linalg.norm(end - self.mpos))
+            self._emit(Linear, end, line, label, feed=self._feed_rate(line, values, length))
+        else:
+            self._arc(line, label, values, end, motion == 20)
+
+    def _arc(self, line, label, values, end, clockwise) -> None:
+        name, (iu, iv), normal_axis, letters = _PLANES[self.plane]
+        offsets = {a: values[a] for a in _OFFSETS if a in values}
+        radius = values.get("R")
+        start = self.mpos
+        g = f"G{2 if clockwise else 3}"
+        if offsets and radius is not None:
+            raise GCodeError(line, "an arc takes either I J K offsets or R, not both", radius[1])
+        if not offsets and radius is None:
+            raise GCodeError(line, f"a {g} arc needs a centre ({letters[0]} {letters[1]} in the {name} plane) or a "
+                             "radius R", g)
+        turns = 1
+        if "P" in values:
+            p = values["P"][0]
+            if p != int(p) or p < 1:
+                raise GCodeError(line, f"an arc's P (turns) must be a positive integer, got {values['P'][1]}",
+                                 values["P"][1])
+            turns = int(p)
+        center = start.copy()
+        if offsets:
+            for a, (_, w) in offsets.items():
+                if a not in letters:
+                    raise GCodeError(line, f"{w} is not an offset of the {name} plane (G{self.plane // 10} uses "
+                                     f"{letters[0]} and {letters[1]})", w)
+            word = next(iter(offsets.values()))[1]
+            off = self._offset()
+            for axis, letter in ((iu, letters[0]), (iv, letters[1])):
+                v = offsets.get(letter, (0.0, ""))[0] * self.factor
+                center[axis] = v + off[axis] if self.arc_absolute else start[axis] + v
+            self._check_position(center, line, "the arc's centre")
+            r0 = math.hypot(start[iu] - center[iu], start[iv] - center[iv])
+            r1 = math.hypot(end[iu] - center[iu], end[iv] - center[iv])
+            if r0 == 0:
+                raise GCodeError(line, "the arc centre is the start point (zero radius)", word)
+            if abs(r1 - r0) > max(RADIUS_TOLERANCE_MM, 1e-3 * r0):
+                raise GCodeError(line, f"the end point is {abs(r1 - r0):.4g} mm off the arc's circle (radius "
+                                 f"{r0:.6g} mm at the start, {r1:.6g} mm at the end)", word)
+        else:
+            word = radius[1]
+            r = radius[0] * self.factor
+            du, dv = end[iu] - start[iu], end[iv] - start[iv]
+            c = math.hypot(du, dv)
+            if c == 0:
+                raise GCodeError(line, "an R-form arc cannot be a full circle (start = end); use I J K offsets", word)
+            if r == 0:
+                raise GCodeError(line, "an arc radius must not be zero", word)
+            if abs(r) > LIMIT_MM:
+                raise GCodeError(line, f"the arc radius {abs(r):.6g} mm lies beyond {LIMIT_MM:g} mm", word)
+            if abs(r) < c / 2 - max(RADIUS_TOLERANCE_MM, 1e-3 * abs(r)):
+                raise GCodeError(line, f"radius {abs(r):.6g} mm is less than half the chord ({c / 2:.6g} mm)", word)
+            h = math.sqrt(max(r * r - c * c / 4, 0.0))
+            # Counter-clockwise arcs up to 180° have their centre left of the chord; clockwise, right; R < 0 flips.
+            side = (1.0 if not clockwise else -1.0) * (1.0 if r > 0 else -1.0)
+            center[iu] = start[iu] + du / 2 - side * h * dv / c
+            center[iv] = start[iv] + dv / 2 + side * h * du / c
+        # The turn, as LinuxCNC's pmCircleInit: the angle from start to end in the direction of travel, in
+        # [0, 2π); under CIRCLE_FUZZ it is a full circle; P adds whole turns.
+        a0 = math.atan2(start[iv] - center[iv], start[iu] - center[iu])
+        a1 = math.atan2(end[iv] - center[iv], end[iu] - center[iu])
+        angle = (a0 - a1) if clockwise else (a1 - a0)
+        angle %= 2 * math.pi
+        if angle < CIRCLE_FUZZ:
+            angle = 2 * math.pi
+        angle += 2 * math.pi * (turns - 1)
+        r = math.hypot(start[iu] - center[iu], start[iv] - center[iv])
+        length = math.hypot(r * angle, end[normal_axis] - start[normal_axis])
+        feed = self._feed_rate(line, values, length)
+        tip_shift = self._tip(np.zeros(3))
+        self._emit(Arc, end, line, label, feed=feed, center=center + tip_shift, plane=name, clockwise=clockwise,
+                   angle=angle)
 
 
-def _words(code: str, line: int) -> list[tuple[str, float, str]]:
-    """(letter, value, text) of each word of a comment-free line; anything else is an error."""
-    s = re.sub(r"\s+", "", code)
-    words, pos = [], 0
-    while pos < len(s):
-        m = _WORD.match(s, pos)
-        if m is None:
-            bad = s[pos:pos + 12]
-            raise GCodeError(line, f"cannot read {bad!r}: every word is a letter followed by a number (e.g. X1.5)",
-                             bad)
-        words.append((m.group(1).upper(), float(m.group(2)), m.group(1).upper() + m.group(2)))
-        pos = m.end()
-    return words
+def read_text(data: bytes) -> str:
+    """G-code file bytes as text: UTF-8 (a byte-order mark is dropped), else Latin-1 (every byte is a character: a
+    stray accented byte in a comment does not refuse the file; outside comments it is an error naming its line)."""
+    if data.startswith(b"\xef\xbb\xbf"):
+        data = data[3:]
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError:
+        return data.decode("latin-1")
 
 
-def parse(text: str, *, start=(0.0, 0.0, 0.0), on_unsupported: str = "error") -> Program:
-    """Parse G-code ``text`` into typed moves in absolute millimetres.
+def parse(text: str, *, start=(0.0, 0.0, 0.0), on_unsupported: str = "error", dialect: str = "linuxcnc",
+          tool_lengths: dict | None = None, home=None, block_delete: bool | None = None,
+          max_loop_passes: int = MAX_LOOP_PASSES) -> Program:
+    """Run G-code ``text``; return its tool-tip moves in absolute millimetres.
 
     Parameters
     ----------
     text : str
     start : (3,) float
-        The tool tip's position before the program (mm).
+        The tool tip's position before the program (mm, the stock's frame).
     on_unsupported : {"error", "warn"}
-        An unsupported word raises :class:`GCodeError`, or is skipped with a warning.
+        An unsupported word that cannot change the cut raises :class:`GCodeError`, or is
+        skipped, warned about once and counted in :attr:`Program.skipped`. Words that change the
+        cut always raise.
+    dialect : {"linuxcnc", "grbl"}
+        ``"grbl"``: the spindle is taken to run throughout (machines with a hand-switched router;
+        no collision for cutting without ``M3``); ``$`` lines other than ``$H``/``$J`` are skipped.
+    tool_lengths : dict, optional
+        Tool number -> length (mm) for ``G43``; without it every length is 0.
+    home : (3,) float, optional
+        The stored ``G28`` / ``G30`` positions (default: ``start``).
+    block_delete : bool or None
+        Lines starting with ``/`` are skipped (True) or run (False); None: such a line is an error.
+    max_loop_passes : int
+        Bound on O-word loop passes (an endless loop is an error, not a hang).
 
     Raises
     ------
@@ -231,192 +847,42 @@ def parse(text: str, *, start=(0.0, 0.0, 0.0), on_unsupported: str = "error") ->
     """
     if on_unsupported not in ("error", "warn"):
         raise ValueError(f"on_unsupported must be 'error' or 'warn', got {on_unsupported!r}")
-    pos = np.asarray(start, float).reshape(3).copy()
-    factor, absolute, plane = 1.0, True, 17.0
-    motion: float | None = None
-    feed: float | None = None
-    spindle, spindle_on = 0.0, False
-    selected: int | None = None
-    loaded: int | None = None
-    moves: list[Move] = []
-    notes: list[str] = []
-
-    def unsupported(line: int, word: str, why: str) -> None:
-        msg = f"unsupported word {word} ({why})"
-        if on_unsupported == "error":
-            raise GCodeError(line, msg + "; remove it, or parse with on_unsupported='warn' to skip it", word)
-        note = f"line {line}: {msg}: skipped"
-        notes.append(note)
-        warnings.warn(note, stacklevel=3)
-
+    if dialect not in ("linuxcnc", "grbl"):
+        raise ValueError(f"dialect must be 'linuxcnc' or 'grbl', got {dialect!r}")
+    for what, v in (("start", start), ("home", home)):
+        if v is None:
+            continue
+        a = np.asarray(v, float)
+        if a.shape != (3,) or not np.all(np.isfinite(a)) or np.any(np.abs(a) > LIMIT_MM):
+            raise ValueError(f"{what} must be three finite coordinates within ±{LIMIT_MM:g} mm, got {v!r}")
+    for k, v in (tool_lengths or {}).items():
+        if not (isinstance(v, (int, float)) and math.isfinite(v) and abs(v) <= LIMIT_MM):
+            raise ValueError(f"tool {k}: the length must be a finite number of mm, got {v!r}")
+    text = text.removeprefix("\ufeff")
+    blocks = []
+    skipped_dollar: list[tuple[int, str]] = []
     for number, raw in enumerate(text.splitlines(), start=1):
-        code = _strip_comments(raw, number).strip()
-        if code in ("", "%"):
+        stripped = raw.strip()
+        if stripped == "%":
+            blocks.append(Block(number, percent=True))
             continue
-        if code.startswith("/"):
-            unsupported(number, "/", "block delete")
+        if stripped.startswith("$") and dialect == "grbl":
+            cmd = stripped.split()[0].upper()
+            if cmd.startswith(("$H", "$J")):
+                raise GCodeError(number, f"unsupported GRBL command {cmd} (homing / jogging moves the machine)", cmd)
+            skipped_dollar.append((number, cmd))
             continue
-        words = _words(code, number)
-        g_codes, m_codes, values = [], [], {}
-        label = None
-        for letter, value, text_word in words:
-            if letter == "G":
-                g_codes.append((value, text_word))
-            elif letter == "M":
-                m_codes.append((value, text_word))
-            elif letter in "XYZIJKRFSTN":
-                if letter in values or (letter == "N" and label is not None):
-                    raise GCodeError(number, f"the word {letter} appears twice", text_word)
-                if letter == "N":
-                    if value != int(value) or value < 0:
-                        raise GCodeError(number, f"a line number must be a non-negative integer, got {text_word}",
-                                         text_word)
-                    label = int(value)
-                else:
-                    values[letter] = (value, text_word)
-            else:
-                unsupported(number, text_word, f"the letter {letter} is not part of the supported subset")
-        # -- classify the G and M codes ---------------------------------------------------
-        line_motion = None
-        line_plane = line_units = line_distance = None
-        for value, w in g_codes:
-            if value in (0.0, 1.0, 2.0, 3.0):
-                if line_motion is not None:
-                    raise GCodeError(number, f"two motion codes on one line ({line_motion[1]} and {w})", w)
-                line_motion = (value, w)
-            elif value in _PLANES:
-                line_plane = value
-            elif value in (20.0, 21.0):
-                line_units = value
-            elif value in (90.0, 91.0):
-                line_distance = value
-            elif value in _NO_OP_G:
-                pass
-            else:
-                unsupported(number, w, "not in G0-G3, G17-G19, G20/G21, G90/G91, G40, G49, G54, G80, G94")
-        change_tool = False
-        spindle_word = None
-        end_program = False
-        for value, w in m_codes:
-            if value == 6.0:
-                change_tool = True
-            elif value in (3.0, 4.0, 5.0):
-                if spindle_word is not None:
-                    raise GCodeError(number, f"two spindle codes on one line ({spindle_word} and {w})", w)
-                spindle_word = w
-                spindle_on = value != 5.0
-            elif value in (2.0, 30.0):
-                end_program = True
-            elif value in _NO_OP_M:
-                pass
-            else:
-                unsupported(number, w, "not in M2, M3, M4, M5, M6, M7, M8, M9, M30")
-        # -- modal state, in RS274/NGC order ------------------------------------------------
-        if line_units is not None:
-            factor = INCH if line_units == 20.0 else 1.0
-        if "F" in values:
-            f = values["F"][0]
-            if f < 0:
-                raise GCodeError(number, f"a feed rate must not be negative, got {values['F'][1]}", values["F"][1])
-            feed = f  # in the units in force at each move (LinuxCNC keeps F as a number, like this)
-        if "S" in values:
-            if values["S"][0] < 0:
-                raise GCodeError(number, f"a spindle speed must not be negative, got {values['S'][1]}",
-                                 values["S"][1])
-            spindle = values["S"][0]
-        if "T" in values:
-            t = values["T"][0]
-            if t != int(t) or t < 0:
-                raise GCodeError(number, f"a tool number must be a non-negative integer, got {values['T'][1]}",
-                                 values["T"][1])
-            selected = int(t)
-        if change_tool:
-            if selected is None:
-                raise GCodeError(number, "M6 changes to the selected tool, but no T word selected one", "M6")
-            loaded = selected
-        if line_plane is not None:
-            plane = line_plane
-        if line_distance is not None:
-            absolute = line_distance == 90.0
-        if line_motion is not None:
-            motion = line_motion[0]
-        # -- the motion --------------------------------------------------------------------
-        axes = {a: values[a] for a in _AXES if a in values}
-        offsets = {a: values[a] for a in _OFFSETS if a in values}
-        radius = values.get("R")
-        moving = bool(axes) or (line_motion is not None and line_motion[0] in (2.0, 3.0) and (offsets or radius))
-        if (offsets or radius) and (motion not in (2.0, 3.0) or not moving):
-            w = (next(iter(offsets.values())) if offsets else radius)[1]
-            raise GCodeError(number, f"{w} gives an arc centre or radius, but the line is no G2/G3 arc", w)
-        if moving:
-            if motion is None:
-                w = next(iter(axes.values()))[1]
-                raise GCodeError(number, f"axis word {w} without a motion mode: start with G0, G1, G2 or G3", w)
-            end = pos.copy()
-            for a, (v, _) in axes.items():
-                i = _AXES.index(a)
-                end[i] = v * factor if absolute else pos[i] + v * factor
-            common = dict(start=pos.copy(), end=end, spindle=spindle, spindle_on=spindle_on, tool=loaded,
-                          line=number, label=label)
-            if motion == 0.0:
-                moves.append(Rapid(feed=None, **common))
-            else:
-                if not feed:
-                    raise GCodeError(number, "a feed move (G1/G2/G3) needs a positive feed rate: give an F word", "F")
-                if motion == 1.0:
-                    moves.append(Linear(feed=feed * factor, **common))
-                else:
-                    moves.append(_arc(number, common, feed * factor, plane, motion == 2.0, offsets, radius, factor))
-            pos = end
-        if end_program:
-            return Program(moves, notes, number)
-    return Program(moves, notes, None)
-
-
-def _arc(number: int, common: dict, feed: float, plane: float, clockwise: bool, offsets: dict, radius,
-         factor: float) -> Arc:
-    """The arc of one G2/G3 line: centre from I J K offsets or from R, the end checked on the circle."""
-    name, (iu, iv), _, letters = _PLANES[plane]
-    start, end = common["start"], common["end"]
-    if offsets and radius is not None:
-        raise GCodeError(number, "an arc takes either I J K offsets or R, not both", radius[1])
-    if not offsets and radius is None:
-        raise GCodeError(number, f"a G{2 if clockwise else 3} arc needs a centre ({letters[0]} {letters[1]} in the "
-                         f"{name} plane) or a radius R", f"G{2 if clockwise else 3}")
-    center = start.copy()
-    if offsets:
-        for a, (_, w) in offsets.items():
-            if a not in letters:
-                raise GCodeError(number, f"{w} is not an offset of the {name} plane (G{int(plane)} uses "
-                                 f"{letters[0]} and {letters[1]})", w)
-        center[iu] = start[iu] + offsets.get(letters[0], (0.0, ""))[0] * factor
-        center[iv] = start[iv] + offsets.get(letters[1], (0.0, ""))[0] * factor
-        r0 = math.hypot(start[iu] - center[iu], start[iv] - center[iv])
-        r1 = math.hypot(end[iu] - center[iu], end[iv] - center[iv])
-        if r0 == 0:
-            raise GCodeError(number, "the arc centre is the start point (zero radius)", next(iter(offsets.values()))[1])
-        if abs(r1 - r0) > max(RADIUS_TOLERANCE_MM, 1e-3 * r0):
-            raise GCodeError(number, f"the end point is {abs(r1 - r0):.4g} mm off the arc's circle (radius {r0:.6g} mm "
-                             f"at the start, {r1:.6g} mm at the end)", next(iter(offsets.values()))[1])
-    else:
-        r = radius[0] * factor
-        du, dv = end[iu] - start[iu], end[iv] - start[iv]
-        c = math.hypot(du, dv)
-        if c == 0:
-            raise GCodeError(number, "an R-form arc cannot be a full circle (start = end); use I J K offsets",
-                             radius[1])
-        if r == 0:
-            raise GCodeError(number, "an arc radius must not be zero", radius[1])
-        if abs(r) < c / 2 - max(RADIUS_TOLERANCE_MM, 1e-3 * abs(r)):
-            raise GCodeError(number, f"radius {abs(r):.6g} mm is less than half the chord ({c / 2:.6g} mm)", radius[1])
-        h = math.sqrt(max(r * r - c * c / 4, 0.0))
-        # Counter-clockwise arcs up to 180° have their centre left of the chord; clockwise, right; R < 0 flips.
-        side = (1.0 if not clockwise else -1.0) * (1.0 if r > 0 else -1.0)
-        center[iu] = start[iu] + du / 2 - side * h * dv / c
-        center[iv] = start[iv] + dv / 2 + side * h * du / c
-    return Arc(feed=feed, center=center, plane=name, clockwise=clockwise, **common)
+        b = read_block(raw, number)
+        if not b.empty or b.delete:
+            blocks.append(b)
+    interp = _Interpreter(blocks, start=start, on_unsupported=on_unsupported, dialect=dialect,
+                          tool_lengths=tool_lengths, home=home, block_delete=block_delete,
+                          max_loop_passes=max_loop_passes)
+    for number, cmd in skipped_dollar:
+        interp._skip(number, cmd, "a GRBL system command (settings, status), no motion")
+    return interp.run()
 
 
 def parse_file(path, **kw) -> Program:
-    """:func:`parse` the G-code file at ``path`` (UTF-8 or ASCII)."""
-    return parse(Path(path).read_text(encoding="utf-8", errors="strict"), **kw)
+    """:func:`parse` the G-code file at ``path`` (UTF-8 with or without a byte-order mark, or Latin-1)."""
+    return parse(read_text(Path(path).read_bytes()), **kw)

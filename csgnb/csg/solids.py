@@ -13,9 +13,9 @@ import numpy as np
 from csgnb.csg.graph import Leaf, Node, intersection, union
 from csgnb.errors import GeometryError
 from csgnb.quadric.arguments import as_finite_array, as_positive, as_real
-from csgnb.quadric.quadric import _positive as _length
 from csgnb.quadric.quadric import ellipsoid as _ellipsoid
 from csgnb.quadric.quadric import elliptic_cone, elliptic_cylinder, plane
+from csgnb.quadric.quadric import positive_lengths as _length
 from csgnb.quadric.quadric import sphere as _sphere
 
 __all__ = ["box", "cylinder", "cone", "sphere", "ellipsoid", "capsule", "rounded_box", "frame_to_axis"]

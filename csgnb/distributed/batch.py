@@ -293,48 +293,28 @@ def load_jobs(path) -> tuple[list[MillingJob], Path]:
 # -- one job, in any process ------------------------------------------------------
 
 
-def _tool_specs(specs, segments: int) -> dict:
-    from csgnb.apps import tools
-
-    out: dict = {}
-    for spec in specs:
-        number, sep, rest = spec.partition("=")
-        key = None
-        if sep:
-            if not number.strip().isdigit():
-                raise ValueError(f"tool {spec!r}: write N=SPEC with a tool number N, e.g. 2=ball:3")
-            key, spec = int(number), rest
-        if key in out:
-            raise ValueError(f"tool given twice for {'the default tool' if key is None else f'tool {key}'}")
-        out[key] = tools.parse_tool(spec, segments=segments)
-    return out
-
-
 def _simulate(job: MillingJob):
-    """Set up stock, grid and tools as ``python -m csgnb.mill`` does, and simulate; return the MillingResult."""
-    from csgnb.apps import gcode, milling
-    from csgnb.exact import Grid
-    from csgnb.octree import Workpiece
+    """Set up stock, grid and tools exactly as ``python -m csgnb.mill`` does (:func:`csgnb.mill.prepare`, one
+    code path for both), and simulate; return the MillingResult."""
+    from csgnb import mill
+    from csgnb.apps import milling
 
-    size = np.asarray(job.stock, float)
-    lo = np.array([0.0, 0.0, -size[2]]) if job.stock_origin is None else np.asarray(job.stock_origin, float)
-    hi = lo + size
-    shapes = _tool_specs(job.tools, job.segments)
-    start = np.array([lo[0], lo[1], hi[2] + 10.0]) if job.start is None else np.asarray(job.start, float)
-    program = gcode.parse(job.program, start=start, on_unsupported="warn" if job.skip_unsupported else "error")
-    if not program.moves:
-        raise ValueError(f"job {job.name}: the program has no moves")
-    reach = max(max(s.radius, s.length) for s in shapes.values()) + 1.0
-    p_lo, p_hi = program.bounds()
-    box_lo, box_hi = np.minimum(lo, p_lo - reach), np.maximum(hi, p_hi + reach)
-    if job.resolution is None:
-        grid = Grid.fit(box_lo, box_hi)
-    else:
-        grid = Grid.from_resolution(job.resolution, origin=(box_lo + box_hi) / 2)
-    placed = {k: s.on(grid) for k, s in shapes.items()}
-    w = Workpiece.box(lo, hi, grid=grid)
-    return milling.simulate(w, program, placed if len(placed) > 1 else next(iter(placed.values())),
-                            chord_tolerance=job.chord_tolerance, rapid_rate=job.rapid_rate, progress=False)
+    argv = [f"{job.name}.nc", "--stock", *map(str, job.stock), "--segments", str(job.segments),
+            "--chord-tolerance", repr(job.chord_tolerance), "--rapid-rate", repr(job.rapid_rate)]
+    for spec in job.tools:
+        argv += ["--tool", spec]
+    if job.stock_origin is not None:
+        argv += ["--stock-origin", *map(repr, job.stock_origin)]
+    if job.start is not None:
+        argv += ["--start", *map(repr, job.start)]
+    if job.resolution is not None:
+        argv += ["--resolution", repr(job.resolution)]
+    if job.skip_unsupported:
+        argv.append("--skip-unsupported")
+    args = mill.build_parser().parse_args(argv)
+    setup = mill.prepare(args, program_text=job.program)
+    return milling.simulate(setup.workpiece, setup.program, setup.tools, chord_tolerance=job.chord_tolerance,
+                            rapid_rate=job.rapid_rate, progress=False)
 
 
 def run_job_data(job: dict) -> dict:

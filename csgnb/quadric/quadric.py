@@ -304,7 +304,7 @@ class Quadric:
 # -- constructors (canonical pose; move them with .transformed / .translated) ----------------
 
 
-def _positive(values, n: int, name: str) -> np.ndarray:
+def positive_lengths(values, n: int, name: str) -> np.ndarray:
     arr = as_finite_array(values, None, name)
     if arr.shape not in ((), (1,), (n,)):
         raise CsgnbError(f"{name} must be a number or {n} numbers, got shape {arr.shape}")
@@ -357,49 +357,49 @@ def parallel_planes(normal, offset0: float, offset1: float) -> Quadric:
 
 def sphere(center=(0.0, 0.0, 0.0), radius: float = 1.0) -> Quadric:
     """Return the sphere ``|x - center|² = radius²``."""
-    r = _positive(radius, 1, "radius")[0]
+    r = positive_lengths(radius, 1, "radius")[0]
     return _diag(np.ones(3), c=-r * r, center=as_finite_array(center, (3,), "center"))
 
 
 def ellipsoid(radii=(1.0, 1.0, 1.0), center=None) -> Quadric:
     """Return the axis-aligned ellipsoid ``Σ (xᵢ / rᵢ)² = 1``. ``radii`` : (3,)."""
-    r = _positive(radii, 3, "radii")
+    r = positive_lengths(radii, 3, "radii")
     return _diag(1.0 / r**2, c=-1.0, center=center)
 
 
 def elliptic_cylinder(radii=(1.0, 1.0), center=None) -> Quadric:
     """Return the cylinder ``(x/a)² + (y/b)² = 1`` along z. ``radii`` : (2,)."""
-    r = _positive(radii, 2, "radii")
+    r = positive_lengths(radii, 2, "radii")
     return _diag(np.array([1.0 / r[0] ** 2, 1.0 / r[1] ** 2, 0.0]), c=-1.0, center=center)
 
 
 def elliptic_cone(slopes=(1.0, 1.0), center=None) -> Quadric:
     """Return the double cone ``(x/a)² + (y/b)² = z²`` with apex at ``center``."""
-    s = _positive(slopes, 2, "slopes")
+    s = positive_lengths(slopes, 2, "slopes")
     return _diag(np.array([1.0 / s[0] ** 2, 1.0 / s[1] ** 2, -1.0]), center=center)
 
 
 def hyperboloid_one_sheet(radii=(1.0, 1.0, 1.0), center=None) -> Quadric:
     """Return ``(x/a)² + (y/b)² - (z/c)² = 1`` (one sheet around the z axis)."""
-    r = _positive(radii, 3, "radii")
+    r = positive_lengths(radii, 3, "radii")
     return _diag(np.array([1.0, 1.0, -1.0]) / r**2, c=-1.0, center=center)
 
 
 def hyperboloid_two_sheets(radii=(1.0, 1.0, 1.0), center=None) -> Quadric:
     """Return ``(z/c)² - (x/a)² - (y/b)² = 1`` (two sheets along z, inside = within a sheet)."""
-    r = _positive(radii, 3, "radii")
+    r = positive_lengths(radii, 3, "radii")
     return _diag(np.array([1.0, 1.0, -1.0]) / r**2, c=1.0, center=center)
 
 
 def elliptic_paraboloid(radii=(1.0, 1.0), center=None) -> Quadric:
     """Return ``z = (x/a)² + (y/b)²`` (inside above the vertex at ``center``)."""
-    r = _positive(radii, 2, "radii")
+    r = positive_lengths(radii, 2, "radii")
     return _diag(np.array([1.0 / r[0] ** 2, 1.0 / r[1] ** 2, 0.0]), b=(0, 0, 0.5), center=center)
 
 
 def hyperbolic_paraboloid(radii=(1.0, 1.0), center=None) -> Quadric:
     """Return the saddle ``z = (x/a)² - (y/b)²``."""
-    r = _positive(radii, 2, "radii")
+    r = positive_lengths(radii, 2, "radii")
     return _diag(np.array([1.0 / r[0] ** 2, -1.0 / r[1] ** 2, 0.0]), b=(0, 0, 0.5), center=center)
 
 

@@ -1,0 +1,18 @@
+; written for csgnb in the style of a GRBL sender's output (no spindle control: router switched by hand)
+G21
+G90
+G0 Z5.000
+G0 X0.000 Y0.000
+G1 Z-1.000 F200
+G1 X20.000 F800
+G2 X30.000 Y10.000 I0.000 J10.000
+G1 Y20.000
+G3 X20.000 Y30.000 I-10.000 J0.000
+G1 X0.000
+G1 Y0.000
+G0 Z5.000
+G0 X15.000 Y15.000
+G1 Z-0.500 F200
+G2 X15.000 Y15.000 I5.000 J0.000 F600
+G0 Z5.000
+M2
