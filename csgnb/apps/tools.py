@@ -141,15 +141,16 @@ class ToolShape:
         report: dict = {}
         try:
             V, F = validate_mesh(offsets, self.faces, grid.width, report=report)
-            if report.get("collapsed_faces"):  # the grid is too coarse for the design: say so, do not distort it
-                raise GeometryError(f"rounding to the grid merged corners of {report['collapsed_faces']} of its "
-                                    f"{len(self.faces)} faces")
         except GeometryError as exc:
             raise GeometryError(
                 f"tool {self.name!r} is not a valid solid on a grid of resolution {grid.resolution:g} mm: {exc}. "
                 "Use a finer grid or a coarser angular resolution"
             ) from exc
-        return GridTool(self, grid, V, F)
+        tool = GridTool(self, grid, V, F)
+        # Faces whose corners rounding merged bound no volume and were dropped (the solid is the rounded one, as
+        # for every point on the grid); many of them mean the grid is coarse for this tool: callers report it.
+        tool.collapsed_faces = int(report.get("collapsed_faces", 0))
+        return tool
 
     def __repr__(self) -> str:
         kind = {True: "convex", False: "non-convex", None: "convexity decided on the grid"}[self.convex]
@@ -173,6 +174,7 @@ class GridTool:
         self.grid = grid
         self.offsets = offsets
         self.faces = faces
+        self.collapsed_faces = 0
 
     @property
     def name(self) -> str:
