@@ -23,6 +23,7 @@ triangle's corners as float32 and no vertex identity, so
 
 from __future__ import annotations
 
+import os
 from collections import Counter
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -77,8 +78,18 @@ class StlReport:
 def check_triangle_soup(points: np.ndarray, triangles: np.ndarray) -> tuple[np.ndarray, np.ndarray, dict]:
     """Weld ``points (n, 3)`` by exact position, drop triangles with coinciding corners; return the welded
     points, the kept triangles and ``{"dropped", "flat", "closed", "non_manifold_edges", "volume"}``."""
-    P, inverse = np.unique(np.asarray(points), axis=0, return_inverse=True)
-    T = inverse.reshape(-1)[np.asarray(triangles, np.int64)].reshape(-1, 3)
+    try:
+        points = np.asarray(points, dtype=np.float64)
+        triangles = np.asarray(triangles)
+    except (TypeError, ValueError):
+        raise TypeError("points must be real (n, 3) and triangles integer (m, 3) arrays") from None
+    if points.ndim != 2 or points.shape[1] != 3 or not np.all(np.isfinite(points)):
+        raise GeometryError(f"points must be finite (n, 3) coordinates, got shape {points.shape}")
+    if triangles.ndim != 2 or triangles.shape[1] != 3 or triangles.dtype.kind not in "iu" or (
+            triangles.size and (triangles.min() < 0 or triangles.max() >= points.shape[0])):
+        raise GeometryError(f"triangles must be (m, 3) indices into the {points.shape[0]} points")
+    P, inverse = np.unique(points, axis=0, return_inverse=True)
+    T = inverse.reshape(-1)[triangles.astype(np.int64)].reshape(-1, 3)
     collapsed = (T[:, 0] == T[:, 1]) | (T[:, 1] == T[:, 2]) | (T[:, 2] == T[:, 0])
     T = T[~collapsed]
     directed = Counter(map(tuple, np.concatenate([T[:, [0, 1]], T[:, [1, 2]], T[:, [2, 0]]]).tolist()))
@@ -103,6 +114,10 @@ def export_stl(workpiece, path, *, binary: bool = True) -> StlReport:
     """
     import meshio
 
+    if not callable(getattr(workpiece, "to_mesh", None)):
+        raise TypeError(f"export_stl takes a workpiece (csgnb.octree.Workpiece), got {type(workpiece).__name__}")
+    if not isinstance(path, str | os.PathLike):
+        raise TypeError(f"path must be a file name, got {type(path).__name__}")
     V, T = workpiece.to_mesh(manifold=True)
     if len(T) == 0:
         raise GeometryError("the workpiece is empty: there is no surface to export")

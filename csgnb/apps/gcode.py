@@ -51,6 +51,7 @@ import numpy as np
 from csgnb.apps.gcode_expr import Block, GCodeError, evaluate, read_block
 from csgnb.apps.gcode_flow import MAX_LOOP_PASSES, FlowMixin
 from csgnb.apps.sweep import arc_polyline, arc_segments
+from csgnb.errors import CsgnbError
 
 __all__ = ["Arc", "GCodeError", "Linear", "Move", "Program", "Rapid", "Skipped", "parse", "parse_file", "read_text"]
 
@@ -244,7 +245,7 @@ class Arc(Move):
 
 def _chords(radius: float, angle: float, tolerance: float, line: int) -> int:
     if not (isinstance(tolerance, (int, float)) and math.isfinite(tolerance) and tolerance > 0):
-        raise ValueError(f"the chord tolerance must be a positive finite number of mm, got {tolerance!r}")
+        raise CsgnbError(f"the chord tolerance must be a positive finite number of mm, got {tolerance!r}")
     if radius <= tolerance:
         return max(1, math.ceil(angle / (math.pi / 2)))
     step = 2 * math.acos(max(1 - tolerance / radius, -1.0))
@@ -806,6 +807,11 @@ class _Interpreter(FlowMixin):
 def read_text(data: bytes) -> str:
     """G-code file bytes as text: UTF-8 (a byte-order mark is dropped), else Latin-1 (every byte is a character: a
     stray accented byte in a comment does not refuse the file; outside comments it is an error naming its line)."""
+    if isinstance(data, str):
+        return data.removeprefix("\ufeff")
+    if not isinstance(data, bytes | bytearray | memoryview):
+        raise TypeError(f"read_text takes the bytes of a G-code file, got {type(data).__name__}")
+    data = bytes(data)
     if data.startswith(b"\xef\xbb\xbf"):
         data = data[3:]
     try:
@@ -845,19 +851,26 @@ def parse(text: str, *, start=(0.0, 0.0, 0.0), on_unsupported: str = "error", di
     GCodeError
         Naming the 1-based line (and the word) of the first unusable line.
     """
-    if on_unsupported not in ("error", "warn"):
-        raise ValueError(f"on_unsupported must be 'error' or 'warn', got {on_unsupported!r}")
-    if dialect not in ("linuxcnc", "grbl"):
-        raise ValueError(f"dialect must be 'linuxcnc' or 'grbl', got {dialect!r}")
+    if not isinstance(text, str):
+        raise TypeError(f"parse takes the G-code text (str; parse_file reads a file), got {type(text).__name__}")
+    if not isinstance(on_unsupported, str) or on_unsupported not in ("error", "warn"):
+        raise CsgnbError(f"on_unsupported must be 'error' or 'warn', got {on_unsupported!r}")
+    if not isinstance(dialect, str) or dialect not in ("linuxcnc", "grbl"):
+        raise CsgnbError(f"dialect must be 'linuxcnc' or 'grbl', got {dialect!r}")
     for what, v in (("start", start), ("home", home)):
-        if v is None:
+        if v is None and what == "home":
             continue
-        a = np.asarray(v, float)
+        try:
+            a = np.asarray(v, float)
+        except (TypeError, ValueError):
+            a = np.full(1, np.nan)
         if a.shape != (3,) or not np.all(np.isfinite(a)) or np.any(np.abs(a) > LIMIT_MM):
-            raise ValueError(f"{what} must be three finite coordinates within ±{LIMIT_MM:g} mm, got {v!r}")
+            raise CsgnbError(f"{what} must be three finite coordinates within ±{LIMIT_MM:g} mm, got {v!r:.60}")
+    if tool_lengths is not None and not isinstance(tool_lengths, dict):
+        raise TypeError(f"tool_lengths must be a dict {{tool number: length in mm}}, got {type(tool_lengths).__name__}")
     for k, v in (tool_lengths or {}).items():
         if not (isinstance(v, (int, float)) and math.isfinite(v) and abs(v) <= LIMIT_MM):
-            raise ValueError(f"tool {k}: the length must be a finite number of mm, got {v!r}")
+            raise CsgnbError(f"tool {k}: the length must be a finite number of mm, got {v!r}")
     text = text.removeprefix("\ufeff")
     blocks = []
     skipped_dollar: list[tuple[int, str]] = []

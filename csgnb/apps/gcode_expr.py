@@ -19,6 +19,8 @@ import math
 import re
 from dataclasses import dataclass, field
 
+from csgnb.errors import CsgnbError
+
 __all__ = ["Block", "GCodeError", "evaluate", "read_block", "strip_comments"]
 
 MAX_NESTING = 64
@@ -37,7 +39,7 @@ _OPERATORS = [("**", 6), ("*", 5), ("/", 5), ("mod", 5), ("+", 4), ("-", 4), ("e
               ("ge", 3), ("lt", 3), ("le", 3), ("and", 2), ("or", 2), ("xor", 2)]
 
 
-class GCodeError(ValueError):
+class GCodeError(CsgnbError):
     """A G-code line could not be used; ``line`` is its 1-based number, ``word`` the offending word (if one)."""
 
     def __init__(self, line: int, message: str, word: str | None = None) -> None:

@@ -143,6 +143,10 @@ def move_pieces(move: Move, tool: GridTool, chord_tolerance: float = CHORD_TOLER
     The same pieces :func:`simulate` subtracts, for feeding another engine (a benchmark's peer)
     the identical tool sweeps: ``hull.to_mesh()`` and ``grid.to_model`` give float meshes.
     """
+    if not isinstance(move, Move):
+        raise TypeError(f"move must be a csgnb.apps.gcode.Move, got {type(move).__name__}")
+    if not isinstance(tool, GridTool):
+        raise TypeError(f"tool must be a GridTool (shape.on(grid)), got {type(tool).__name__}")
     points = move.points(chord_tolerance)
     out: list = []
     for a, b in zip(points[:-1], points[1:], strict=True):
@@ -214,10 +218,10 @@ def _checkpoint(path: Path, workpiece, records: list[MoveRecord], stock: Fractio
 def _resume(path: Path, workpiece_type, program_key: str):
     index = json.loads(path.read_text())
     if index["program"] != program_key:
-        raise ValueError(f"the checkpoint {path} belongs to another program or tool set; delete it to start afresh")
+        raise GeometryError(f"the checkpoint {path} belongs to another program or tool set; delete it to start afresh")
     wp_path = path.with_name(index["workpiece"])
     if hashlib.sha256(wp_path.read_bytes()).hexdigest() != index["sha256"]:
-        raise ValueError(f"the checkpoint's workpiece {wp_path} does not match its index (corrupted)")
+        raise GeometryError(f"the checkpoint's workpiece {wp_path} does not match its index (corrupted)")
     return (workpiece_type.load(wp_path), [_record_from_json(r) for r in index["records"]],
             parse_fraction(index["stock"]))
 
@@ -260,6 +264,14 @@ def simulate(workpiece, program: Program, tools, *, chord_tolerance: float = CHO
     """
     from tqdm.auto import tqdm
 
+    if not all(hasattr(workpiece, a) for a in ("grid", "difference", "volume", "save")):
+        raise TypeError(f"workpiece must be a csgnb.octree.Workpiece (or the reference BSPWorkpiece), got "
+                        f"{type(workpiece).__name__}")
+    if not isinstance(program, Program):
+        raise TypeError(f"program must be a csgnb.apps.gcode.Program (gcode.parse), got {type(program).__name__}")
+    if not (isinstance(tools, GridTool) or (isinstance(tools, dict) and tools
+                                              and all(isinstance(t, GridTool) for t in tools.values()))):
+        raise TypeError("tools must be a GridTool (shape.on(workpiece.grid)) or {tool number: GridTool}")
     grid = workpiece.grid
     for t in ([tools] if isinstance(tools, GridTool) else list(tools.values())):
         if not t.grid.same_as(grid):
@@ -318,6 +330,8 @@ def _exact_text(v: Fraction) -> str:
 
 def summary_table(result: MillingResult) -> str:
     """A plain-text summary: totals, the exact volume identity, collisions, the slowest moves."""
+    if not isinstance(result, MillingResult):
+        raise TypeError(f"summary_table takes a MillingResult (simulate's), got {type(result).__name__}")
     final = result.part_volume
     lines = [
         f"moves            {len(result.records)}",
