@@ -48,7 +48,7 @@ from pathlib import Path
 
 import numpy as np
 
-from csgnb.apps.gcode_expr import Block, GCodeError, evaluate, read_block
+from csgnb.apps.gcode_expr import Block, GCodeError, evaluate, positive_count, read_block
 from csgnb.apps.gcode_flow import MAX_LOOP_PASSES, FlowMixin
 from csgnb.apps.sweep import arc_polyline, arc_segments
 from csgnb.errors import CsgnbError
@@ -743,13 +743,7 @@ class _Interpreter(FlowMixin):
         if not offsets and radius is None:
             raise GCodeError(line, f"a {g} arc needs a centre ({letters[0]} {letters[1]} in the {name} plane) or a "
                              "radius R", g)
-        turns = 1
-        if "P" in values:
-            p = values["P"][0]
-            if p != int(p) or p < 1:
-                raise GCodeError(line, f"an arc's P (turns) must be a positive integer, got {values['P'][1]}",
-                                 values["P"][1])
-            turns = int(p)
+        turns = positive_count(values, "P", line, "an arc's P (turns)")
         center = start.copy()
         if offsets:
             for a, (_, w) in offsets.items():

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from csgnb.apps.gcode_expr import GCodeError
+from csgnb.apps.gcode_expr import GCodeError, positive_count
 
 __all__ = ["run_cycle"]
 
@@ -57,13 +57,7 @@ def run_cycle(it, line: int, label, code: int, values: dict, axes: dict) -> None
             if values["P"][0] < 0:
                 raise GCodeError(line, f"{word}: the dwell P must not be negative", values["P"][1])
             it.cycle["p"] = values["P"][0]
-    repeats = 1
-    if "L" in values:
-        n = values["L"][0]
-        if n != int(n) or n < 1:
-            raise GCodeError(line, f"{word}: L (repeats) must be a positive integer, got {values['L'][1]}",
-                             values["L"][1])
-        repeats = int(n)
+    repeats = positive_count(values, "L", line, f"{word}: L (repeats)")
     clear = r if it.retract_r else max(old[a], r)
     increments = {i: axes["XYZ"[i]][0] * f for i in (iu, iv) if "XYZ"[i] in axes}
 

@@ -431,3 +431,14 @@ def evaluate(node: tuple, env, line: int, word: str | None = None) -> float:
     if not math.isfinite(value):
         bad("the value overflows a double (it is infinite or NaN)")
     return value
+
+
+def positive_count(values: dict, letter: str, line: int, what: str) -> int:
+    """The positive integer given by word ``letter`` of ``values`` ({letter: (value, word)}), e.g. an arc's P turns
+    or a cycle's L repeats; 1 when absent; a :class:`GCodeError` naming ``what`` otherwise."""
+    if letter not in values:
+        return 1
+    n, word = values[letter]
+    if n != int(n) or n < 1:
+        raise GCodeError(line, f"{what} must be a positive integer, got {word}", word)
+    return int(n)
