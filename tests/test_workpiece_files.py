@@ -560,3 +560,20 @@ def test_a_large_file_loads_fast(tmp_path):
     assert w.n_cells == int((arrays["oc_child"] == -1).sum())
     X = to_wide(np.array([[1, 1, 1, 1], [-1, -1, -1, 1]]), 128)
     assert w.classify(X).shape == (2,)
+
+
+def test_palette_maxima_from_limbs_are_exact_at_the_edges_of_the_width():
+    """persist reads max |normal| and |offset| from the stored limbs (two's complement, little-endian): checked
+    against Python ints, with the most negative value of the width and random values of every size."""
+    import random
+
+    from csgnb.exact import to_wide
+    from csgnb.octree.persist import _max_magnitude
+
+    rng = random.Random(5)
+    for width in (128, 192, 256):
+        for _ in range(50):
+            vals = [rng.choice([-1, 1]) * rng.getrandbits(rng.randint(0, width - 2)) for _ in range(rng.randint(1, 9))]
+            if rng.random() < 0.3:
+                vals.append(-(1 << (width - 1)))
+            assert _max_magnitude(to_wide(vals, width)["limbs"]) == max(abs(v) for v in vals)

@@ -68,8 +68,9 @@ class CellVolumes:
     def clear(self) -> None:
         self._cache.clear()
 
-    def volume(self, w, node: int, lo=None, size: int | None = None) -> Fraction:
-        """Volume of leaf ``node`` (only inside the sub-box ``[lo, lo + size]`` of it when given)."""
+    def volume(self, w, node: int, lo=None, size: int | None = None, *, key=None) -> Fraction:
+        """Volume of leaf ``node`` (only inside the sub-box ``[lo, lo + size]`` of it when given); ``key``: its
+        :func:`cell_key` when the caller has it already."""
         oc = w.oc
         whole = lo is None
         if oc.kind[node] != BSP:
@@ -78,7 +79,7 @@ class CellVolumes:
         if not whole:
             lo = np.asarray(lo, np.int64)
             return bsp_volume(w, node, lo, lo + int(size))
-        key = cell_key(w, node)
+        key = cell_key(w, node) if key is None else key
         v = self._cache.get(key)
         if v is None:
             lo = np.asarray(w.oc.lo[node], np.int64)
@@ -93,10 +94,11 @@ class CellVolumes:
     def total(self, w, leaves: np.ndarray) -> Fraction:
         """The exact total over ``leaves`` (every leaf of ``w``); entries of cells no longer present are dropped."""
         leaves = leaves.tolist()
-        live = {cell_key(w, n) for n in leaves}
+        keys = [cell_key(w, n) for n in leaves]  # one digest per cell, used twice
+        live = set(keys)
         for key in [k for k in self._cache if k not in live]:
             del self._cache[key]
-        return sum_fractions(self.volume(w, n) for n in leaves)
+        return sum_fractions(self.volume(w, n, key=k) for n, k in zip(leaves, keys, strict=True))
 
 
 class LocalChange:
