@@ -112,7 +112,7 @@ class LocalChange:
         before = w.cells_meeting(lo, hi).tolist()
         self.boxes = [(w.oc.lo[b].copy(), int(w.oc.size[b])) for b in before]
         self.keys = [cell_key(w, b) for b in before]
-        self.before = sum_fractions(volumes.volume(w, b) for b in before)
+        self.before = sum_fractions(volumes.volume(w, b, key=k) for b, k in zip(before, self.keys, strict=True))
         self.nodes = before
 
     def finish(self) -> Fraction:
