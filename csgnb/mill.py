@@ -241,8 +241,10 @@ def prepare(args, program_text: str | None = None) -> Setup:
     given = _tool_specs(args.tool or ([] if table else ["flat:6"]), args.segments)
     table_shapes = {k: tools.parse_tool(e.spec, segments=args.segments) for k, e in table.items()}
     start = np.array([lo[0], lo[1], hi[2] + 10.0]) if args.start is None else np.asarray(args.start, float)
+    # Cutter compensation (G41 D<n>) offsets by the diameter of the tool the program names: the table's, or --tool's
+    diameters = {k: s.params["diameter"] for k, s in {**table_shapes, **given}.items() if "diameter" in s.params}
     options = dict(start=start, home=args.home, dialect=args.dialect,
-                   tool_lengths={k: e.length for k, e in table.items()},
+                   tool_lengths={k: e.length for k, e in table.items()}, tool_diameters=diameters,
                    block_delete=None if args.block_delete is None else args.block_delete == "on",
                    on_unsupported="warn" if args.skip_unsupported else "error")
     if program_text is not None:

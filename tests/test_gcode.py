@@ -142,8 +142,8 @@ def test_tool_and_spindle_state_travels_with_moves():
 @pytest.mark.parametrize("text, line, word", [
     ("G0 X1\nG0 A10\n", 2, "A10"),
     ("G0 X1\nG1 X2 W3 F5\n", 2, "W3"),
-    ("G17\n\nG41 D1\n", 3, "G41"),
-    ("G42.1 D6\n", 1, "G42.1"),
+    ("G17\n\nG33.1 Z-5 K1\n", 3, "G33.1"),
+    ("G43.2 H1\n", 1, "G43.2"),
     ("G33 Z-5 K1\n", 1, "G33"),
     ("G38.2 Z-5 F10\n", 1, "G38.2"),
     ("G76 P1 Z-5\n", 1, "G76"),

@@ -36,12 +36,12 @@ def test_every_corpus_program_parses_or_fails_with_a_clear_error(tmp_path):
 
 def test_a_crash_would_be_counted_and_a_refusal_tallied(tmp_path, monkeypatch):
     bench = _bench()
-    (tmp_path / "a.nc").write_text("G0 X1\nG41 D1\n")
+    (tmp_path / "a.nc").write_text("G0 X1\nG33 Z-5 K1\n")
     (tmp_path / "b.ngc").write_text("G0 A5\n")
     (tmp_path / "c.nc").write_text("G0 X1\n")
     result = bench.census([tmp_path])
     assert result["counts"] == {"ok": 1, "refused": 2, "crash": 0}
-    assert result["unsupported"] == {"G41": 1, "A": 1}
+    assert result["unsupported"] == {"G33": 1, "A": 1}
 
     def boom(*a, **k):
         raise ZeroDivisionError("a bug")

@@ -40,9 +40,9 @@ def test_collisions_set_the_exit_status_and_bad_input_is_reported(tmp_path, caps
     out, err = capsys.readouterr()
     assert "line 1: rapid move (G0) cuts material" in out and "1 collision(s), first at line(s) 1" in err
     bad = tmp_path / "bad.nc"
-    bad.write_text("G0 X1\nG41 D1\n")
+    bad.write_text("G0 X1\nG33 Z-5 K1\n")
     assert main([str(bad), "--stock", "10", "10", "3", "--no-progress"]) == 2
-    assert "line 2: unsupported word G41" in capsys.readouterr().err
+    assert "line 2: unsupported word G33" in capsys.readouterr().err
     assert main([str(bad), "--stock", "10", "10", "3", "--tool", "mill:3", "--no-progress"]) == 2
     assert "unknown tool kind" in capsys.readouterr().err
 
@@ -115,7 +115,8 @@ def test_bad_numeric_options_are_refused(tmp_path, capsys, extra, match):
     ("T1 M6\nG0 X1\nT2 M6\nG0 X2\n", ["--tool", "flat:3"], "line 1: the program loads tool 1"),
     ("T1 M6\nG0 X1\nT2 M6\nG0 X2\n", ["--tool", "1=flat:3", "--tool", "flat:2"], "line 3: the program loads tool 2"),
     ("G0 X1\n", ["--tool", "1=flat:3", "--tool", "2=flat:2"], "loads no tool"),
-    ("G0 X1\nG41 X2\n", ["--skip-unsupported"], "line 2: unsupported word G41"),
+    ("G0 X1\nG33 X2 K1\n", ["--skip-unsupported"], "line 2: unsupported word G33"),
+    ("G0 X1\nG41 D3\nG1 X20 F100\n", ["--tool", "1=flat:3"], "line 2: G41: the diameter of tool 3 is unknown"),
     ("G0 X1\n/G0 X2\n", [], "line 2: the line starts with '/'"),
 ])
 def test_missing_tools_and_unskippable_words_are_errors_before_milling(tmp_path, capsys, text, tools, match):

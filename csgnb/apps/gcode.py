@@ -21,9 +21,12 @@ Supported:
   hangs the *loaded* tool's length below it -- so with ``G43 H<loaded tool>`` the tip is at the
   programmed point, and without a tool table (every length 0) always;
 * ``F S T M6 M3 M4 M5``, ``G4 P`` dwell (time only), ``M0 M1`` (pauses), ``M2 M30`` (end);
+* cutter radius compensation ``G41 G42 [D tool]``, ``G41.1 G42.1 D diameter``, ``G40``, with
+  LinuxCNC's entry, corner and exit rules (:mod:`csgnb.apps.gcode_comp`; the diameters come from
+  ``tool_diameters``); a corner the tool cannot reach without gouging is an error naming the line;
 * no-ops by design (they do not change a 3-axis swept volume): ``G61 G61.1 G64 [P Q]`` (path
   blending only moves the path within the machine's tolerance, which this exact simulator does
-  not model), ``G40`` (compensation off), coolant ``M7 M8 M9``;
+  not model), coolant ``M7 M8 M9``;
 * parameters ``#1``, ``#<name>``, ``#<_global>``, ``[ ]`` expressions and O-word control flow
   (:mod:`csgnb.apps.gcode_expr`), with a bound on loop passes.
 
@@ -31,7 +34,7 @@ Anything else is refused with a :class:`GCodeError` naming the line and the word
 cannot change the swept volume (spindle-speed modes ``G96 G97``, overrides ``M48``-``M53``,
 ``M19``, I/O ``M62``-``M68``, user codes ``M100``-``M199``) may instead be skipped with
 ``on_unsupported="warn"``: each is counted in :attr:`Program.skipped` (count and first line).
-Words that change the cut (cutter compensation ``G41 G42``, other axes ``A B C U V W``, ``G33``,
+Words that change the cut (other axes ``A B C U V W``, ``G33``,
 ``G38.x``, unknown codes) are never skipped.
 
 Within a line the RS274NGC order applies: feed mode, F, S, T, M6, spindle, coolant, dwell,
@@ -48,6 +51,7 @@ from pathlib import Path
 
 import numpy as np
 
+from csgnb.apps.gcode_comp import Compensation
 from csgnb.apps.gcode_expr import Block, GCodeError, evaluate, positive_count, read_block
 from csgnb.apps.gcode_flow import MAX_LOOP_PASSES, FlowMixin
 from csgnb.apps.sweep import arc_polyline, arc_segments
@@ -86,7 +90,7 @@ _G_GROUPS = {
     "arc distance": {901, 911},
     "feed rate mode": {930, 940, 950},
     "units": {200, 210},
-    "cutter compensation": {400},
+    "cutter compensation": {400, 410, 411, 420, 421},
     "tool length offset": {430, 431, 490},
     "canned cycle return": {980, 990},
     "coordinate system": {540, 550, 560, 570, 580, 590, 591, 592, 593},
@@ -100,9 +104,6 @@ _AXIS_USERS = {100, 280, 300, 920, 431}  # codes that read X Y Z themselves (no 
 
 # Known but refused: they change the cut, so they are never skipped.
 _G_REFUSED = {
-    410: "cutter radius compensation changes the tool path (offset the path in CAM instead)",
-    420: "cutter radius compensation changes the tool path (offset the path in CAM instead)",
-    411: "cutter radius compensation changes the tool path", 421: "cutter radius compensation changes the tool path",
     432: "additive tool length offsets are not supported", 330: "spindle-synchronised motion (threading)",
     331: "rigid tapping", 760: "a lathe threading cycle", 382: "probing", 383: "probing", 384: "probing",
     385: "probing", 50: "splines", 51: "splines", 52: "NURBS", 70: "lathe diameter mode", 80: "lathe radius mode",
@@ -314,10 +315,15 @@ def _code_text(code: int) -> str:
 
 class _Interpreter(FlowMixin):
     def __init__(self, blocks: list[Block], *, start, on_unsupported, dialect, tool_lengths, home, block_delete,
-                 max_loop_passes):
+                 max_loop_passes, tool_diameters=None):
         self.blocks = blocks
         self.on_unsupported, self.dialect, self.block_delete = on_unsupported, dialect, block_delete
         self.tool_lengths = dict(tool_lengths or {})
+        self.tool_diameters = dict(tool_diameters or {})
+        self.comp_on, self.comp_word = False, ""  # G41/G42 in effect (even with a zero radius), and its word
+        self.comp: Compensation | None = None  # ... with a positive radius: moves are offset
+        self.actual_xy: np.ndarray | None = None  # after G40: where the tool stands, off the programmed point
+        self.exit_straight = False  # after G40 the next move must be straight
         self.max_loop_passes = max_loop_passes
         self.mpos = np.asarray(start, float).copy()  # the controlled point (gauge line) in machine coordinates
         self.factor, self.absolute, self.arc_absolute, self.plane = 1.0, True, False, 170
@@ -380,15 +386,28 @@ class _Interpreter(FlowMixin):
 
     # -- moves ---------------------------------------------------------------------------------------------
     def _emit(self, cls, end_mpos: np.ndarray, line: int, label, *, feed=None, origin=None, skip_zero=False,
-              **extra) -> None:
+              compensate=False, **extra) -> None:
+        """Append the move to ``end_mpos`` (the controlled point, machine frame); ``compensate``: a G0-G3 of the
+        program, offset by cutter radius compensation when it is on."""
         self._check_position(end_mpos, line, "the move's end")
         start, end = self._tip(self.mpos), self._tip(end_mpos)
+        if self.actual_xy is not None:  # the move after G40 starts where the compensated path ended
+            start[:2] = self.actual_xy
+            self.actual_xy = None
+        programmed_start = self.mpos
         self.mpos = end_mpos.copy()
         if skip_zero and np.array_equal(start, end):
             return
-        self.moves.append(cls(start=start, end=end, feed=feed, spindle=self.spindle,
-                              spindle_on=self.spindle_on or self.dialect == "grbl", tool=self.loaded, line=line,
-                              label=label, origin=origin, **extra))
+        move = cls(start=start, end=end, feed=feed, spindle=self.spindle,
+                   spindle_on=self.spindle_on or self.dialect == "grbl", tool=self.loaded, line=line, label=label,
+                   origin=origin, **extra)
+        if compensate and self.comp is not None:
+            if cls is Arc:
+                self.comp.arc(self, move, programmed_start, line)
+            else:
+                self.comp.straight(self, move, programmed_start, end_mpos, line)
+            return
+        self.moves.append(move)
 
     def _feed_rate(self, line: int, values: dict, length: float | None = None) -> float:
         """mm/min of a feed move (G93: from the move's length, G95: from S)."""
@@ -437,6 +456,8 @@ class _Interpreter(FlowMixin):
                 end_line = b.line
                 break
             pc += 1
+        if self.comp is not None:  # the program ends under G41/G42: its last moves as compensated
+            self.comp.finish(self)
         return Program(self.moves, self.notes, end_line, self.skipped, self.dwell, self.dialect, self.tool_changes)
 
     def _line(self, b: Block) -> bool:
@@ -529,6 +550,8 @@ class _Interpreter(FlowMixin):
             other = modal.get("non-modal", modal.get("tool length offset"))[1]
             raise GCodeError(line, f"{modal['motion'][1]} and {other} both use the axis words of the line: put them "
                              "on separate lines", modal["motion"][1])
+        if self.comp_on:
+            self._refuse_under_compensation(line, g, modal, m_modal, axes)
         # -- feed mode, F, S, T, M6, spindle -------------------------------------------------------------
         if "feed rate mode" in g:
             self.feed_mode = g["feed rate mode"]
@@ -566,6 +589,8 @@ class _Interpreter(FlowMixin):
             self.plane = g["plane"]
         if "units" in g:
             self.factor = INCH if g["units"] == 200 else 1.0
+        if "cutter compensation" in g:
+            self._compensation(line, *modal["cutter compensation"], values, used)
         if "tool length offset" in g:
             self._tool_length(line, g["tool length offset"], values, used)
         if "coordinate system" in g:
@@ -602,6 +627,73 @@ class _Interpreter(FlowMixin):
                 raise GCodeError(line, f"the word {w} is used by no code on this line", w)
         # -- stop --------------------------------------------------------------------------------------
         return m_modal.get("stopping", (None,))[0] in (2, 30)
+
+    def _refuse_under_compensation(self, line, g, modal, m_modal, axes) -> None:
+        """What LinuxCNC refuses while G41/G42 is on (a tool change, another plane, units or frame, a move that
+        cannot be compensated)."""
+        why = None
+        if "tool change" in m_modal:
+            why, word = "a tool change", m_modal["tool change"][1]
+        elif g.get("plane", 170) != 170:
+            why, word = "another plane (compensation works in G17)", modal["plane"][1]
+        elif "units" in g and (INCH if g["units"] == 200 else 1.0) != self.factor:
+            why, word = "a change of units", modal["units"][1]
+        elif g.get("cutter compensation") != 400:  # these are fine on the line that turns compensation off
+            motion = g.get("motion", self.motion)
+            if "coordinate system" in g and _CS_NUMBER[g["coordinate system"]] != self.cs:
+                why, word = "a change of coordinate system", modal["coordinate system"][1]
+            elif g.get("non-modal") in (100, 280, 300, 530, 920, 921, 922, 923):
+                why, word = "a move or offset that cannot be compensated", modal["non-modal"][1]
+            elif motion in _CYCLES and (axes or "motion" in g):
+                why, word = "a canned cycle", modal.get("motion", (0, f"G{_code_text(motion)}"))[1]
+        if why is not None:
+            raise GCodeError(line, f"{word}: {why} while cutter radius compensation ({self.comp_word}) is on: turn "
+                             "it off with G40 first", word)
+
+    def _compensation(self, line, code, word, values, used) -> None:
+        """G40 / G41 / G42 [D tool] / G41.1 / G42.1 D diameter."""
+        if code == 400:
+            if self.comp is not None:
+                here = self.comp.finish(self)
+                if here is not None:
+                    self.actual_xy, self.exit_straight = here, True
+            self.comp_on, self.comp = False, None
+            return
+        if self.comp_on:
+            raise GCodeError(line, f"{word}: cutter radius compensation is already on ({self.comp_word}): give G40 "
+                             "first", word)
+        if self.plane != 170:
+            raise GCodeError(line, f"{word}: cutter radius compensation works in the XY plane: give G17 first", word)
+        used.add("D")
+        d = values.get("D")
+        if code in (411, 421):  # G41.1 / G42.1 D<diameter>
+            if d is None or not d[0] >= 0:
+                raise GCodeError(line, f"{word} needs the tool diameter D (mm or inch, not negative)", word)
+            diameter = d[0] * self.factor
+        else:
+            if d is not None:
+                if d[0] != int(d[0]) or d[0] < 0:
+                    raise GCodeError(line, f"{word}: D names a tool number of the tool table, got {d[1]}", d[1])
+                tool = int(d[0])
+            elif self.loaded is None:
+                raise GCodeError(line, f"{word} without D takes the loaded tool's diameter, but no tool is loaded: "
+                                 "give D<tool number> or load one with T.. M6", word)
+            else:
+                tool = self.loaded
+            if tool == 0:
+                diameter = 0.0
+            else:
+                diameter = self.tool_diameters.get(tool, self.tool_diameters.get(None))
+                if diameter is None:
+                    raise GCodeError(line, f"{word}: the diameter of tool {tool} is unknown: give the tool diameters "
+                                     "(parse(tool_diameters=...); python -m csgnb.mill: --tool-table, or "
+                                     f"--tool {tool}=SPEC), or give the diameter itself with "
+                                     f"{'G41.1' if code == 410 else 'G42.1'} D<diameter>", d[1] if d else word)
+        left = code in (410, 411)
+        if diameter < 0:  # a negative table diameter swaps the side (LinuxCNC)
+            left, diameter = not left, -diameter
+        self.comp_on, self.comp_word = True, word
+        self.comp = Compensation(left, diameter / 2, word) if diameter > 0 else None
 
     def _tool_length(self, line, code, values, used) -> None:
         if code == 490:
@@ -724,11 +816,16 @@ class _Interpreter(FlowMixin):
             for a, (v, _) in axes.items():
                 i = _AXES.index(a)
                 end[i] = (v * self.factor if self.absolute else prog[i] + v * self.factor) + off[i]
+        if motion in (0, 10):
+            self.exit_straight = False
+        elif self.exit_straight:
+            raise GCodeError(line, "the move after G40 (compensation off) must be straight: it leaves the "
+                             "compensated path (LinuxCNC)", f"G{motion // 10}")
         if motion == 0:
-            self._emit(Rapid, end, line, label)
+            self._emit(Rapid, end, line, label, compensate=True)
         elif motion == 10:
             length = float(np.linalg.norm(end - self.mpos))
-            self._emit(Linear, end, line, label, feed=self._feed_rate(line, values, length))
+            self._emit(Linear, end, line, label, feed=self._feed_rate(line, values, length), compensate=True)
         else:
             self._arc(line, label, values, end, motion == 20)
 
@@ -795,7 +892,7 @@ class _Interpreter(FlowMixin):
         feed = self._feed_rate(line, values, length)
         tip_shift = self._tip(np.zeros(3))
         self._emit(Arc, end, line, label, feed=feed, center=center + tip_shift, plane=name, clockwise=clockwise,
-                   angle=angle)
+                   angle=angle, compensate=True)
 
 
 def read_text(data: bytes) -> str:
@@ -816,7 +913,7 @@ def read_text(data: bytes) -> str:
 
 def parse(text: str, *, start=(0.0, 0.0, 0.0), on_unsupported: str = "error", dialect: str = "linuxcnc",
           tool_lengths: dict | None = None, home=None, block_delete: bool | None = None,
-          max_loop_passes: int = MAX_LOOP_PASSES) -> Program:
+          max_loop_passes: int = MAX_LOOP_PASSES, tool_diameters: dict | None = None) -> Program:
     """Run G-code ``text``; return its tool-tip moves in absolute millimetres.
 
     Parameters
@@ -833,6 +930,9 @@ def parse(text: str, *, start=(0.0, 0.0, 0.0), on_unsupported: str = "error", di
         no collision for cutting without ``M3``); ``$`` lines other than ``$H``/``$J`` are skipped.
     tool_lengths : dict, optional
         Tool number -> length (mm) for ``G43``; without it every length is 0.
+    tool_diameters : dict, optional
+        Tool number -> diameter (mm) for cutter radius compensation ``G41``/``G42`` (``D`` names the
+        tool; without ``D``, the loaded one); the key ``None`` gives every other tool's diameter.
     home : (3,) float, optional
         The stored ``G28`` / ``G30`` positions (default: ``start``).
     block_delete : bool or None
@@ -860,11 +960,12 @@ def parse(text: str, *, start=(0.0, 0.0, 0.0), on_unsupported: str = "error", di
             a = np.full(1, np.nan)
         if a.shape != (3,) or not np.all(np.isfinite(a)) or np.any(np.abs(a) > LIMIT_MM):
             raise CsgnbError(f"{what} must be three finite coordinates within ±{LIMIT_MM:g} mm, got {v!r:.60}")
-    if tool_lengths is not None and not isinstance(tool_lengths, dict):
-        raise TypeError(f"tool_lengths must be a dict {{tool number: length in mm}}, got {type(tool_lengths).__name__}")
-    for k, v in (tool_lengths or {}).items():
-        if not (isinstance(v, (int, float)) and math.isfinite(v) and abs(v) <= LIMIT_MM):
-            raise CsgnbError(f"tool {k}: the length must be a finite number of mm, got {v!r}")
+    for name, table in (("length", tool_lengths), ("diameter", tool_diameters)):
+        if table is not None and not isinstance(table, dict):
+            raise TypeError(f"tool_{name}s must be a dict {{tool number: {name} in mm}}, got {type(table).__name__}")
+        for k, v in (table or {}).items():
+            if not (isinstance(v, (int, float)) and math.isfinite(v) and abs(v) <= LIMIT_MM):
+                raise CsgnbError(f"tool {k}: the {name} must be a finite number of mm, got {v!r}")
     text = text.removeprefix("\ufeff")
     blocks = []
     skipped_dollar: list[tuple[int, str]] = []
@@ -884,7 +985,7 @@ def parse(text: str, *, start=(0.0, 0.0, 0.0), on_unsupported: str = "error", di
             blocks.append(b)
     interp = _Interpreter(blocks, start=start, on_unsupported=on_unsupported, dialect=dialect,
                           tool_lengths=tool_lengths, home=home, block_delete=block_delete,
-                          max_loop_passes=max_loop_passes)
+                          max_loop_passes=max_loop_passes, tool_diameters=tool_diameters)
     for number, cmd in skipped_dollar:
         interp._skip(number, cmd, "a GRBL system command (settings, status), no motion")
     return interp.run()

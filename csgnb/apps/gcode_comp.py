@@ -1,0 +1,329 @@
+"""Cutter radius compensation ``G41``/``G42`` (``G41.1``/``G42.1``) in the XY plane, as LinuxCNC computes it.
+
+The program describes the part's contour; under compensation the tool's *centre* runs one tool
+radius to the left (``G41``) or right (``G42``) of it. The interpreter keeps the *programmed*
+position (incremental moves and missing axes refer to it, as in LinuxCNC's ``find_ends``) and
+sends each ``G0``/``G1``/``G2``/``G3`` here; this module turns it into the compensated moves.
+
+LinuxCNC's rules (``interp_convert.cc``: ``convert_straight_comp1/2``, ``convert_arc_comp1/2``;
+``interp_queue.cc``: ``move_endpoint_and_flush``), which this follows:
+
+* **entry** (the first move after ``G41``/``G42``): a straight move from the current, uncompensated
+  point to the programmed end moved one radius to the side of the move's direction; it must be
+  longer than the radius. An entry arc ends one radius off its programmed end along the radius
+  and turns about the point of the programmed centre line equidistant from its two ends.
+* **every later move** ends one radius off its programmed end, on the side, along the normal of
+  its direction there (lines: the line's normal; arcs: the radius, so a compensated arc keeps the
+  centre and has radius R - r when the tool is inside it, R + r outside; R <= r is an error).
+* **corners** between the last move's end and this move's start, by the turn ``beta`` of the
+  direction seen from the tool's side (``TOLERANCE_CONCAVE_CORNER`` = 0.05 rad):
+  convex (``beta`` > 0.05) -- an arc of radius r about the programmed corner is inserted (a straight
+  rapid under ``G0``); concave (``beta`` < -0.05 or > π + 0.05, or a reversal past an arc the tool
+  is outside of) -- the last move's end is pulled back to where the two offset paths cross, and a
+  move that this would reverse (or an arc it would lengthen) is a gouge: an error naming the line;
+  otherwise (tangent) the new move starts where the last one ended.
+* moves without XY motion keep the compensated XY and follow when the end before them moves.
+* **exit**: ``G40`` leaves the tool where the last compensated move ended; the next move (which must
+  be straight) runs from there to its programmed point.
+
+While compensation is on, what would move the tool elsewhere or change the frame (canned cycles,
+``G28``/``G30``, ``G53``, ``M6``, units, plane, coordinate systems, ``G92``, ``G10``) is refused, as
+LinuxCNC refuses most of them.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from csgnb.apps.gcode_expr import GCodeError
+
+__all__ = ["CONCAVE_CORNER_RAD", "Compensation"]
+
+CONCAVE_CORNER_RAD = 0.05
+"""LinuxCNC's ``TOLERANCE_CONCAVE_CORNER``: turns within ±0.05 rad are tangent (no corner arc, no trimming)."""
+
+_ARC_GOUGE_SLACK = 0.0254
+"""LinuxCNC lets a trimmed arc's sweep grow by this (radians, its mm tolerance) before calling it a gouge."""
+
+
+@dataclass
+class _Queued:
+    """A compensated move whose end may still move: its programmed XY direction (lines; zero for entry and Z-only
+    moves) and, for arcs, the sweep before any trimming."""
+
+    move: object
+    direction: np.ndarray
+    sweep: float | None = None
+
+
+def _angle(v) -> float:
+    return math.atan2(v[1], v[0])
+
+
+def _unit(a: float) -> np.ndarray:
+    return np.array([math.cos(a), math.sin(a)])
+
+
+def _sweep(start, end, center, clockwise: bool) -> float:
+    """Turn (radians, in [0, 2π)) from ``start`` to ``end`` about ``center`` in the arc's direction."""
+    a0, a1 = _angle(start - center), _angle(end - center)
+    return ((a0 - a1) if clockwise else (a1 - a0)) % (2 * math.pi)
+
+
+def _line_line(p, d, q, e):
+    """Where the line ``p + t d`` meets ``q + s e`` (None when parallel)."""
+    den = d[0] * e[1] - d[1] * e[0]
+    if abs(den) < 1e-15 * (np.linalg.norm(d) * np.linalg.norm(e) + 1e-300):
+        return []
+    w = q - p
+    t = (w[0] * e[1] - w[1] * e[0]) / den
+    return [p + t * d]
+
+
+def _line_circle(p, d, c, r):
+    dd = float(d @ d)
+    f = p - c
+    b = float(f @ d)
+    disc = b * b - dd * (float(f @ f) - r * r)
+    if disc < 0:
+        return []
+    s = math.sqrt(disc)
+    return [p + ((-b - s) / dd) * d, p + ((-b + s) / dd) * d]
+
+
+def _circle_circle(c0, r0, c1, r1):
+    d = float(np.linalg.norm(c1 - c0))
+    if d == 0 or d > r0 + r1 or d < abs(r0 - r1):
+        return []
+    a = (r0 * r0 - r1 * r1 + d * d) / (2 * d)
+    h = math.sqrt(max(r0 * r0 - a * a, 0.0))
+    u = (c1 - c0) / d
+    m = c0 + a * u
+    n = np.array([-u[1], u[0]])
+    return [m + h * n, m - h * n]
+
+
+class Compensation:
+    """The state of one ``G41``/``G42`` span: side, radius, the programmed point and the moves still open.
+
+    Parameters
+    ----------
+    left : bool
+        ``G41`` (tool left of the path) or ``G42``.
+    radius : float
+        Tool radius in mm (> 0).
+    word : str
+        The word that turned it on (for messages).
+    """
+
+    def __init__(self, left: bool, radius: float, word: str) -> None:
+        self.left, self.radius, self.word = left, radius, word
+        self.first = True
+        self.queue: list[_Queued] = []
+        self.queue_start: np.ndarray | None = None  # XY where the queued moves begin (LinuxCNC's endpoint)
+        self.programmed: np.ndarray | None = None  # (2,) the last programmed XY end
+
+    # -- geometry --------------------------------------------------------------------------------------------
+    @property
+    def _gamma(self) -> float:
+        return math.pi / 2 if self.left else -math.pi / 2
+
+    def _tool_inside(self, clockwise: bool) -> bool:
+        return self.left != clockwise  # LinuxCNC's TOOL_INSIDE_ARC: left of a CCW arc, right of a CW one
+
+    def _current(self) -> np.ndarray:
+        return np.asarray(self.queue[-1].move.end[:2], float)
+
+    def _beta(self, alpha: float) -> float:
+        """The corner's turn seen from the tool's side, in [-π/2, 3π/2) (LinuxCNC's beta)."""
+        theta = _angle(self._current() - self.programmed)
+        beta = (theta - alpha if self.left else alpha - theta) - math.pi / 2
+        return (beta + math.pi / 2) % (2 * math.pi) - math.pi / 2
+
+    # -- the queue -------------------------------------------------------------------------------------------
+    def _flush(self, it) -> None:
+        it.moves.extend(q.move for q in self.queue)
+        self.queue = []
+
+    def _move_end(self, it, xy: np.ndarray, line: int) -> None:
+        """Pull the end of the queued moves to ``xy`` (a concave corner), refusing a gouge, then flush them."""
+        for i, q in enumerate(self.queue):
+            m = q.move
+            end = m.end.copy()
+            end[:2] = xy
+            if m.kind == "arc":
+                centre = m.center[:2]
+                whole = 2 * math.pi * (math.ceil(q.sweep / (2 * math.pi)) - 1)  # turns beyond the first (P > 1)
+                new = _sweep(m.start[:2], xy, centre, m.clockwise) + whole
+                if new > q.sweep + _ARC_GOUGE_SLACK:
+                    raise GCodeError(line, "cutter compensation: the arc before this move (line "
+                                     f"{m.line}) cannot reach the concave corner without gouging: the tool is "
+                                     "too large for the corner (use a smaller tool or change the contour)",
+                                     self.word)
+                self.queue[i] = replace(q, move=replace(m, end=end, angle=new))
+            else:
+                if float(q.direction @ (xy - self.queue_start)) < 0:
+                    raise GCodeError(line, "cutter compensation: the straight move on line "
+                                     f"{m.line} cannot reach the concave corner without gouging: it is shorter than "
+                                     "the tool needs to turn there (use a smaller tool or change the contour)",
+                                     self.word)
+                start = m.start.copy()
+                if i > 0:  # a move without XY motion after the trimmed one follows it
+                    start[:2] = xy
+                self.queue[i] = replace(q, move=replace(m, start=start, end=end))
+        self._flush(it)
+
+    @staticmethod
+    def _offset_path(q: _Queued):
+        """The queued XY move's compensated path: ('line', point, direction) or ('circle', centre, radius)."""
+        m = q.move
+        if m.kind == "arc":
+            return "circle", np.asarray(m.center[:2], float), float(np.linalg.norm(m.end[:2] - m.center[:2]))
+        return "line", np.asarray(m.start[:2], float), np.asarray(m.end[:2] - m.start[:2], float)
+
+    def _concave(self, it, new_path, line: int) -> np.ndarray:
+        """Trim at a concave corner: where the last XY move's offset path meets ``new_path``; the queue is flushed."""
+        old = self._offset_path(self.queue[0])  # the XY move; any after it only move along Z
+        kinds = (old[0], new_path[0])
+        if kinds == ("line", "line"):
+            hits = _line_line(old[1], old[2], new_path[1], new_path[2])
+        elif kinds == ("line", "circle"):
+            hits = _line_circle(old[1], old[2], new_path[1], new_path[2])
+        elif kinds == ("circle", "line"):
+            hits = _line_circle(new_path[1], new_path[2], old[1], old[2])
+        else:
+            hits = _circle_circle(old[1], old[2], new_path[1], new_path[2])
+        if not hits:
+            raise GCodeError(line, "cutter compensation: the tool cannot fit into the concave corner at the start of "
+                             "this move without gouging (use a smaller tool or change the contour)", self.word)
+        here = self._current()
+        xy = min(hits, key=lambda p: float(np.linalg.norm(p - here)))
+        self._move_end(it, xy, line)
+        return xy
+
+    def _corner(self, it, alpha: float, mid: np.ndarray, new_path, new_arc_outside: bool, rapid: bool, template,
+                line: int) -> np.ndarray:
+        """Join the queued moves to a new XY move that starts along ``alpha`` at ``mid``; return where it starts."""
+        beta = self._beta(alpha)
+        small = CONCAVE_CORNER_RAD
+        last = self.queue[0].move
+        h_shape = beta > math.pi - small and (
+            (last.kind == "arc" and not self._tool_inside(last.clockwise)) or new_arc_outside)
+        if beta < -small or beta > math.pi + small or h_shape:
+            return self._concave(it, new_path, line)
+        here = self._current()
+        self._flush(it)
+        if beta > small:  # convex: round the corner about the programmed point (a straight rapid under G0)
+            z = last.end[2]
+            corner = np.array([*self.programmed, z])
+            start, end = np.array([*here, z]), np.array([*mid, z])
+            if rapid:
+                it.moves.append(replace(template, start=start, end=end))
+            else:
+                from csgnb.apps.gcode import Arc
+
+                clockwise = self.left
+                sweep = _sweep(here, mid, self.programmed, clockwise)
+                fields = {k: getattr(template, k) for k in ("feed", "spindle", "spindle_on", "tool", "line", "label")}
+                it.moves.append(Arc(start=start, end=end, center=corner, plane="XY", clockwise=clockwise,
+                                    angle=sweep, origin=f"{self.word} corner", **fields))
+            return mid
+        return here
+
+    # -- moves -----------------------------------------------------------------------------------------------
+    def straight(self, it, move, programmed_start: np.ndarray, programmed_end: np.ndarray, line: int) -> None:
+        """Compensate the straight move ``move`` (a Rapid or Linear in tip coordinates, uncompensated XY)."""
+        p0, p1 = np.asarray(programmed_start[:2], float), np.asarray(programmed_end[:2], float)
+        rapid = move.kind == "rapid"
+        if self.first:
+            here = np.asarray(move.start[:2], float)
+            distance = float(np.hypot(*(p1 - here)))
+            if not distance > self.radius:
+                raise GCodeError(line, f"cutter compensation: the entry move after {self.word} is {distance:.6g} mm "
+                                 f"long in XY, not longer than the tool radius {self.radius:g} mm: start the "
+                                 "compensated contour from farther away", self.word)
+            alpha = _angle(p1 - here) + self._gamma
+            end = move.end.copy()
+            end[:2] = p1 + self.radius * _unit(alpha)
+            self.queue_start = here
+            self.queue = [_Queued(replace(move, end=end), np.zeros(2))]
+            self.first = False
+        elif np.array_equal(p0, p1):  # no XY motion: stay at the compensated XY
+            here = self._current()
+            start, end = move.start.copy(), move.end.copy()
+            start[:2], end[:2] = here, here
+            self.queue.append(_Queued(replace(move, start=start, end=end), np.zeros(2)))
+        else:
+            alpha = _angle(p1 - p0)
+            normal = _unit(alpha + self._gamma)
+            mid = p0 + self.radius * normal
+            begin = self._corner(it, alpha, mid, ("line", mid, p1 - p0), False, rapid, move, line)
+            start, end = move.start.copy(), move.end.copy()
+            start[:2], end[:2] = begin, p1 + self.radius * normal
+            self.queue_start = begin
+            self.queue = [_Queued(replace(move, start=start, end=end), p1 - p0)]
+        self.programmed = p1
+
+    def arc(self, it, move, programmed_start: np.ndarray, line: int) -> None:
+        """Compensate the arc ``move`` (an Arc in tip coordinates about its programmed centre, uncompensated)."""
+        c = np.asarray(move.center[:2], float)
+        p0, p1 = np.asarray(programmed_start[:2], float), np.asarray(move.end[:2], float)
+        big = float(np.hypot(*(p1 - c)))
+        inside = self._tool_inside(move.clockwise)
+        if inside and not big > self.radius:
+            raise GCodeError(line, f"cutter compensation: the tool radius {self.radius:g} mm is not less than the "
+                             f"arc's radius {big:.6g} mm, and the tool runs inside it", self.word)
+        toward = (c - p1) / big if inside else (p1 - c) / big
+        end_xy = p1 + self.radius * toward
+        if self.first:
+            here = np.asarray(move.start[:2], float)
+            if not float(np.hypot(*(p1 - here))) > self.radius:
+                raise GCodeError(line, "cutter compensation: the entry arc's chord is not longer than the tool radius",
+                                 self.word)
+            # The centre on the line from the compensated end toward the programmed centre, as far from both ends.
+            u = (c - end_xy) / np.linalg.norm(c - end_xy)
+            w = here - end_xy
+            den = 2 * float(u @ w)
+            if abs(den) < 1e-12 * max(1.0, float(w @ w)):
+                raise GCodeError(line, "cutter compensation: no arc from the start reaches the compensated end of this "
+                                 "entry arc (the tool radius is not less than the arc radius)", self.word)
+            centre = end_xy + (float(w @ w) / den) * u
+            start, end = move.start.copy(), move.end.copy()
+            end[:2] = end_xy
+            new_centre = move.center.copy()
+            new_centre[:2] = centre
+            sweep = _sweep(here, end_xy, centre, move.clockwise) + (move.angle - _sweep(p0, p1, c, move.clockwise))
+            if not sweep > 0:
+                sweep += 2 * math.pi
+            self.queue_start = here
+            self.queue = [_Queued(replace(move, start=start, end=end, center=new_centre, angle=sweep), np.zeros(2),
+                                  sweep)]
+            self.first = False
+            self.programmed = p1
+            return
+        radial0 = (p0 - c) / float(np.hypot(*(p0 - c)))
+        tangent = np.array([radial0[1], -radial0[0]]) if move.clockwise else np.array([-radial0[1], radial0[0]])
+        alpha = _angle(tangent)
+        mid = p0 + self.radius * (-radial0 if inside else radial0)
+        comp_radius = big - self.radius if inside else big + self.radius
+        begin = self._corner(it, alpha, mid, ("circle", c, comp_radius), not inside, False, move, line)
+        start, end = move.start.copy(), move.end.copy()
+        start[:2], end[:2] = begin, end_xy
+        # The programmed turn, less what the start moved on and plus what the end moved on (full circles stay full).
+        moved = (_angle(begin - c) - _angle(mid - c) + math.pi) % (2 * math.pi) - math.pi
+        sweep = move.angle - (moved if not move.clockwise else -moved)
+        self.queue_start = begin
+        self.queue = [_Queued(replace(move, start=start, end=end, angle=sweep), np.zeros(2), sweep)]
+        self.programmed = p1
+
+    def finish(self, it) -> np.ndarray | None:
+        """``G40`` or the program's end: the queued moves as they are; the XY where the tool stands (None if no
+        compensated move ran)."""
+        if self.first:
+            return None
+        here = self._current()
+        self._flush(it)
+        return here
