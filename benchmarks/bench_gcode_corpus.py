@@ -13,7 +13,8 @@ skipped and counted). Each file ends in one of three ways:
 
 Third-party programs are not committed (their licences differ from the project's):
 ``tests/data/gcode/corpus/SOURCES.md`` lists where to fetch them (repository, path, licence).
-``--json PATH`` writes ``{"files": {PATH: {"status", "moves", "line", "message", "seconds"}},
+``--tool-diameter MM`` gives every tool that diameter for cutter compensation (``G41``/``G42``
+without a tool table). ``--json PATH`` writes ``{"files": {PATH: {"status", "moves", "line", "message", "seconds"}},
 "unsupported": {WORD: files}, "skipped": {WORD: count}, "counts": {"ok", "refused", "crash"}}``.
 """
 
@@ -47,11 +48,13 @@ def _word_kind(word: str) -> str:
     return word.upper() if word[:1].upper() in "GM$" else word[:1].upper()
 
 
-def census_one(path: Path, dialect: str = "linuxcnc") -> dict:
-    """``{"status": "ok" | "refused" | "crash", ...}`` for one file."""
+def census_one(path: Path, dialect: str = "linuxcnc", tool_diameter: float | None = None) -> dict:
+    """``{"status": "ok" | "refused" | "crash", ...}`` for one file (``tool_diameter``: every tool's, for G41/G42)."""
     t0 = time.perf_counter()
+    diameters = None if tool_diameter is None else {None: tool_diameter}
     try:
-        program = parse_file(path, on_unsupported="warn", dialect=dialect, block_delete=False)
+        program = parse_file(path, on_unsupported="warn", dialect=dialect, block_delete=False,
+                             tool_diameters=diameters)
     except GCodeError as exc:
         m = re.match(r"line \d+: unsupported (?:word|GRBL command) (\S+)", str(exc))
         return {"status": "refused", "line": exc.line, "word": exc.word, "message": str(exc),
@@ -63,7 +66,7 @@ def census_one(path: Path, dialect: str = "linuxcnc") -> dict:
             "seconds": time.perf_counter() - t0}
 
 
-def census(dirs, dialect: str = "linuxcnc") -> dict:
+def census(dirs, dialect: str = "linuxcnc", tool_diameter: float | None = None) -> dict:
     """The census of every file under ``dirs`` (see the module docstring for the layout)."""
     import warnings
 
@@ -71,7 +74,7 @@ def census(dirs, dialect: str = "linuxcnc") -> dict:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         for path in corpus_files(dirs):
-            r = census_one(path, dialect)
+            r = census_one(path, dialect, tool_diameter)
             files[str(path)] = r
             if r.get("unsupported"):
                 unsupported[r["unsupported"]] += 1
@@ -87,8 +90,11 @@ def main(argv=None) -> int:
     p.add_argument("dirs", nargs="*", type=Path, default=[DEFAULT_DIR])
     p.add_argument("--json", type=Path, default=None)
     p.add_argument("--dialect", choices=("linuxcnc", "grbl"), default="linuxcnc")
+    p.add_argument("--tool-diameter", type=float, default=None, metavar="MM",
+                   help="the diameter cutter compensation (G41 D.., G42) takes for every tool: a census has no tool "
+                        "tables (default: none, so such programs are refused naming the unknown diameter)")
     args = p.parse_args(argv)
-    result = census(args.dirs, args.dialect)
+    result = census(args.dirs, args.dialect, args.tool_diameter)
     for path, r in result["files"].items():
         detail = f"{r['moves']} moves" if r["status"] == "ok" else r["message"]
         print(f"{r['status']:<8} {path}: {detail}")

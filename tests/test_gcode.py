@@ -190,13 +190,13 @@ def test_skippable_words_are_errors_or_counted_in_the_skipped_table():
     ("F10\nG17 G2 X1 Y0 K1\n", 2, "not an offset of the XY plane"),
     ("F10\nG2 X0 Y0 R5\n", 2, "cannot be a full circle"),
     ("F10\nG2 X10 Y0 R2\n", 2, "less than half the chord"),
-    ("F10\nG2 X1 Y0 I0 J0\n", 2, "zero radius"),
+    ("F10\nG2 X1 Y0 I0 J0\n", 2, "zero-radius arc"),
     ("G0 X1 I5\n", 1, "no G2/G3 arc"),
     ("G1 X1 F-5\n", 1, "must not be negative"),
     ("S-1\n", 1, "must not be negative"),
     ("T1.5\n", 1, "non-negative integer"),
     ("M6\n", 1, "no T word"),
-    ("N1.5 G0 X1\n", 1, "line number"),
+    ("N-1 G0 X1\n", 1, "line number must not be negative"),
     ("G0 X1 (open comment\n", 1, "not closed"),
     ("G0 X1 (a (nested) one)\n", 1, "nested"),
     ("G0 X1 )\n", 1, "closes no comment"),
@@ -219,3 +219,26 @@ def test_parse_file_and_program_helpers(tmp_path):
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         parse("G0 X0 ; fine\n(only a comment)\n\n%\n")
+
+
+@pytest.mark.parametrize("text, ok", [
+    # LinuxCNC's arc_data_ijk: the end radius may differ by 0.0283 mm (0.00283 inch under G20), or by 0.1 %, but by
+    # no more than 100 x 0.0283 mm
+    ("G21 F10\nG2 X50.028 Y0 I25 J0\n", True),  # 0.028 mm on a 25 mm radius (LinuxCNC's good-arc test)
+    ("G21 F10\nG2 X50.029 Y0 I25 J0\n", False),  # 0.029 mm and 0.116 %
+    ("G21 F10\nG2 X400.05 Y0 I200 J0\n", True),  # 0.05 mm but 0.025 % of 200 mm
+    ("G21 F10\nG2 X6002.9 Y0 I3000 J0\n", False),  # 2.9 mm: beyond 100 x the tolerance even at 0.1 %
+    ("G20 F10\nG2 X2.0028 Y0 I1 J0\n", True),  # 0.0028 inch
+    ("G20 F10\nG2 X2.0029 Y0 I1 J0\n", False),
+])
+def test_arc_end_radius_tolerance_is_linuxcncs(text, ok):
+    if ok:
+        arc = parse(text).moves[-1]
+        assert arc.kind == "arc" and arc.angle == pytest.approx(math.pi)
+    else:
+        with pytest.raises(GCodeError, match="off the arc's circle"):
+            parse(text)
+
+
+def test_fractional_line_numbers_are_labels_as_in_linuxcnc():
+    assert [m.label for m in parse("N4567.789 G0 X1\nN10 G0 X2\n").moves] == [4567.789, 10]

@@ -152,6 +152,8 @@ def test_diameters_come_from_the_table_the_loaded_tool_and_units():
     assert np.allclose(inch.end[:2], [25.4, -3.175])
     flipped = gcode.parse(base + "G42 D2\nG1 X0 Y0\n", tool_diameters={2: -6.0}).moves[-1]
     assert np.allclose(flipped.end[:2], [0, 3])  # a negative table diameter swaps the side (LinuxCNC)
+    negative = gcode.parse(base + "G42.1 D-6\nG1 X0 Y0\n").moves[-1]
+    assert np.allclose(negative.end[:2], [0, 3])
     off = gcode.parse(base + "G42 D0\nG1 X0 Y0\n").moves[-1]
     assert np.allclose(off.end[:2], [0, 0])  # D0: tool 0, no offset
     incremental = gcode.parse(base + "G42.1 D6\nG1 X0 Y0\nG91 X20\n").moves[-1]

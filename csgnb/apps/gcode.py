@@ -63,7 +63,21 @@ INCH = 25.4
 """Millimetres per inch (G20)."""
 
 RADIUS_TOLERANCE_MM = 0.002
-"""An arc's end may be this far (or 0.1 % of the radius, whichever is larger) off its circle."""
+"""An R-form arc's radius may fall this far (or 0.1 % of the radius, whichever is larger) short of half its chord."""
+
+SPIRAL_TOLERANCE_MM = 2 * 0.01 * math.sqrt(2)
+"""An I J K arc whose end lies off its start circle is a spiral, refused (as LinuxCNC's ``arc_data_ijk``) when the
+radii differ by more than 100 times this, or by more than this and by more than :data:`SPIRAL_RELATIVE` of the
+radius. Under G20 the tolerance is LinuxCNC's inch one, ``2 * 0.001 * sqrt(2)`` inch (0.0718 mm)."""
+
+SPIRAL_TOLERANCE_INCH = 2 * 0.001 * math.sqrt(2)
+""":data:`SPIRAL_TOLERANCE_MM` under G20, in inches."""
+
+SPIRAL_RELATIVE = 0.001
+"""LinuxCNC's ``SPIRAL_RELATIVE_TOLERANCE``."""
+
+ZERO_RADIUS_MM = 0.00127
+"""An arc whose start or end lies closer than this to its centre is a zero-radius arc (LinuxCNC: 0.00005 inch)."""
 
 CIRCLE_FUZZ = 1e-6
 """An arc turning less than this (radians) from its start to its end is a full circle (LinuxCNC's ``CIRCLE_FUZZ``)."""
@@ -481,9 +495,9 @@ class _Interpreter(FlowMixin):
             elif letter == "N":
                 if label is not None:
                     raise GCodeError(line, "the word N appears twice", text)
-                if value != int(value) or value < 0:
-                    raise GCodeError(line, f"a line number must be a non-negative integer, got {text}", text)
-                label = int(value)
+                if value < 0:
+                    raise GCodeError(line, f"a line number must not be negative, got {text}", text)
+                label = int(value) if value == int(value) else value  # LinuxCNC reads N12.5 too
             elif letter in _LETTERS:
                 if letter in values:
                     raise GCodeError(line, f"the word {letter} appears twice", text)
@@ -667,8 +681,9 @@ class _Interpreter(FlowMixin):
         used.add("D")
         d = values.get("D")
         if code in (411, 421):  # G41.1 / G42.1 D<diameter>
-            if d is None or not d[0] >= 0:
-                raise GCodeError(line, f"{word} needs the tool diameter D (mm or inch, not negative)", word)
+            if d is None:
+                raise GCodeError(line, f"{word} needs the tool diameter D (mm or inch; a negative one swaps the side)",
+                                 word)
             diameter = d[0] * self.factor
         else:
             if d is not None:
@@ -690,7 +705,7 @@ class _Interpreter(FlowMixin):
                                      f"--tool {tool}=SPEC), or give the diameter itself with "
                                      f"{'G41.1' if code == 410 else 'G42.1'} D<diameter>", d[1] if d else word)
         left = code in (410, 411)
-        if diameter < 0:  # a negative table diameter swaps the side (LinuxCNC)
+        if diameter < 0:  # a negative diameter (G41.1 D or the table's) swaps the side (LinuxCNC)
             left, diameter = not left, -diameter
         self.comp_on, self.comp_word = True, word
         self.comp = Compensation(left, diameter / 2, word) if diameter > 0 else None
@@ -855,11 +870,15 @@ class _Interpreter(FlowMixin):
             self._check_position(center, line, "the arc's centre")
             r0 = math.hypot(start[iu] - center[iu], start[iv] - center[iv])
             r1 = math.hypot(end[iu] - center[iu], end[iv] - center[iv])
-            if r0 == 0:
-                raise GCodeError(line, "the arc centre is the start point (zero radius)", word)
-            if abs(r1 - r0) > max(RADIUS_TOLERANCE_MM, 1e-3 * r0):
-                raise GCodeError(line, f"the end point is {abs(r1 - r0):.4g} mm off the arc's circle (radius "
-                                 f"{r0:.6g} mm at the start, {r1:.6g} mm at the end)", word)
+            if min(r0, r1) < ZERO_RADIUS_MM:
+                raise GCodeError(line, f"a zero-radius arc: its {'start' if r0 < r1 else 'end'} lies on the centre",
+                                 word)
+            spiral = SPIRAL_TOLERANCE_INCH * INCH if self.factor == INCH else SPIRAL_TOLERANCE_MM
+            err = abs(r1 - r0)
+            if err > 100 * spiral or (err > spiral and err > SPIRAL_RELATIVE * max(r0, r1)):
+                raise GCodeError(line, f"the end point is {err:.4g} mm off the arc's circle (radius {r0:.6g} mm at "
+                                 f"the start, {r1:.6g} mm at the end; LinuxCNC allows {spiral:.4g} mm or 0.1 %)",
+                                 word)
         else:
             word = radius[1]
             r = radius[0] * self.factor
