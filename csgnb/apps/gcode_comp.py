@@ -73,39 +73,6 @@ def _sweep(start, end, center, clockwise: bool) -> float:
     return ((a0 - a1) if clockwise else (a1 - a0)) % (2 * math.pi)
 
 
-def _line_line(p, d, q, e):
-    """Where the line ``p + t d`` meets ``q + s e`` (None when parallel)."""
-    den = d[0] * e[1] - d[1] * e[0]
-    if abs(den) < 1e-15 * (np.linalg.norm(d) * np.linalg.norm(e) + 1e-300):
-        return []
-    w = q - p
-    t = (w[0] * e[1] - w[1] * e[0]) / den
-    return [p + t * d]
-
-
-def _line_circle(p, d, c, r):
-    dd = float(d @ d)
-    f = p - c
-    b = float(f @ d)
-    disc = b * b - dd * (float(f @ f) - r * r)
-    if disc < 0:
-        return []
-    s = math.sqrt(disc)
-    return [p + ((-b - s) / dd) * d, p + ((-b + s) / dd) * d]
-
-
-def _circle_circle(c0, r0, c1, r1):
-    d = float(np.linalg.norm(c1 - c0))
-    if d == 0 or d > r0 + r1 or d < abs(r0 - r1):
-        return []
-    a = (r0 * r0 - r1 * r1 + d * d) / (2 * d)
-    h = math.sqrt(max(r0 * r0 - a * a, 0.0))
-    u = (c1 - c0) / d
-    m = c0 + a * u
-    n = np.array([-u[1], u[0]])
-    return [m + h * n, m - h * n]
-
-
 class Compensation:
     """The state of one ``G41``/``G42`` span: side, radius, the programmed point and the moves still open.
 
@@ -176,44 +143,76 @@ class Compensation:
                 self.queue[i] = replace(q, move=replace(m, start=start, end=end))
         self._flush(it)
 
-    @staticmethod
-    def _offset_path(q: _Queued):
-        """The queued XY move's compensated path: ('line', point, direction) or ('circle', centre, radius)."""
-        m = q.move
-        if m.kind == "arc":
-            return "circle", np.asarray(m.center[:2], float), float(np.linalg.norm(m.end[:2] - m.center[:2]))
-        return "line", np.asarray(m.start[:2], float), np.asarray(m.end[:2] - m.start[:2], float)
+    def _gouge(self, line: int, what: str) -> GCodeError:
+        return GCodeError(line, f"cutter compensation: {what} (use a smaller tool or change the contour)", self.word)
 
-    def _concave(self, it, new_path, line: int) -> np.ndarray:
-        """Trim at a concave corner: where the last XY move's offset path meets ``new_path``; the queue is flushed."""
-        old = self._offset_path(self.queue[0])  # the XY move; any after it only move along Z
-        kinds = (old[0], new_path[0])
-        if kinds == ("line", "line"):
-            hits = _line_line(old[1], old[2], new_path[1], new_path[2])
-        elif kinds == ("line", "circle"):
-            hits = _line_circle(old[1], old[2], new_path[1], new_path[2])
-        elif kinds == ("circle", "line"):
-            hits = _line_circle(new_path[1], new_path[2], old[1], old[2])
-        else:
-            hits = _circle_circle(old[1], old[2], new_path[1], new_path[2])
-        if not hits:
-            raise GCodeError(line, "cutter compensation: the tool cannot fit into the concave corner at the start of "
-                             "this move without gouging (use a smaller tool or change the contour)", self.word)
-        here = self._current()
-        xy = min(hits, key=lambda p: float(np.linalg.norm(p - here)))
+    def _concave(self, it, new: dict, beta: float, line: int) -> np.ndarray:
+        """Trim at a concave corner: the point where the queued XY move's offset path meets the new move's, chosen as
+        LinuxCNC chooses it for each pair of a line and an arc; the queued moves end there and are flushed."""
+        prev = self.queue[0].move
+        here, corner, r = self._current(), self.programmed, self.radius
+        normal = _angle(here - corner)  # the tool's side of the last move, at its end
+        if prev.kind != "arc" and new["kind"] == "line":
+            half = (beta + math.pi) / 2
+            if math.tan(half) == 0:
+                raise self._gouge(line, "a zero-degree inside corner")
+            xy = here + (r / math.tan(half)) * _unit(normal + self._gamma)  # back along the last offset line
+        elif prev.kind == "arc" and new["kind"] == "line":
+            pc, ccw = np.asarray(prev.center[:2], float), not prev.clockwise
+            old = float(np.linalg.norm(prev.end[:2] - pc))
+            inside = self._tool_inside(prev.clockwise)
+            theta = new["direction"] + (math.pi / 2 if ccw else -math.pi / 2)
+            d = (old + r if inside else old - r) * math.cos(theta - _angle(pc - corner))
+            ratio = (d - r if inside else d + r) / old
+            if not -1 <= ratio <= 1:
+                raise self._gouge(line, "the arc before this line makes a corner the tool cannot fit in without "
+                                  "gouging")
+            turn = math.acos(ratio)
+            sign = (-1 if ccw else 1) if inside else (1 if ccw else -1)
+            xy = pc + old * _unit(sign * turn + theta + math.pi)
+        elif prev.kind != "arc":  # line -> arc
+            c, big, ccw, inside = new["center"], new["radius"], new["ccw"], new["inside"]
+            tangent = normal - self._gamma
+            cy = big * math.sin(beta - math.pi / 2)
+            dist = big - r if inside else big + r
+            ratio = (cy + r if inside else cy - r) / dist
+            if not -1 <= ratio <= 1:
+                raise self._gouge(line, "the arc after this corner cannot be reached by the tool without gouging")
+            turn = math.asin(ratio)
+            if inside:
+                ang = tangent + turn if ccw else tangent - turn
+            else:
+                ang = tangent + math.pi - turn if ccw else tangent + math.pi + turn
+            xy = c + dist * _unit(ang)
+        else:  # arc -> arc
+            pc = np.asarray(prev.center[:2], float)
+            old = float(np.linalg.norm(prev.end[:2] - pc))
+            c, big, ccw = new["center"], new["radius"], new["ccw"]
+            newrad = big - r if new["inside"] else big + r
+            apart = float(np.linalg.norm(pc - c))
+            if old == 0 or apart == 0:
+                raise self._gouge(line, "two arcs about the same centre meet in a corner")
+            a = (old * old + apart * apart - newrad * newrad) / (2 * old * apart)
+            if not -1 <= a <= 1:
+                raise self._gouge(line, "two arcs make a corner the tool cannot fit in without gouging")
+            pullback = math.acos(a)
+            toward = _angle(c - pc)
+            sign = (1 if ccw else -1) if self._tool_inside(prev.clockwise) else (-1 if ccw else 1)
+            xy = pc + old * _unit(toward + sign * pullback)
         self._move_end(it, xy, line)
         return xy
 
-    def _corner(self, it, alpha: float, mid: np.ndarray, new_path, new_arc_outside: bool, rapid: bool, template,
-                line: int) -> np.ndarray:
+    def _corner(self, it, alpha: float, mid: np.ndarray, new: dict, rapid: bool, template, line: int) -> np.ndarray:
         """Join the queued moves to a new XY move that starts along ``alpha`` at ``mid``; return where it starts."""
         beta = self._beta(alpha)
         small = CONCAVE_CORNER_RAD
         last = self.queue[0].move
-        h_shape = beta > math.pi - small and (
-            (last.kind == "arc" and not self._tool_inside(last.clockwise)) or new_arc_outside)
-        if beta < -small or beta > math.pi + small or h_shape:
-            return self._concave(it, new_path, line)
+        if new["kind"] == "arc":  # atop an "m" or an "h": a reversal onto an arc the tool is outside of
+            reversal = abs(beta - math.pi) < small and not new["inside"]
+        else:  # a reversal off an arc the tool is outside of
+            reversal = beta > math.pi - small and last.kind == "arc" and not self._tool_inside(last.clockwise)
+        if beta < -small or beta > math.pi + small or reversal:
+            return self._concave(it, new, beta, line)
         here = self._current()
         self._flush(it)
         if beta > small:  # convex: round the corner about the programmed point (a straight rapid under G0)
@@ -260,7 +259,7 @@ class Compensation:
             alpha = _angle(p1 - p0)
             normal = _unit(alpha + self._gamma)
             mid = p0 + self.radius * normal
-            begin = self._corner(it, alpha, mid, ("line", mid, p1 - p0), False, rapid, move, line)
+            begin = self._corner(it, alpha, mid, {"kind": "line", "direction": alpha}, rapid, move, line)
             start, end = move.start.copy(), move.end.copy()
             start[:2], end[:2] = begin, p1 + self.radius * normal
             self.queue_start = begin
@@ -308,8 +307,8 @@ class Compensation:
         tangent = np.array([radial0[1], -radial0[0]]) if move.clockwise else np.array([-radial0[1], radial0[0]])
         alpha = _angle(tangent)
         mid = p0 + self.radius * (-radial0 if inside else radial0)
-        comp_radius = big - self.radius if inside else big + self.radius
-        begin = self._corner(it, alpha, mid, ("circle", c, comp_radius), not inside, False, move, line)
+        new = {"kind": "arc", "center": c, "radius": big, "ccw": not move.clockwise, "inside": inside}
+        begin = self._corner(it, alpha, mid, new, False, move, line)
         start, end = move.start.copy(), move.end.copy()
         start[:2], end[:2] = begin, end_xy
         # The programmed turn, less what the start moved on and plus what the end moved on (full circles stay full).
