@@ -133,7 +133,10 @@ class Tool:
     def planes_wide(self, width: int) -> np.ndarray:
         """The planes as a ``(k, 4)`` wide array (cached per width)."""
         if width not in self._wide:
-            self._wide[width] = to_wide(self.planes, width)
+            planes = self.planes
+            if planes.dtype == object and all(-(1 << 62) < v < (1 << 62) for v in planes.reshape(-1).tolist()):
+                planes = planes.astype(np.int64)  # the common case: to_wide's vectorised path, no Python ints
+            self._wide[width] = to_wide(planes, width)
         return self._wide[width]
 
     @property
