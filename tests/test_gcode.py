@@ -242,3 +242,10 @@ def test_arc_end_radius_tolerance_is_linuxcncs(text, ok):
 
 def test_fractional_line_numbers_are_labels_as_in_linuxcnc():
     assert [m.label for m in parse("N4567.789 G0 X1\nN10 G0 X2\n").moves] == [4567.789, 10]
+
+
+def test_g52_is_a_local_offset_in_g92s_registers():
+    moves = parse("G0 X1 Y1\nG52 X10 Y5\nG0 X0 Y0\nG52 X0\nG0 X0 Y0\nG92.1\nG0 X0 Y0\nG20 G52 Y1\nG0 Y0\n").moves
+    assert [m.end[:2].tolist() for m in moves] == [[1, 1], [10, 5], [0, 5], [0, 0], [0, 25.4]]
+    with pytest.raises(GCodeError, match="both use the axis words"):
+        parse("G52 G0 X1\n")

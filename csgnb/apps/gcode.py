@@ -13,9 +13,9 @@ Supported:
 * canned cycles ``G81 G82 G83 G73 G85 G89`` with ``G98``/``G99``, ``L`` repeats and ``G80``, in
   all three planes (:mod:`csgnb.apps.gcode_cycles`);
 * coordinate systems: ``G53`` (machine coordinates, one line), ``G54``-``G59.3`` with offsets
-  from ``G10 L2`` / ``G10 L20``; ``G92 G92.1 G92.2 G92.3``; ``G28 G30`` (via an intermediate
-  point to the stored position) and ``G28.1 G30.1`` (store it); the stored positions start at
-  ``home`` (default: the start position);
+  from ``G10 L2`` / ``G10 L20``; ``G92 G92.1 G92.2 G92.3``; ``G52`` (a local offset in G92's
+  registers); ``G28 G30`` (via an intermediate point to the stored position) and ``G28.1 G30.1``
+  (store it); the stored positions start at ``home`` (default: the start position);
 * tool length ``G43 [H]``, ``G43.1``, ``G49`` with the lengths of ``tool_lengths``: the machine
   moves the controlled point (gauge line) to program + offsets + tool length offset, and the tip
   hangs the *loaded* tool's length below it -- so with ``G43 H<loaded tool>`` the tip is at the
@@ -109,12 +109,12 @@ _G_GROUPS = {
     "canned cycle return": {980, 990},
     "coordinate system": {540, 550, 560, 570, 580, 590, 591, 592, 593},
     "path control": {610, 611, 640},
-    "non-modal": {40, 100, 280, 281, 300, 301, 530, 920, 921, 922, 923},
+    "non-modal": {40, 100, 280, 281, 300, 301, 520, 530, 920, 921, 922, 923},
 }
 _G_GROUP_OF = {code: group for group, codes in _G_GROUPS.items() for code in codes}
 _CS_NUMBER = {540: 1, 550: 2, 560: 3, 570: 4, 580: 5, 590: 6, 591: 7, 592: 8, 593: 9}
 _CYCLES = {810, 820, 830, 730, 850, 890}
-_AXIS_USERS = {100, 280, 300, 920, 431}  # codes that read X Y Z themselves (no motion from them)
+_AXIS_USERS = {100, 280, 300, 520, 920, 431}  # codes that read X Y Z themselves (no motion from them)
 
 # Known but refused: they change the cut, so they are never skipped.
 _G_REFUSED = {
@@ -618,7 +618,7 @@ class _Interpreter(FlowMixin):
         if "canned cycle return" in g:
             self.retract_r = g["canned cycle return"] == 990
         # -- G10, G28, G30, G92 ------------------------------------------------------------------------
-        if nonmodal in (100, 280, 281, 300, 301, 920, 921, 922, 923):
+        if nonmodal in (100, 280, 281, 300, 301, 520, 920, 921, 922, 923):
             used.update("XYZ")
             axis_user = True
             self._nonmodal(line, label, nonmodal, modal["non-modal"][1], values, used)
@@ -656,7 +656,7 @@ class _Interpreter(FlowMixin):
             motion = g.get("motion", self.motion)
             if "coordinate system" in g and _CS_NUMBER[g["coordinate system"]] != self.cs:
                 why, word = "a change of coordinate system", modal["coordinate system"][1]
-            elif g.get("non-modal") in (100, 280, 300, 530, 920, 921, 922, 923):
+            elif g.get("non-modal") in (100, 280, 300, 520, 530, 920, 921, 922, 923):
                 why, word = "a move or offset that cannot be compensated", modal["non-modal"][1]
             elif motion in _CYCLES and (axes or "motion" in g):
                 why, word = "a canned cycle", modal.get("motion", (0, f"G{_code_text(motion)}"))[1]
@@ -772,6 +772,11 @@ class _Interpreter(FlowMixin):
             if given:
                 raise GCodeError(line, f"{word} stores the current position and takes no axis words", word)
             (self.g28 if code == 281 else self.g30)[:] = self.mpos
+        elif code == 520:  # G52: a local offset, kept in G92's registers (LinuxCNC); the axes not named keep theirs
+            for i, v in given.items():
+                self.g92[i] = v
+            self._check_position(self.g92, line, "the G52 offset")
+            self.g92_on, self.g92_saved = True, self.g92.copy()
         elif code == 920:
             if not given:
                 raise GCodeError(line, "G92 needs at least one axis word", word)
