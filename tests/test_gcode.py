@@ -249,3 +249,13 @@ def test_g52_is_a_local_offset_in_g92s_registers():
     assert [m.end[:2].tolist() for m in moves] == [[1, 1], [10, 5], [0, 5], [0, 0], [0, 25.4]]
     with pytest.raises(GCodeError, match="both use the axis words"):
         parse("G52 G0 X1\n")
+
+
+@pytest.mark.parametrize("code, path, dwell", [
+    ("G84", [("rapid", 5), ("rapid", 2), ("linear", -5), ("linear", 2), ("rapid", 5)], 0.0),  # tap: feed in and out
+    ("G86", [("rapid", 5), ("rapid", 2), ("linear", -5), ("rapid", 5)], 0.5),  # bore: dwell, rapid out
+])
+def test_tapping_and_boring_cycles_sweep_as_linuxcnc_moves_them(code, path, dwell):
+    p = parse(f"G0 X0 Y0 Z5\nF100 S500 M3\n{code} X10 Y0 Z-5 R2 P0.5\nG80\n")
+    assert [(m.kind, float(m.end[2])) for m in p.moves[1:]] == path
+    assert all(m.origin == code for m in p.moves[1:]) and p.dwell_s == dwell

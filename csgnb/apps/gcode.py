@@ -10,7 +10,7 @@ Supported:
   is a full 360° circle, in every plane and both directions, as in LinuxCNC's ``pmCircleInit``;
 * planes ``G17 G18 G19``, units ``G20 G21``, distance ``G90 G91``, arc centres ``G90.1 G91.1``,
   feed modes ``G93`` (inverse time) ``G94`` (per minute) ``G95`` (per revolution; times only);
-* canned cycles ``G81 G82 G83 G73 G85 G89`` with ``G98``/``G99``, ``L`` repeats and ``G80``, in
+* canned cycles ``G81 G82 G83 G73 G84 G85 G86 G89`` with ``G98``/``G99``, ``L`` repeats and ``G80``, in
   all three planes (:mod:`csgnb.apps.gcode_cycles`);
 * coordinate systems: ``G53`` (machine coordinates, one line), ``G54``-``G59.3`` with offsets
   from ``G10 L2`` / ``G10 L20``; ``G92 G92.1 G92.2 G92.3``; ``G52`` (a local offset in G92's
@@ -98,7 +98,7 @@ _OFFSETS = "IJK"
 
 # Modal groups (G codes as integers x 10: G92.1 -> 921). Two codes of one group on a line are an error.
 _G_GROUPS = {
-    "motion": {0, 10, 20, 30, 800, 810, 820, 830, 730, 850, 890},
+    "motion": {0, 10, 20, 30, 800, 810, 820, 830, 730, 840, 850, 860, 890},
     "plane": {170, 180, 190},
     "distance": {900, 910},
     "arc distance": {901, 911},
@@ -113,7 +113,7 @@ _G_GROUPS = {
 }
 _G_GROUP_OF = {code: group for group, codes in _G_GROUPS.items() for code in codes}
 _CS_NUMBER = {540: 1, 550: 2, 560: 3, 570: 4, 580: 5, 590: 6, 591: 7, 592: 8, 593: 9}
-_CYCLES = {810, 820, 830, 730, 850, 890}
+_CYCLES = {810, 820, 830, 730, 840, 850, 860, 890}
 _AXIS_USERS = {100, 280, 300, 520, 920, 431}  # codes that read X Y Z themselves (no motion from them)
 
 # Known but refused: they change the cut, so they are never skipped.
@@ -121,7 +121,7 @@ _G_REFUSED = {
     432: "additive tool length offsets are not supported", 330: "spindle-synchronised motion (threading)",
     331: "rigid tapping", 760: "a lathe threading cycle", 382: "probing", 383: "probing", 384: "probing",
     385: "probing", 50: "splines", 51: "splines", 52: "NURBS", 70: "lathe diameter mode", 80: "lathe radius mode",
-    171: "UVW planes", 181: "UVW planes", 191: "UVW planes", 840: "tapping", 740: "tapping", 860: "boring",
+    171: "UVW planes", 181: "UVW planes", 191: "UVW planes", 740: "tapping",
     870: "back boring", 880: "boring with a manual retract",
 }
 # Known, unsupported, and without effect on a 3-axis swept volume: skippable with on_unsupported="warn".

@@ -1,4 +1,4 @@
-"""Canned drilling cycles G81 G82 G83 G73 G85 G89 as straight moves, in the G17 / G18 / G19 planes (LinuxCNC).
+"""Canned drilling cycles G81 G82 G83 G73 G84 G85 G86 G89 as straight moves, in the G17 / G18 / G19 planes (LinuxCNC).
 
 The drill axis is the plane's normal (Z for G17, Y for G18, X for G19), "up" its positive
 direction. Per hole (``L`` repeats; under G91 the plane position steps by the increment each
@@ -11,7 +11,11 @@ measured from the level before the line and the bottom from ``R``. ``R``, the bo
 * G81 feed to the bottom; G82 the same and a dwell ``P`` (s);
 * G83 peck: feed ``Q`` deeper, rapid out to ``R``, rapid back in to 0.254 mm above the last depth,
   and on; G73 chip break: the same with a 0.254 mm back-off instead of the retract to ``R``;
-* G85 feed in and feed out to ``R``; G89 the same with a dwell at the bottom.
+* G85 feed in and feed out to ``R``; G89 the same with a dwell at the bottom; G84 (right-hand
+  tapping) the same path: the tap feeds in synchronised with the spindle, which reverses, and
+  feeds out -- the swept volume is G85's (the thread itself is not modelled: the tap is its
+  envelope);
+* G86 (boring, spindle stop at the bottom, rapid out): G82's path (dwell ``P``, rapid out).
 """
 
 from __future__ import annotations
@@ -52,7 +56,7 @@ def run_cycle(it, line: int, label, code: int, values: dict, axes: dict) -> None
             it.cycle["q"] = values["Q"][0] * f
         if not it.cycle.get("q", 0) > 0:
             raise GCodeError(line, f"{word} needs a positive peck depth Q", values.get("Q", (0, word))[1])
-    if code in (820, 890):
+    if code in (820, 860, 890):
         if "P" in values:
             if values["P"][0] < 0:
                 raise GCodeError(line, f"{word}: the dwell P must not be negative", values["P"][1])
@@ -90,8 +94,8 @@ def run_cycle(it, line: int, label, code: int, values: dict, axes: dict) -> None
                 go(Rapid, a, depth + RAPID_DELTA_MM)
                 depth -= q
         go(Linear, a, bottom)
-        if code in (820, 890):
+        if code in (820, 860, 890):
             it.dwell += it.cycle.get("p", 0.0)
-        if code in (850, 890):
+        if code in (840, 850, 890):
             go(Linear, a, r)
         go(Rapid, a, clear)
