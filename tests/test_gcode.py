@@ -259,3 +259,45 @@ def test_tapping_and_boring_cycles_sweep_as_linuxcnc_moves_them(code, path, dwel
     p = parse(f"G0 X0 Y0 Z5\nF100 S500 M3\n{code} X10 Y0 Z-5 R2 P0.5\nG80\n")
     assert [(m.kind, float(m.end[2])) for m in p.moves[1:]] == path
     assert all(m.origin == code for m in p.moves[1:]) and p.dwell_s == dwell
+
+
+FANUC = """G21 G90 F100
+#1 = 0
+G0 X0 Y0 Z5
+M98 P1000 L3
+M98 P1000 L0
+G0 Z10
+M30
+O1000
+G91 G0 X10
+#1 = [#1 + 1]
+G90 G1 Z[-#1]
+G0 Z5
+M99
+"""
+
+
+def test_fanuc_subroutines_run_by_m98_with_repeats_and_shared_parameters():
+    p = parse(FANUC)
+    cuts = [m.end.tolist() for m in p.moves if m.kind == "linear"]
+    assert cuts == [[10, 0, -1], [20, 0, -2], [30, 0, -3]]  # three calls; #1 is shared with the caller
+    assert p.moves[-1].end.tolist() == [30, 0, 10] and p.end_line == 7  # L0 calls nothing; the body is not run
+    assert "O1000" not in p.skipped
+
+
+@pytest.mark.parametrize("text, match", [
+    ("M98 P7\nM30\n", "defines no subroutine O7"),
+    ("M98\n", "needs P"),
+    ("M98 P1 L-1\nM30\nO1\nM99\n", "non-negative integer"),
+    ("G0 X1\nM99\n", "M99 outside an M98 call"),
+    ("M98 P1\nM30\nO1\nM98 P1\nM99\n", "nests deeper"),
+])
+def test_fanuc_subroutine_errors_name_the_line(text, match):
+    with pytest.raises(GCodeError, match=match):
+        parse(text)
+
+
+def test_incremental_canned_cycles_count_r_from_the_initial_level_hole_after_hole():
+    # LinuxCNC's cycle_il: under G91 the R plane is R above where the tool stood when G81 began, for every hole
+    p = parse("G0 X0 Y0 Z0.25\nF40\nG91 G99 G81 X1 Z-1 R0.25\nG81 X1 Z-1 R0.25\nG80\n")
+    assert [m.end.round(6).tolist() for m in p.moves if m.kind == "linear"] == [[1, 0, -0.5], [2, 0, -0.5]]

@@ -28,7 +28,8 @@ Supported:
   blending only moves the path within the machine's tolerance, which this exact simulator does
   not model), coolant ``M7 M8 M9``;
 * parameters ``#1``, ``#<name>``, ``#<_global>``, ``[ ]`` expressions and O-word control flow
-  (:mod:`csgnb.apps.gcode_expr`), with a bound on loop passes.
+  (:mod:`csgnb.apps.gcode_expr`), with a bound on loop passes; Fanuc-style subroutines ``O<n>`` ...
+  ``M99`` called by ``M98 P<n> [L<count>]`` (parameters shared with the caller, as LinuxCNC).
 
 Anything else is refused with a :class:`GCodeError` naming the line and the word. Words that
 cannot change the swept volume (spindle-speed modes ``G96 G97``, overrides ``M48``-``M53``,
@@ -469,7 +470,11 @@ class _Interpreter(FlowMixin):
             if self._line(b):
                 end_line = b.line
                 break
-            pc += 1
+            pc = self._fanuc_jump(pc, b) if self.fanuc_pending is not None else pc + 1
+        if self.fanuc_frames:
+            start = self.blocks[self.fanuc_frames[-1][1]]
+            raise GCodeError(start.line, f"O{start.oword[0]} (called by M98) ran past the end of the program without "
+                             "its M99", f"O{start.oword[0]}")
         if self.comp is not None:  # the program ends under G41/G42: its last moves as compensated
             self.comp.finish(self)
         return Program(self.moves, self.notes, end_line, self.skipped, self.dwell, self.dialect, self.tool_changes)
@@ -535,6 +540,11 @@ class _Interpreter(FlowMixin):
         m_modal: dict[str, tuple[int, str]] = {}
         coolant = []
         for code, w in m_codes:
+            if code in (98, 99):
+                if "fanuc" in m_modal:
+                    raise GCodeError(line, f"{m_modal['fanuc'][1]} and {w} on one line", w)
+                m_modal["fanuc"] = (code, w)
+                continue
             group = next((g for g, codes in _M_GROUPS.items() if code in codes), None)
             if group is None:
                 if code in (7, 8, 9):
@@ -548,7 +558,7 @@ class _Interpreter(FlowMixin):
                     self._skip(line, f"M{code}", _M_SKIPPABLE.get(code, "a user-defined M code (no axis motion)"))
                     continue
                 why = {60: "pallet change", 70: "modal state save", 71: "modal state", 72: "modal state restore",
-                       73: "modal state", 98: "subroutine call (Fanuc)", 99: "subroutine return (Fanuc)"}.get(
+                       73: "modal state"}.get(
                     code, "not an M code this simulator knows")
                 raise GCodeError(line, f"unsupported word {w} ({why}; it may change the cut, so it cannot be skipped)",
                                  w)
@@ -633,6 +643,8 @@ class _Interpreter(FlowMixin):
                     raise GCodeError(line, "G80 (cancel canned cycle) takes no axis words", w)
         if not axis_user:
             self._motion(line, label, values, axes, motion_code, nonmodal == 530, used)
+        if "fanuc" in m_modal:
+            self._fanuc_word(line, *m_modal["fanuc"], values, used)
         for letter, (_, w) in values.items():
             if letter not in used:
                 if letter == "E":
@@ -641,6 +653,25 @@ class _Interpreter(FlowMixin):
                 raise GCodeError(line, f"the word {w} is used by no code on this line", w)
         # -- stop --------------------------------------------------------------------------------------
         return m_modal.get("stopping", (None,))[0] in (2, 30)
+
+    def _fanuc_word(self, line, code, word, values, used) -> None:
+        """M98 P<n> [L<count>]: call O<n> (ended by M99) count times (default once); M99: return from it."""
+        if code == 99:
+            self.fanuc_pending = ("return",)
+            return
+        used.update("PL")
+        if "P" not in values:
+            raise GCodeError(line, "M98 needs P, the number of the O subroutine to call", word)
+        n, count = values["P"][0], values.get("L", (1.0, ""))[0]
+        if n != int(n) or n < 0:
+            raise GCodeError(line, f"M98 P{values['P'][1][1:]}: P is an O number (a non-negative integer)", word)
+        if count != int(count) or count < 0:
+            raise GCodeError(line, f"M98: L (how many times) must be a non-negative integer, got {values['L'][1]}",
+                             values["L"][1])
+        if int(n) not in self.fanuc_subs:
+            raise GCodeError(line, f"M98 P{int(n)}: the file defines no subroutine O{int(n)} (an O{int(n)} line, its "
+                             "body, then M99)", word)
+        self.fanuc_pending = ("call", int(n), int(count))
 
     def _refuse_under_compensation(self, line, g, modal, m_modal, axes) -> None:
         """What LinuxCNC refuses while G41/G42 is on (a tool change, another plane, units or frame, a move that

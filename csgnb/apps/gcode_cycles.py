@@ -4,8 +4,9 @@ The drill axis is the plane's normal (Z for G17, Y for G18, X for G19), "up" its
 direction. Per hole (``L`` repeats; under G91 the plane position steps by the increment each
 time): if the tool is below the retract plane ``R`` it first rises to it, then a rapid to the
 hole's position, a rapid down to ``R``, the cycle's cutting moves, and the retract to ``R``
-(``G99``) or to the higher of ``R`` and the level before the line (``G98``). Under G91, ``R`` is
-measured from the level before the line and the bottom from ``R``. ``R``, the bottom, ``Q`` and
+(``G99``) or to the higher of ``R`` and the initial level (``G98``): where the tool stood when the
+cycle mode began, kept while the same cycle repeats (LinuxCNC's ``cycle_il``). Under G91, ``R`` is
+measured from the initial level and the bottom from ``R``. ``R``, the bottom, ``Q`` and
 ``P`` are sticky while cycles follow one another.
 
 * G81 feed to the bottom; G82 the same and a dwell ``P`` (s);
@@ -42,7 +43,12 @@ def run_cycle(it, line: int, label, code: int, values: dict, axes: dict) -> None
         it.cycle["r"] = values["R"][0] * f
     if "r" not in it.cycle:
         raise GCodeError(line, f"{word} needs a retract plane R", word)
-    r = it.cycle["r"] if it.absolute else old[a] + it.cycle["r"]
+    # The initial level: where the normal axis stood when this cycle mode began (LinuxCNC's cycle_il); it stays while
+    # the same cycle repeats, so G98 returns there and an incremental R counts from it, hole after hole
+    if it.cycle.get("il_code") != code:
+        it.cycle["il"], it.cycle["il_code"] = old[a], code
+    initial = it.cycle["il"]
+    r = it.cycle["r"] if it.absolute else initial + it.cycle["r"]
     if letter in axes:
         it.cycle["z"] = axes[letter][0] * f
     if "z" not in it.cycle:
@@ -62,7 +68,7 @@ def run_cycle(it, line: int, label, code: int, values: dict, axes: dict) -> None
                 raise GCodeError(line, f"{word}: the dwell P must not be negative", values["P"][1])
             it.cycle["p"] = values["P"][0]
     repeats = positive_count(values, "L", line, f"{word}: L (repeats)")
-    clear = r if it.retract_r else max(old[a], r)
+    clear = r if it.retract_r else max(initial, r)
     increments = {i: axes["XYZ"[i]][0] * f for i in (iu, iv) if "XYZ"[i] in axes}
 
     def go(cls, axis: int, value: float) -> None:

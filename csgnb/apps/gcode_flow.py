@@ -16,6 +16,12 @@ from csgnb.apps.gcode_expr import Block, GCodeError, evaluate
 
 __all__ = ["MAX_CALL_DEPTH", "MAX_LOOP_PASSES", "FlowMixin"]
 
+
+def _has_m99(b: Block) -> bool:
+    """Whether the line holds the word M99 (as a literal: a Fanuc subroutine's end is written, not computed)."""
+    return any(letter == "M" and text.upper().replace(" ", "").lstrip("M").lstrip("0") in ("99", "99.", "99.0")
+               for letter, _, text in b.words)
+
 MAX_LOOP_PASSES = 1_000_000
 """Default bound on the loop passes (while, do, repeat) of one program."""
 
@@ -165,6 +171,53 @@ class FlowMixin:
         if stack:
             name, kw, idx = stack[-1]
             raise GCodeError(self.blocks[idx].line, f"o{name} {kw} is never closed", f"o{name}")
+        self._fanuc_structure()
+
+    def _fanuc_structure(self) -> None:
+        """Fanuc-style subroutines (LinuxCNC's M98/M99): a bare ``O<n>`` line followed, before the next bare O line,
+        by a line with ``M99`` opens the body of subroutine n, which ``M98 P<n> [L<count>]`` runs; read in order,
+        the definition is skipped. A bare O line without its M99 is a program number."""
+        self.fanuc_subs: dict[int, tuple[int, int]] = {}
+        self.fanuc_frames: list[list[int]] = []  # [return block, sub's O block, calls left]
+        self.fanuc_pending = None
+        bare = [i for i, b in enumerate(self.blocks) if b.oword is not None and b.oword[1] == "program"]
+        for k, start in enumerate(bare):
+            stop = bare[k + 1] if k + 1 < len(bare) else len(self.blocks)
+            end = next((i for i in range(start + 1, stop) if _has_m99(self.blocks[i])), None)
+            if end is not None:
+                n = int(self.blocks[start].oword[0])
+                if n in self.fanuc_subs:
+                    raise GCodeError(self.blocks[start].line, f"O{n} (a subroutine ended by M99) is defined twice "
+                                     f"(first at line {self.blocks[self.fanuc_subs[n][0]].line})", f"O{n}")
+                self.fanuc_subs[n] = (start, end)
+        self.fanuc_ends = {end: start for start, end in self.fanuc_subs.values()}
+
+    def _fanuc_jump(self, pc: int, b: Block) -> int:
+        """The next block after a line with M98 (call) or M99 (return)."""
+        kind = self.fanuc_pending
+        self.fanuc_pending = None
+        if kind[0] == "call":
+            _, n, count = kind
+            if count == 0:
+                return pc + 1
+            if len(self.fanuc_frames) + len(self.frames) >= MAX_CALL_DEPTH:
+                raise GCodeError(b.line, f"M98 P{n} nests deeper than {MAX_CALL_DEPTH} calls", "M98")
+            start = self.fanuc_subs[n][0]
+            self.fanuc_frames.append([pc + 1, start, count])
+            return start + 1
+        if not self.fanuc_frames:
+            raise GCodeError(b.line, "M99 outside an M98 call: a Fanuc control would run the program again forever; "
+                             "end the program with M2 or M30", "M99")
+        frame = self.fanuc_frames[-1]
+        frame[2] -= 1
+        if frame[2] > 0:
+            self.passes += 1
+            if self.passes > self.max_loop_passes:
+                raise GCodeError(b.line, f"more than {self.max_loop_passes} loop passes: M98 L repeats too often (or "
+                                 "raise max_loop_passes)", "M99")
+            return frame[1] + 1
+        self.fanuc_frames.pop()
+        return frame[0]
 
     def _loop_pass(self, b: Block) -> None:
         self.passes += 1
@@ -176,6 +229,9 @@ class FlowMixin:
         """The next block index after an O-word line (None: the program ends)."""
         name, kw, args = b.oword
         if kw == "program":
+            sub = self.fanuc_subs.get(int(name))
+            if sub is not None and sub[0] == pc:  # a subroutine's body: run by M98 only
+                return sub[1] + 1
             self._skip(b.line, f"O{name}", "a program number (Fanuc/Haas header), no motion")
             return pc + 1
         ev = [evaluate(a, self, b.line, f"o{name}") for a in args]
