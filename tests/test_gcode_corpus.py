@@ -64,3 +64,14 @@ def test_the_cam_style_program_runs_as_a_haas_control_would():
     assert drilled == [(10, 10), (40, 10), (40, 20)]
     assert {m.tool for m in p if m.origin == "G83"} == {2}
     assert np.array_equal(p[-1].end[:2], [0, 0]) and p[-1].origin == "G28"
+
+
+def test_the_census_mills_a_program_end_to_end_and_checks_its_stl(tmp_path):
+    bench = _bench()
+    prog = tmp_path / "slot.ngc"
+    prog.write_text("G21 G90\nT2 M6\nG0 X0 Y0 Z5\nM3 S1000\nG1 Z-1 F100\nG1 X10\nG0 Z5\nM2\n")
+    r = bench.run_one(prog, "linuxcnc", "flat:3", 3.0, 100, tmp_path)
+    assert r["run"] == "ok" and r["stl_watertight"] and r["moves"] == 4, r
+    assert bench.run_one(prog, "linuxcnc", "flat:3", 3.0, 2, tmp_path)["run"] == "skipped"
+    lo, hi = bench.stock_for(parse_file(prog), 1.5)
+    assert lo.tolist() == [-2.5, -2.5, -2.0] and hi.tolist() == [12.5, 2.5, 0.0]
