@@ -301,3 +301,16 @@ def test_incremental_canned_cycles_count_r_from_the_initial_level_hole_after_hol
     # LinuxCNC's cycle_il: under G91 the R plane is R above where the tool stood when G81 began, for every hole
     p = parse("G0 X0 Y0 Z0.25\nF40\nG91 G99 G81 X1 Z-1 R0.25\nG81 X1 Z-1 R0.25\nG80\n")
     assert [m.end.round(6).tolist() for m in p.moves if m.kind == "linear"] == [[1, 0, -0.5], [2, 0, -0.5]]
+
+
+def test_rotated_coordinate_systems_turn_moves_and_arcs_about_their_origin():
+    p = parse("G10 L2 P1 X10 Y0 R90\nG0 X1 Y0\nF100\nG2 X0 Y-1 I-1 J0\nG91 G1 X1\nG90 G10 L2 P1 R0\nG0 X1 Y0\n")
+    ends = [m.end.round(9).tolist() for m in p.moves]
+    assert ends == [[10, 1, 0], [11, 0, 0], [11, 1, 0], [11, 0, 0]]  # program (1, 0) -> machine (10, 1), ...
+    arc = p.moves[1]
+    assert arc.center.round(9).tolist() == [10, 0, 0] and arc.clockwise  # I J turn with the system
+    with pytest.raises(GCodeError, match="rotated coordinate system"):
+        parse("G10 L2 P1 R30\nG18 F10\nG2 X1 Z0 I0.5 K0\n")
+    # G10 L20 in a rotated system: the current point becomes the given program coordinates
+    q = parse("G10 L2 P1 R90\nG0 X5 Y0\nG10 L20 P1 X0 Y0\nG0 X1 Y0\n").moves
+    assert q[0].end.round(9).tolist() == [0, 5, 0] and q[1].end.round(9).tolist() == [0, 6, 0]

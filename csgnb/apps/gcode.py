@@ -350,6 +350,7 @@ class _Interpreter(FlowMixin):
         self.loaded: int | None = None
         self.cs = 1
         self.g5x = {k: np.zeros(3) for k in range(1, 10)}
+        self.rotation = {k: 0.0 for k in range(1, 10)}  # degrees about Z of each coordinate system (G10 L2 R)
         self.g92, self.g92_saved, self.g92_on = np.zeros(3), np.zeros(3), False
         self.tlo = np.zeros(3)
         h = np.asarray(start if home is None else home, float)
@@ -372,8 +373,25 @@ class _Interpreter(FlowMixin):
     def _offset(self) -> np.ndarray:
         return self.g5x[self.cs] + self.g92 + self.tlo
 
+    def _turn(self, xy_vector: np.ndarray, sign: float = 1.0) -> np.ndarray:
+        """``xy_vector`` (3,) turned about Z by the current system's rotation (``sign=-1``: back)."""
+        a = math.radians(sign * self.rotation[self.cs])
+        c, s_ = math.cos(a), math.sin(a)
+        out = np.asarray(xy_vector, float).copy()
+        out[0], out[1] = c * xy_vector[0] - s_ * xy_vector[1], s_ * xy_vector[0] + c * xy_vector[1]
+        return out
+
+    def _to_machine(self, prog: np.ndarray) -> np.ndarray:
+        """Program coordinates (mm) to the controlled point in machine coordinates: the G92/G52 offset, the
+        system's rotation about its origin (LinuxCNC's G10 L2 R), its G5x origin, the tool length offset."""
+        if self.rotation[self.cs] == 0:
+            return prog + self._offset()
+        return self._turn(prog + self.g92) + self.g5x[self.cs] + self.tlo
+
     def _program_position(self) -> np.ndarray:
-        return self.mpos - self._offset()
+        if self.rotation[self.cs] == 0:
+            return self.mpos - self._offset()
+        return self._turn(self.mpos - self.g5x[self.cs] - self.tlo, -1.0) - self.g92
 
     def _length(self, tool) -> float:
         return float(self.tool_lengths.get(tool, 0.0)) if tool is not None else 0.0
@@ -775,24 +793,37 @@ class _Interpreter(FlowMixin):
                                  "forms (tool table, L1/L10/L11) are not", word)
             if "P" not in values or values["P"][0] not in range(0, 10):
                 raise GCodeError(line, "G10 L2/L20 needs P0..P9 (0: the current coordinate system)", word)
-            if "R" in values and values["R"][0] != 0:
-                raise GCodeError(line, "G10 R (rotated coordinate systems) is not supported", values["R"][1])
             p = int(values["P"][0]) or self.cs
             off = self.g5x[p].copy()
-            for i, v in given.items():
-                if values["L"][0] == 2.0:
+            rotation = values["R"][0] if "R" in values else self.rotation[p]
+            if values["L"][0] == 2.0:
+                for i, v in given.items():
                     off[i] = v
-                else:  # L20: the current position becomes v in system p
-                    off[i] = self.mpos[i] - self.tlo[i] - self.g92[i] - v
+            else:  # L20: the current position becomes the given coordinates in system p (turned by its rotation)
+                cs, self.cs = self.cs, p
+                saved, self.rotation[p] = self.rotation[p], rotation
+                here = self._program_position()
+                for i, v in given.items():
+                    here[i] = v
+                off = self.g5x[p] + self.mpos - self._to_machine(here)
+                self.cs, self.rotation[p] = cs, saved
+            if not (math.isfinite(rotation) and abs(rotation) <= 360 * 1000):
+                raise GCodeError(line, f"G10 R{rotation:g}: the rotation must be a finite angle in degrees",
+                                 values["R"][1])
             self._check_position(off, line, f"the G5x offset of system {p}")
-            self.g5x[p] = off
+            self.g5x[p], self.rotation[p] = off, float(rotation)
         elif code in (280, 300):
             # Through the intermediate point (program coordinates, G90/G91), then the named axes (all when none)
             # to the stored position.
-            mid = self.mpos.copy()
             prog = self._program_position()
-            for i, v in given.items():
-                mid[i] = (v if self.absolute else prog[i] + v) + self._offset()[i]
+            if self.rotation[self.cs] == 0:
+                mid = self.mpos.copy()
+                for i, v in given.items():
+                    mid[i] = (v if self.absolute else prog[i] + v) + self._offset()[i]
+            else:
+                for i, v in given.items():
+                    prog[i] = v if self.absolute else prog[i] + v
+                mid = self._to_machine(prog)
             self._emit(Rapid, mid, line, label, origin=word.upper(), skip_zero=True)
             target = self.mpos.copy()
             stored = self.g28 if code == 280 else self.g30
@@ -811,7 +842,7 @@ class _Interpreter(FlowMixin):
         elif code == 920:
             if not given:
                 raise GCodeError(line, "G92 needs at least one axis word", word)
-            base = self.mpos - self.g5x[self.cs] - self.tlo
+            base = self._program_position() + self.g92  # where the point is, before any G92 offset
             for i, v in given.items():
                 self.g92[i] = base[i] - v
             self._check_position(self.g92, line, "the G92 offset")
@@ -861,12 +892,18 @@ class _Interpreter(FlowMixin):
         if machine:
             for a, (v, _) in axes.items():
                 end[_AXES.index(a)] = v * self.factor
-        else:
+        elif self.rotation[self.cs] == 0:
             prog = self._program_position()
             off = self._offset()
             for a, (v, _) in axes.items():
                 i = _AXES.index(a)
                 end[i] = (v * self.factor if self.absolute else prog[i] + v * self.factor) + off[i]
+        else:  # a rotated system: the new point in program coordinates, then turned into the machine's
+            prog = self._program_position()
+            for a, (v, _) in axes.items():
+                i = _AXES.index(a)
+                prog[i] = v * self.factor if self.absolute else prog[i] + v * self.factor
+            end = self._to_machine(prog)
         if motion in (0, 10):
             self.exit_straight = False
         elif self.exit_straight:
@@ -892,6 +929,9 @@ class _Interpreter(FlowMixin):
             raise GCodeError(line, f"a {g} arc needs a centre ({letters[0]} {letters[1]} in the {name} plane) or a "
                              "radius R", g)
         turns = positive_count(values, "P", line, "an arc's P (turns)")
+        if self.rotation[self.cs] != 0 and self.plane != 170:
+            raise GCodeError(line, f"a G{self.plane // 10} arc in a rotated coordinate system (G10 R) leaves the "
+                             "machine's planes; only G17 arcs are supported there", g)
         center = start.copy()
         if offsets:
             for a, (_, w) in offsets.items():
@@ -899,10 +939,17 @@ class _Interpreter(FlowMixin):
                     raise GCodeError(line, f"{w} is not an offset of the {name} plane (G{self.plane // 10} uses "
                                      f"{letters[0]} and {letters[1]})", w)
             word = next(iter(offsets.values()))[1]
-            off = self._offset()
+            given_c = np.zeros(3)
             for axis, letter in ((iu, letters[0]), (iv, letters[1])):
-                v = offsets.get(letter, (0.0, ""))[0] * self.factor
-                center[axis] = v + off[axis] if self.arc_absolute else start[axis] + v
+                given_c[axis] = offsets.get(letter, (0.0, ""))[0] * self.factor
+            if self.arc_absolute:  # G90.1: the centre in program coordinates
+                prog_c = self._program_position()
+                prog_c[iu], prog_c[iv] = given_c[iu], given_c[iv]
+                c_machine = self._to_machine(prog_c)
+                center[iu], center[iv] = c_machine[iu], c_machine[iv]
+            else:  # the offsets turn with the system
+                turned = self._turn(given_c) if self.rotation[self.cs] != 0 else given_c
+                center[iu], center[iv] = start[iu] + turned[iu], start[iv] + turned[iv]
             self._check_position(center, line, "the arc's centre")
             r0 = math.hypot(start[iu] - center[iu], start[iv] - center[iv])
             r1 = math.hypot(end[iu] - center[iu], end[iv] - center[iv])

@@ -74,7 +74,7 @@ def run_cycle(it, line: int, label, code: int, values: dict, axes: dict) -> None
     def go(cls, axis: int, value: float) -> None:
         target = it._program_position()
         target[axis] = value
-        end = target + it._offset()
+        end = it._to_machine(target)
         feed = None
         if cls is Linear:
             feed = it._feed_rate(line, values, float(np.linalg.norm(end - it.mpos)))
@@ -88,7 +88,7 @@ def run_cycle(it, line: int, label, code: int, values: dict, axes: dict) -> None
         for i in (iu, iv):
             if i in increments:
                 target[i] = increments[i] if it.absolute else cur[i] + increments[i]
-        it._emit(Rapid, target + it._offset(), line, label, origin=word, skip_zero=True)
+        it._emit(Rapid, it._to_machine(target), line, label, origin=word, skip_zero=True)
         go(Rapid, a, r)
         if code in (830, 730):
             q = it.cycle["q"]
