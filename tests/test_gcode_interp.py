@@ -455,7 +455,7 @@ def test_computed_call_numbers_io_words_and_more_refusals():
     for text, line, match in [("G0 X1\nG1 G28 X0 F1\n", 2, "both use the axis words"),
                               ("G0 X1\nG28.1 X2\n", 2, "takes no axis words"),
                               ("G0 X1\nG10 L1 P1 Z3\n", 2, "L2 / G10 L20"),
-                              ("G0 X1\nG10 L2 P1 R30 X1\n", 2, "rotated"),
+                              ("G0 X1\nG10 L2 P1 R30 X1\nG19 G2 Y1 Z0 J0.5 F9\n", 3, "rotated"),
                               ("G0 X1\nG92\n", 2, "at least one axis"),
                               ("G0 X1\nM61 Q2\n", 2, "unsupported word M61"),
                               ("G0 X1\nM70\n", 2, "unsupported word M70"),
