@@ -314,3 +314,15 @@ def test_rotated_coordinate_systems_turn_moves_and_arcs_about_their_origin():
     # G10 L20 in a rotated system: the current point becomes the given program coordinates
     q = parse("G10 L2 P1 R90\nG0 X5 Y0\nG10 L20 P1 X0 Y0\nG0 X1 Y0\n").moves
     assert q[0].end.round(9).tolist() == [0, 5, 0] and q[1].end.round(9).tolist() == [0, 6, 0]
+
+
+def test_modal_state_saved_and_restored_by_m70_to_m73():
+    p = parse("G21 G90 F100\nM70\nG20 G91\nG1 X1\nM72\nG1 X1\n"
+              "o<sub> sub\nM73\nG20 G91\nG1 X1\no<sub> endsub\no<sub> call\nG1 X2\n")
+    assert [m.end[0].round(9) for m in p.moves] == [25.4, 1.0, 26.4, 2.0]  # inch, relative; then mm, absolute
+    with pytest.raises(GCodeError, match="none is saved"):
+        parse("M72\n")
+    with pytest.raises(GCodeError, match="inside an o-word sub"):
+        parse("M73\n")
+    with pytest.raises(GCodeError, match="while cutter compensation is on"):
+        parse("G0 X-10\nM70\nG20\nG41.1 D0.1\nG1 X0 F10\nM72\n")

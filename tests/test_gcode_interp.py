@@ -458,7 +458,7 @@ def test_computed_call_numbers_io_words_and_more_refusals():
                               ("G0 X1\nG10 L2 P1 R30 X1\nG19 G2 Y1 Z0 J0.5 F9\n", 3, "rotated"),
                               ("G0 X1\nG92\n", 2, "at least one axis"),
                               ("G0 X1\nM61 Q2\n", 2, "unsupported word M61"),
-                              ("G0 X1\nM70\n", 2, "unsupported word M70"),
+                              ("G0 X1\nM60\n", 2, "unsupported word M60"),
                               ("G0 X1\nG2 X1 Y1 R1 P1.5 F1\n", 2, "turns")]:
         with pytest.raises(GCodeError, match=match) as exc:
             parse(text)

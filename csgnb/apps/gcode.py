@@ -29,7 +29,8 @@ Supported:
   not model), coolant ``M7 M8 M9``;
 * parameters ``#1``, ``#<name>``, ``#<_global>``, ``[ ]`` expressions and O-word control flow
   (:mod:`csgnb.apps.gcode_expr`), with a bound on loop passes; Fanuc-style subroutines ``O<n>`` ...
-  ``M99`` called by ``M98 P<n> [L<count>]`` (parameters shared with the caller, as LinuxCNC).
+  ``M99`` called by ``M98 P<n> [L<count>]`` (parameters shared with the caller, as LinuxCNC); the
+  modal state saved and restored by ``M70``-``M73``.
 
 Anything else is refused with a :class:`GCodeError` naming the line and the word. Words that
 cannot change the swept volume (spindle-speed modes ``G96 G97``, overrides ``M48``-``M53``,
@@ -558,6 +559,11 @@ class _Interpreter(FlowMixin):
         m_modal: dict[str, tuple[int, str]] = {}
         coolant = []
         for code, w in m_codes:
+            if code in (70, 71, 72, 73):
+                if "modal state" in m_modal:
+                    raise GCodeError(line, f"{m_modal['modal state'][1]} and {w} on one line", w)
+                m_modal["modal state"] = (code, w)
+                continue
             if code in (98, 99):
                 if "fanuc" in m_modal:
                     raise GCodeError(line, f"{m_modal['fanuc'][1]} and {w} on one line", w)
@@ -575,8 +581,7 @@ class _Interpreter(FlowMixin):
                         used.update("PLQE")  # I/O pin, wait mode, value or timeout, analog channel
                     self._skip(line, f"M{code}", _M_SKIPPABLE.get(code, "a user-defined M code (no axis motion)"))
                     continue
-                why = {60: "pallet change", 70: "modal state save", 71: "modal state", 72: "modal state restore",
-                       73: "modal state"}.get(
+                why = {60: "pallet change"}.get(
                     code, "not an M code this simulator knows")
                 raise GCodeError(line, f"unsupported word {w} ({why}; it may change the cut, so it cannot be skipped)",
                                  w)
@@ -594,6 +599,8 @@ class _Interpreter(FlowMixin):
                              "on separate lines", modal["motion"][1])
         if self.comp_on:
             self._refuse_under_compensation(line, g, modal, m_modal, axes)
+        if "modal state" in m_modal:  # M70 save, M71 invalidate, M72 restore, M73 save and restore on return
+            self._modal_state(line, *m_modal["modal state"])
         # -- feed mode, F, S, T, M6, spindle -------------------------------------------------------------
         if "feed rate mode" in g:
             self.feed_mode = g["feed rate mode"]
@@ -671,6 +678,34 @@ class _Interpreter(FlowMixin):
                 raise GCodeError(line, f"the word {w} is used by no code on this line", w)
         # -- stop --------------------------------------------------------------------------------------
         return m_modal.get("stopping", (None,))[0] in (2, 30)
+
+    _MODAL = ("factor", "absolute", "arc_absolute", "plane", "feed_mode", "feed", "spindle", "spindle_on", "cs",
+              "retract_r")
+
+    def _modal_state(self, line, code, word) -> None:
+        """LinuxCNC's M70-M73: units, distance modes, plane, feed mode and rate, spindle, coordinate system and
+        retract mode, saved and restored."""
+        if code == 70:
+            self.saved_modal = {k: getattr(self, k) for k in self._MODAL}
+        elif code == 71:
+            self.saved_modal = None
+        elif code == 72:
+            if getattr(self, "saved_modal", None) is None:
+                raise GCodeError(line, "M72 restores the modal state saved by M70, but none is saved", word)
+            self._restore_modal(self.saved_modal, line)
+        else:
+            if not self.frames:
+                raise GCodeError(line, "M73 saves the caller's modal state for the end of a subroutine: use it inside "
+                                 "an o-word sub", word)
+            self.frames[-1].autorestore = {k: getattr(self, k) for k in self._MODAL}
+
+    def _restore_modal(self, state: dict, line: int) -> None:
+        if self.comp_on and (state["factor"] != self.factor or state["plane"] != self.plane
+                             or state["cs"] != self.cs):
+            raise GCodeError(line, "restoring the modal state would change units, plane or coordinate system while "
+                             "cutter compensation is on", "M72")
+        for k, v in state.items():
+            setattr(self, k, v)
 
     def _fanuc_word(self, line, code, word, values, used) -> None:
         """M98 P<n> [L<count>]: call O<n> (ended by M99) count times (default once); M99: return from it."""

@@ -30,10 +30,11 @@ MAX_CALL_DEPTH = 64
 
 
 class _Frame:
-    __slots__ = ("locals", "name", "numbered", "return_pc")
+    __slots__ = ("autorestore", "locals", "name", "numbered", "return_pc")
 
     def __init__(self, return_pc, numbered, name):
         self.return_pc, self.numbered, self.name, self.locals = return_pc, numbered, name, {}
+        self.autorestore = None  # the caller's modal state, when the sub saved it with M73
 
 
 
@@ -165,9 +166,9 @@ class FlowMixin:
                     raise GCodeError(b.line, f"o{name} {kw} is not inside an o{name} while / do / repeat loop",
                                      f"o{name}")
                 self.loop_of[idx] = loop[2]
-            elif kw == "return":
-                if not any(e[:2] == (name, "sub") for e in stack):
-                    raise GCodeError(b.line, f"o{name} return is not inside o{name} sub", f"o{name}")
+            elif kw == "return":  # LinuxCNC returns from the enclosing sub whatever the label (e.g. an if's)
+                if not any(e[1] == "sub" for e in stack):
+                    raise GCodeError(b.line, f"o{name} return is not inside a sub", f"o{name}")
         if stack:
             name, kw, idx = stack[-1]
             raise GCodeError(self.blocks[idx].line, f"o{name} {kw} is never closed", f"o{name}")
@@ -243,6 +244,8 @@ class FlowMixin:
             if ev:
                 self.globals["_value"], self.globals["_value_returned"] = ev[0], 1.0
             frame = self.frames.pop()
+            if frame.autorestore is not None:  # M73: the caller's modal state comes back
+                self._restore_modal(frame.autorestore, b.line)
             for k in range(1, 31):
                 self.numbered.pop(k, None)
             self.numbered.update(frame.numbered)
