@@ -75,3 +75,16 @@ def test_the_census_mills_a_program_end_to_end_and_checks_its_stl(tmp_path):
     assert bench.run_one(prog, "linuxcnc", "flat:3", 3.0, 2, tmp_path)["run"] == "skipped"
     lo, hi = bench.stock_for(parse_file(prog), 1.5)
     assert lo.tolist() == [-2.5, -2.5, -2.0] and hi.tolist() == [12.5, 2.5, 0.0]
+
+
+def test_the_fetch_script_lists_every_source_row_at_its_commit():
+    spec = importlib.util.spec_from_file_location("fetch", ROOT / "scripts" / "fetch_gcode_corpus.py")
+    fetch = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(fetch)
+    rows = fetch.listed()
+    programs = [r for r in rows if r[1].parts[0] == "programs"]
+    interp = [r for r in rows if r[1].parts[0] == "linuxcnc_interp"]
+    assert len(programs) >= 85 and len(interp) >= 50
+    assert all(u.startswith("https://raw.githubusercontent.com/") and "/tests/interp/" in u for u, _ in interp)
+    url, rel = next(r for r in programs if r[1].name == "cds.ngc")
+    assert "/LinuxCNC/linuxcnc/" in url and rel.parts[1] == "LinuxCNC__linuxcnc"
