@@ -112,10 +112,10 @@ def milling_workload(name: str, args) -> dict:
     program, lo, hi, grid, tool = program_setup(name, args.segments, args.moves)
     # csgnb --------------------------------------------------------------------------------
     w = Workpiece.box(lo, hi, grid=grid, threshold=args.threshold)
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     result = _profiled(args.profile, milling.simulate, w, program, tool, chord_tolerance=args.chord_tolerance,
                        progress=args.progress)
-    csg_total = time.perf_counter() - t0
+    csg_total, csg_cpu = time.perf_counter() - t0, time.process_time() - c0
     sweeping = [r for r in result.records if r.pieces > 0]
     csg_t = [r.wall_s for r in sweeping]
     vol = result.part_volume
@@ -125,23 +125,24 @@ def milling_workload(name: str, args) -> dict:
     # manifold3d on the same pieces -------------------------------------------------------------
     g = grid.to_grid(np.stack([lo, hi]))
     solid = _manifold_box(grid.to_model(g[0]), grid.to_model(g[1]))
-    mf_t = []
+    mf_t, mf_cpu = [], 0.0
     for move, rec in zip(program.moves, result.records, strict=True):
         pieces = milling.move_pieces(move, tool, args.chord_tolerance) if rec.pieces > 0 else []
         if not pieces:
             continue
-        t = time.perf_counter()
+        t, c = time.perf_counter(), time.process_time()
         for piece in pieces:
             solid = solid - _manifold_piece(piece, grid)
         solid.num_tri()  # manifold3d evaluates lazily: force the Booleans of this move
         mf_t.append(time.perf_counter() - t)
+        mf_cpu += time.process_time() - c
     mf_vol = float(solid.volume())
     first, last = _tenths(csg_t)
     mfirst, mlast = _tenths(mf_t)
     return {"moves": len(result.records), "sweeping_moves": len(sweeping),
             "pieces": sum(r.pieces for r in result.records), "grid_mm": grid.resolution, "tool": tool.name,
             "csgnb_s": csg_total, "csgnb_boolean_s": float(sum(r.boolean_s for r in result.records)),
-            "manifold3d_s": float(sum(mf_t)),
+            "manifold3d_s": float(sum(mf_t)), "csgnb_cpu_s": csg_cpu, "manifold3d_cpu_s": mf_cpu,
             "median_ms": float(np.median(csg_t) * 1e3), "max_ms": float(np.max(csg_t) * 1e3),
             "first_tenth_median_ms": first * 1e3, "last_tenth_median_ms": last * 1e3,
             "manifold3d_first_tenth_median_ms": mfirst * 1e3, "manifold3d_last_tenth_median_ms": mlast * 1e3,
@@ -238,6 +239,9 @@ def _report(name: str, d: dict) -> None:
     if m != d["moves"]:
         print(f" ({ours:.2f} s for the first {m})", end="")
     print(f" vs manifold3d {d['manifold3d_s']:.2f} s for {m} (target csgnb <= manifold3d: {speed})")
+    if "csgnb_cpu_s" in d:
+        print(f"  CPU time: csgnb {d['csgnb_cpu_s']:.2f} s, manifold3d {d['manifold3d_cpu_s']:.2f} s "
+              f"(ratio {d['csgnb_cpu_s'] / max(d['manifold3d_cpu_s'], 1e-9):.2f})")
     if "csgnb_boolean_s" in d:
         print(f"  csgnb: {d['pieces']} sweep pieces, {d['csgnb_boolean_s']:.2f} s of it in the octree Booleans; grid "
               f"{d['grid_mm']:g} mm; tool {d['tool']}")
