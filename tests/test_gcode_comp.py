@@ -262,3 +262,30 @@ def test_every_compensated_point_stays_one_radius_off_a_convex_profile(angles, s
     for m in body:
         for p in m.points(0.01):
             assert _distance_to_polygon(p[:2], poly) == pytest.approx(r, abs=1e-6)
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.lists(st.tuples(st.sampled_from(["G0", "G1", "G2", "G3", "Z"]), st.integers(-20, 20), st.integers(-20, 20),
+                          st.integers(-8, 8), st.integers(-8, 8)), min_size=1, max_size=12),
+       st.sampled_from(["G41.1", "G42.1"]), st.sampled_from([0.5, 2.0, 6.0]))
+def test_random_compensated_programs_run_or_fail_with_a_gcode_error(steps, side, diameter):
+    """Fuzz: lines, arcs (centre form), Z-only moves and rapids under compensation never raise anything but a
+    GCodeError naming a line, and every move they give is finite."""
+    lines = [f"G21 G90 G17 F100\nG0 X-30 Y-30 Z1\n{side} D{diameter}"]
+    for code, x, y, i, j in steps:
+        if code == "Z":
+            lines.append(f"G1 Z{x / 10:g}")
+        elif code in ("G2", "G3"):
+            lines.append(f"{code} X{x} Y{y} I{i} J{j}")
+        else:
+            lines.append(f"{code} X{x} Y{y}")
+    lines.append("G40\nG1 X-30 Y-30\nM2\n")
+    try:
+        program = gcode.parse("\n".join(lines))
+    except GCodeError as exc:
+        assert exc.line >= 1
+        return
+    for m in program.moves:
+        assert np.all(np.isfinite(m.start)) and np.all(np.isfinite(m.end))
+        if m.kind == "arc":
+            assert m.angle > 0 and np.isfinite(m.angle) and np.all(np.isfinite(m.points(0.1)))
