@@ -74,9 +74,14 @@ CUT_ERROR = -9
 """Status of a cut that found an inconsistent mesh (never expected; reported, not hidden)."""
 
 
-# Everything below is inlined at the numba IR level into the kernel that runs the cuts
-# (extraction, merge): a call that is not inlined increfs and decrefs each array it is
-# passed, which costs more than a classification.
+# The per-vertex and per-edge helpers below are inlined at the numba IR level into the cut
+# (a call that is not inlined reference-counts each array it is passed, which costs more than
+# a classification). A cut itself (:func:`cut_cell`, :func:`cut_cell_naive`, and the marching
+# they share) is a compiled function of its own: it is called once per cut on unmanaged views
+# (:mod:`csgnb._views`: the reference counts are null checks), and inlining it into every kernel
+# that cuts (extraction, merge, the octree's per-cell steps) re-typed and re-optimised a copy per
+# caller: minutes of compilation (issue 21). Callers pass int64 scalars (``np.int64``) so that
+# one specialisation serves them all.
 @jit(inline="always")
 def _side(m, v, s):
     """Cached exact side (-1, 0, +1) of vertex ``v`` against palette plane ``s`` in this cut."""
@@ -198,7 +203,7 @@ def _split_edge(m, h, s):
     return w
 
 
-@jit(inline="always")
+@jit
 def _march_and_separate(m, z0, hz0, s, opp_neg, opp_pos):
     """Marching and separation from on-plane vertex ``z0`` (outgoing half-edge ``hz0``).
 
@@ -320,7 +325,7 @@ def _march_and_separate(m, z0, hz0, s, opp_neg, opp_pos):
     return loop[0, LOOP_M], loop[0, LOOP_P]
 
 
-@jit(inline="always")
+@jit
 def cut_cell(m, h0, s, opp_neg, opp_pos, path):
     """Cut the polytope of ``h0`` by palette plane ``s`` (edge descent + marching), in place.
 
@@ -329,7 +334,7 @@ def cut_cell(m, h0, s, opp_neg, opp_pos, path):
     properly (mesh unchanged); CUT_ERROR on an inconsistent mesh. The caller must have
     checked :func:`~csgnb.mesh.halfedge.room_for_cut` for the polytope's face count.
     ``path`` records the descent's vertices when longer than 1 (``path[0]`` = count).
-    Inlined into its caller (see above).
+    Compiled once, called per cut (see above).
     """
     _new_stamp(m.counts)
     kind, value = _descend(m, h0, s, path)
@@ -347,7 +352,7 @@ def cut_cell(m, h0, s, opp_neg, opp_pos, path):
     return CUT_PROPER, a, b
 
 
-@jit(inline="always")
+@jit
 def cut_cell_naive(m, work, h0, s, opp_neg, opp_pos):
     """The baseline: classify every vertex of the polytope, then march as :func:`cut_cell`.
 
