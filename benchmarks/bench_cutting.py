@@ -43,7 +43,7 @@ from csgnb._views import unmanaged, unmanaged_tuple
 from csgnb.bsp.extract import KEEP_CELLS, Extractor, extract_boundary, extract_cells
 from csgnb.bsp.scenes import tangent_plane_bsp
 from csgnb.exact.wide import to_wide
-from csgnb.mesh.cutting import CUT_PROPER, cut, cut_cell, cut_cell_naive
+from csgnb.mesh.cutting import CUT_PROPER, cut, cut_cell_inline, cut_cell_naive
 from csgnb.mesh.halfedge import (
     FREE_F,
     FREE_H,
@@ -84,7 +84,7 @@ def _slab_restore_kernel(m, h, he0, fc0, counts0, plane, reps, mode, work, path)
     for _ in range(reps):
         if mode != NO_CUT:
             if mode == EDGE:
-                status, a, b = cut_cell(m, h, plane, -1, -1, path)
+                status, a, b = cut_cell_inline(m, h, plane, -1, -1, path)
             else:
                 status, a, b = cut_cell_naive(m, work, h, plane, -1, -1)
             if status != CUT_PROPER:
@@ -113,7 +113,7 @@ def _slab_add_release_kernel(m, rows, plane, reps, mode, work, path):
             release_cell(m, h)
             continue
         if mode == EDGE:
-            status, a, b = cut_cell(m, h, plane, -1, -1, path)
+            status, a, b = cut_cell_inline(m, h, plane, -1, -1, path)
         else:
             status, a, b = cut_cell_naive(m, work, h, plane, -1, -1)
         if status == CUT_PROPER:

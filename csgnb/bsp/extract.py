@@ -30,7 +30,7 @@ from csgnb.bsp.tree import OUT, BSPTree
 from csgnb.errors import GeometryError
 from csgnb.exact.integral import integer_array
 from csgnb.exact.intrinsics import classify_at, intersect_into
-from csgnb.mesh.cutting import CUT_PROPER, cut_cell, cut_cell_naive
+from csgnb.mesh.cutting import CUT_PROPER, cut_cell_inline, cut_cell_naive
 from csgnb.mesh.halfedge import (
     FACE,
     HE,
@@ -297,7 +297,11 @@ def clip_face(m, f, lab, tree, sc, out):
     return True
 
 
-@jit(inline="always")
+# clip_cell and extract_into are compiled once and called (on unmanaged views) by the extraction
+# kernels here and by the octree's per-cell steps; inlining them at the numba IR level re-typed a
+# copy per caller (issue 21). Callers pass int64 scalars and numpy bools, never literals: each
+# distinct argument type (Literal[int](2), int32) is one more compilation.
+@jit
 def clip_cell(m, h, lab, tree, sc, out, walls):
     """Clip every face of the cell ``h`` (label ``lab``) against its opposite subtree (:func:`clip_face`).
 
@@ -324,7 +328,7 @@ def clip_cell(m, h, lab, tree, sc, out, walls):
 # extraction: cells by cutting, pieces at the leaves, cells released (one kernel call)
 
 
-@jit(inline="always")
+@jit
 def extract_into(m, tree, stack, state, cells, sc, out, mode, no_path):
     """Cut the box cell down the tree; at each leaf clip, record or release the cell.
 
@@ -336,6 +340,7 @@ def extract_into(m, tree, stack, state, cells, sc, out, mode, no_path):
     baseline. Returns DONE, NEED_ROOM (nothing of the pending step done: grow and call
     again) or FAILED.
     """
+    mode = np.int64(mode)
     keep = (mode & KEEP_CELLS) != 0
     naive = (mode & NAIVE) != 0
     walls = (mode & WALLS) != 0
@@ -352,7 +357,7 @@ def extract_into(m, tree, stack, state, cells, sc, out, mode, no_path):
                 if (mode & PIECES) != 0:
                     mark_v = out.counts[0]
                     mark_p = out.counts[1]
-                    if not clip_cell(m, h, lab, tree, sc, out, walls):
+                    if not clip_cell(m, np.int64(h), np.int64(lab), tree, sc, out, walls):
                         out.counts[0] = mark_v
                         out.counts[1] = mark_p
                         return NEED_ROOM
@@ -373,10 +378,12 @@ def extract_into(m, tree, stack, state, cells, sc, out, mode, no_path):
         if naive:
             if sc.work.shape[0] < m.he.shape[0]:
                 return NEED_ROOM
-            status, a, b = cut_cell_naive(m, sc.work, h, tree.plane[node], tree.pos[node], tree.neg[node])
+            status, a, b = cut_cell_naive(m, sc.work, np.int64(h), np.int64(tree.plane[node]),
+                                          np.int64(tree.pos[node]), np.int64(tree.neg[node]))
         else:
             # The caps face the other child: the negative part's cap looks into pos[node].
-            status, a, b = cut_cell(m, h, tree.plane[node], tree.pos[node], tree.neg[node], no_path)
+            status, a, b = cut_cell_inline(m, np.int64(h), np.int64(tree.plane[node]), np.int64(tree.pos[node]),
+                                    np.int64(tree.neg[node]), no_path)
         if status == CUT_PROPER:
             # The child processed first goes on top. A leaf child first: its cell is done
             # (and released) at once instead of waiting below a whole subtree.
@@ -560,7 +567,7 @@ def _clip_cells_kernel(m, tree, cells, state, sc, out, walls):
         if lab != OUT:
             mark_v = out.counts[0]
             mark_p = out.counts[1]
-            if not clip_cell(m, cells[state[0], 1], lab, tree, sc, out, walls):
+            if not clip_cell(m, np.int64(cells[state[0], 1]), np.int64(lab), tree, sc, out, np.bool_(walls)):
                 out.counts[0] = mark_v
                 out.counts[1] = mark_p
                 return NEED_ROOM

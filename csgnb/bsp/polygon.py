@@ -201,10 +201,10 @@ def split_polygon(palette, support_row, plane, edges, verts, start, k, sides, o_
     side = classify_polygon(palette, verts, start, k, plane, sides)
     if side != 2:
         return side, 0, 0
-    k_neg = _write_piece(palette, support_row, plane, edges, start, verts, start, k, sides, 1,
-                         edges, o_neg, verts, o_neg, True)
-    k_pos = _write_piece(palette, support_row, plane, edges, start, verts, start, k, sides, -1,
-                         edges, o_pos, verts, o_pos, True)
+    k_neg = _write_piece(palette, support_row, plane, edges, start, verts, start, k, sides, np.int64(1),
+                         edges, o_neg, verts, o_neg, np.bool_(True))
+    k_pos = _write_piece(palette, support_row, plane, edges, start, verts, start, k, sides, np.int64(-1),
+                         edges, o_pos, verts, o_pos, np.bool_(True))
     return side, k_neg, k_pos
 
 
@@ -222,10 +222,10 @@ def split_polygon_planes(palette, support_row, plane, edges_in, k, out_neg, out_
     side = classify_polygon(palette, work, 0, k, plane, sides)
     if side != 2:
         return side, 0, 0
-    k_neg = _write_piece(palette, support_row, plane, edges_in, 0, work, 0, k, sides, 1,
-                         out_neg, 0, work, 0, False)
-    k_pos = _write_piece(palette, support_row, plane, edges_in, 0, work, 0, k, sides, -1,
-                         out_pos, 0, work, 0, False)
+    k_neg = _write_piece(palette, support_row, plane, edges_in, np.int64(0), work, np.int64(0), k, sides, np.int64(1),
+                         out_neg, np.int64(0), work, np.int64(0), np.bool_(False))
+    k_pos = _write_piece(palette, support_row, plane, edges_in, np.int64(0), work, np.int64(0), k, sides, np.int64(-1),
+                         out_pos, np.int64(0), work, np.int64(0), np.bool_(False))
     return side, k_neg, k_pos
 
 
@@ -269,8 +269,8 @@ def _split_set_kernel(palette, support, offsets, edges, verts, plane, sides, sid
                     neg_edges[o + j] = edges[e0 + j]
                 kn = k
             else:
-                kn = _write_piece(palette, row, plane, edges, e0, verts, e0, k, sides, 1,
-                                  neg_edges, o, verts, 0, False)
+                kn = _write_piece(palette, row, plane, edges, e0, verts, e0, k, sides, np.int64(1),
+                                  neg_edges, o, verts, np.int64(0), np.bool_(False))
             neg_src[nn] = i
             neg_off[nn + 1] = o + kn
             nn += 1
@@ -281,8 +281,8 @@ def _split_set_kernel(palette, support, offsets, edges, verts, plane, sides, sid
                     pos_edges[o + j] = edges[e0 + j]
                 kp = k
             else:
-                kp = _write_piece(palette, row, plane, edges, e0, verts, e0, k, sides, -1,
-                                  pos_edges, o, verts, 0, False)
+                kp = _write_piece(palette, row, plane, edges, e0, verts, e0, k, sides, np.int64(-1),
+                                  pos_edges, o, verts, np.int64(0), np.bool_(False))
             pos_src[npos] = i
             pos_off[npos + 1] = o + kp
             npos += 1

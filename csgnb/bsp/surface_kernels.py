@@ -435,8 +435,8 @@ def pair_lines_kernel(
         c2 = 0
         for c in range(3):
             if c != k:
-                keys[count, c2] = ratio_to_double(dirs, count, c)
-                keys[count, 2 + c2] = ratio_to_double(points, count, c)
+                keys[count, c2] = ratio_to_double(dirs, np.int64(count), np.int64(c))
+                keys[count, 2 + c2] = ratio_to_double(points, np.int64(count), np.int64(c))
                 c2 += 1
         h = _mix(_SEED ^ np.uint64(k))
         for c in range(4):

@@ -145,7 +145,7 @@ def _support_kernel(Q, sign, N, h, axial_par, center, axes, lam):
                 return 1, _AXIAL_NONE
         return 0, _AXIAL_NONE
     if nneg == 0 and central:
-        return _cylinder_rows(center, axes, lam, -gamma, N, h, 0), _AXIAL_NONE
+        return _cylinder_rows(center, axes, lam, -gamma, N, h, np.int64(0)), _AXIAL_NONE
     if nneg == 0:  # convex paraboloid: the vertex half-space, the rest once s is bounded
         for k in range(3):
             if beta[k] != 0.0:
@@ -241,10 +241,10 @@ def _polytope_box(N, h, m, box, slack, out):
     H = np.empty(m + 6)
     M[:m] = N[:m]
     H[:m] = h[:m]
-    n = _box_rows(box, M, H, m)
+    n = _box_rows(box, M, H, np.int64(m))
     D = np.eye(3)
     ext = np.empty((3, 2))
-    if _extents_kernel(M, H, n, slack, D, 3, ext) == 0:
+    if _extents_kernel(M, H, n, slack, D, np.int64(3), ext) == 0:
         for e in range(3):
             out[e], out[3 + e] = math.inf, -math.inf
         return False
@@ -322,7 +322,7 @@ def _term_boxes_kernel(Ms, term_start, search, has_limit, boxes, unbounded):
                     out[3 + e] = min(out[3 + e], mb[3 + e])
             ok = out[0] <= out[3] and out[1] <= out[4] and out[2] <= out[5]
         else:
-            ok = _polytope_box(N, H, at, box, slack, out)
+            ok = _polytope_box(N, H, np.int64(at), box, slack, out)
             rounds = 2 if n_axial > 0 else 0
             D = np.empty((n_axial, 3))
             ext = np.empty((n_axial, 2))
@@ -339,8 +339,8 @@ def _term_boxes_kernel(Ms, term_start, search, has_limit, boxes, unbounded):
                 HM = np.empty(at + 6)
                 M[:at] = N[:at]
                 HM[:at] = H[:at]
-                nm = _box_rows(box, M, HM, at)
-                if _extents_kernel(M, HM, nm, slack, D, n_axial, ext) == 0:
+                nm = _box_rows(box, M, HM, np.int64(at))
+                if _extents_kernel(M, HM, nm, slack, D, np.int64(n_axial), ext) == 0:
                     ok = False
                     break
                 k = 0
@@ -354,9 +354,9 @@ def _term_boxes_kernel(Ms, term_start, search, has_limit, boxes, unbounded):
                         continue
                     qa = par[q, 0] * centers[q, 0] + par[q, 1] * centers[q, 1] + par[q, 2] * centers[q, 2]
                     rhs = _axial_rhs(kind[q], par[q], lo - qa - slack, hi - qa + slack)
-                    grown = _cylinder_rows(centers[q], axes[q], lams[q], rhs, N, H, grown)
+                    grown = _cylinder_rows(centers[q], axes[q], lams[q], rhs, N, H, np.int64(grown))
                 at = grown
-                ok = _polytope_box(N, H, at, box, slack, out)
+                ok = _polytope_box(N, H, np.int64(at), box, slack, out)
         if not ok:
             for e in range(3):
                 out[e], out[3 + e] = math.inf, -math.inf
@@ -425,12 +425,12 @@ def _surface_boxes_kernel(Ms, term_of, term_box, scale, out):
         if m == 1 and lam[0] == 0.0 and lam[1] == 0.0 and lam[2] == 0.0:  # a plane: its polygon
             N[1, 0], N[1, 1], N[1, 2] = -N[0, 0], -N[0, 1], -N[0, 2]
             H[1] = -H[0]
-            _polytope_box(N, H, 2, tb, slack, o)
+            _polytope_box(N, H, np.int64(2), tb, slack, o)
             continue
         if m == 0:  # the convex side may be the outside (a hole's cylinder)
             m, _ = _support_kernel(Ms[q], -1.0, N, H, par, center, axes, lam)
         if m > 0:
-            _polytope_box(N, H, m, tb, slack, o)
+            _polytope_box(N, H, np.int64(m), tb, slack, o)
         else:
             for e in range(6):
                 o[e] = tb[e]

@@ -65,7 +65,7 @@ from csgnb.mesh.halfedge import (
     halfedge_dest,
 )
 
-__all__ = ["CutResult", "cut", "cut_cell", "cut_cell_naive", "CUT_PROPER", "CUT_ERROR"]
+__all__ = ["CutResult", "cut", "cut_cell", "cut_cell_inline", "cut_cell_naive", "CUT_PROPER", "CUT_ERROR"]
 
 CUT_PROPER = 2
 """Status of a cut that split the polytope into two parts of non-zero volume."""
@@ -74,9 +74,15 @@ CUT_ERROR = -9
 """Status of a cut that found an inconsistent mesh (never expected; reported, not hidden)."""
 
 
-# Everything below is inlined at the numba IR level into the kernel that runs the cuts
-# (extraction, merge): a call that is not inlined increfs and decrefs each array it is
-# passed, which costs more than a classification.
+# The per-vertex and per-edge helpers below are inlined at the numba IR level into the cut
+# (a call that is not inlined reference-counts each array it is passed, which costs more than
+# a classification). The cut itself is inlined only into the two loops that cut
+# (:func:`csgnb.bsp.extract.extract_into`, :func:`csgnb.bsp.merging.merge_cells`: its call, with
+# the mesh arrays as arguments, cost ~10 % of a carving) and into :func:`cut_cell`; those loops
+# are compiled once and called by every kernel that cuts. Inlining the loops into their callers
+# too (the octree's per-cell steps) re-typed and re-optimised a copy of the cut per caller:
+# minutes of compilation (issue 21). The naive baseline is a compiled function of its own.
+# Callers pass int64 scalars (``np.int64``) so that one specialisation serves them all.
 @jit(inline="always")
 def _side(m, v, s):
     """Cached exact side (-1, 0, +1) of vertex ``v`` against palette plane ``s`` in this cut."""
@@ -320,8 +326,14 @@ def _march_and_separate(m, z0, hz0, s, opp_neg, opp_pos):
     return loop[0, LOOP_M], loop[0, LOOP_P]
 
 
+@jit
+def _march_and_separate_call(m, z0, hz0, s, opp_neg, opp_pos):
+    """:func:`_march_and_separate`, compiled once for the naive baseline (not a hot path)."""
+    return _march_and_separate(m, z0, hz0, s, opp_neg, opp_pos)
+
+
 @jit(inline="always")
-def cut_cell(m, h0, s, opp_neg, opp_pos, path):
+def cut_cell_inline(m, h0, s, opp_neg, opp_pos, path):
     """Cut the polytope of ``h0`` by palette plane ``s`` (edge descent + marching), in place.
 
     Returns (status, a, b): status CUT_PROPER with the negative and positive parts'
@@ -329,7 +341,7 @@ def cut_cell(m, h0, s, opp_neg, opp_pos, path):
     properly (mesh unchanged); CUT_ERROR on an inconsistent mesh. The caller must have
     checked :func:`~csgnb.mesh.halfedge.room_for_cut` for the polytope's face count.
     ``path`` records the descent's vertices when longer than 1 (``path[0]`` = count).
-    Inlined into its caller (see above).
+    Inlined into the loops that cut (see above); :func:`cut_cell` is its compiled entry.
     """
     _new_stamp(m.counts)
     kind, value = _descend(m, h0, s, path)
@@ -347,7 +359,13 @@ def cut_cell(m, h0, s, opp_neg, opp_pos, path):
     return CUT_PROPER, a, b
 
 
-@jit(inline="always")
+@jit
+def cut_cell(m, h0, s, opp_neg, opp_pos, path):
+    """:func:`cut_cell_inline` as a compiled function (one copy for every caller that is not a cutting loop)."""
+    return cut_cell_inline(m, h0, s, opp_neg, opp_pos, path)
+
+
+@jit
 def cut_cell_naive(m, work, h0, s, opp_neg, opp_pos):
     """The baseline: classify every vertex of the polytope, then march as :func:`cut_cell`.
 
@@ -378,7 +396,7 @@ def cut_cell_naive(m, work, h0, s, opp_neg, opp_pos):
     else:
         z0 = _split_edge(m, cross_h, s)
         hz = np.int64(he[cross_h, NEXT])
-    a, b = _march_and_separate(m, z0, hz, s, opp_neg, opp_pos)
+    a, b = _march_and_separate_call(m, z0, hz, s, opp_neg, opp_pos)
     if a < 0:
         return CUT_ERROR, -1, -1
     return CUT_PROPER, a, b

@@ -21,10 +21,12 @@ Python per cell. Per cell, with the mesh store reset:
 :func:`_combine_kernel` merges eight leaf children back into their parent when their BSPs
 fit: an axis-BSP over the children's BSPs, then redundancy removal in the parent box.
 
-The big per-cell steps (tool clipping, merge + redundancy removal, extraction in a box) are
-separately compiled functions rather than inlined ones: they run once per cell, their call
-costs a few microseconds on unmanaged views, and compiling them once instead of inlining them
-into every kernel keeps the first run's compile time reasonable.
+The big per-cell steps (tool clipping, merge + redundancy removal, extraction in a box, one
+cell of a Boolean, a split, a combine) are separately compiled functions rather than inlined
+ones: they run once per cell, their call costs a few microseconds on unmanaged views, and
+compiling them once instead of inlining them into every kernel keeps the first run's compile
+time reasonable (issue 21: the inlined version took minutes; ``benchmarks/bench_compile.py``).
+Only small helpers are inlined at the numba IR level.
 
 Kernels are resumable (:mod:`csgnb._resumable`): before a step that could overflow they
 check room, and on a shortage return ``NEED_ROOM`` with ``need[0]`` naming the resource
@@ -407,7 +409,7 @@ def pieces_to_import(out, bi, need):
 def import_polygons(pal, bi, n, bs, seed, t, need):
     """Build the BSP of ``n`` import polygons into ``t`` (label 1 inside); its node count or -1."""
     _shuffle(bs.order, n, seed)
-    count = build_kernel(pal, bi.support[:n], bi.offsets[: n + 1], bi.edges, bi.verts, bs.order[:n], 1,
+    count = build_kernel(pal, bi.support[:n], bi.offsets[: n + 1], bi.edges, bi.verts, bs.order[:n], np.int64(1),
                           t.plane, t.neg, t.pos, t.label, bs.a_edges, bs.a_verts, bs.sides,
                           bs.st_node, bs.st_start, bs.st_k)
     if count == -1:
@@ -445,7 +447,7 @@ def simplify_in_box(pal, m, src, box, ws, seed, need):
     ws.ext_stack[0, 2] = 6
     ws.out.counts[0] = 0
     ws.out.counts[1] = 0
-    status = extract_into(m, src, ws.ext_stack, st, ws.cells, ws.sc, ws.out, PIECES, ws.path)
+    status = extract_into(m, src, ws.ext_stack, st, ws.cells, ws.sc, ws.out, np.int64(PIECES), ws.path)
     if status != DONE:
         need[0] = R_EXTRACT if status == NEED_ROOM else 0
         return -1, 0
@@ -486,7 +488,8 @@ def merge_and_simplify(pal, m, ta, tb, table, constant, box, ws, seed, need):
     st[1] = 1
     st[2] = 0
     st[3] = 0
-    status = merge_cells(m, ta, tb, 0, table, constant, ms, st, ws.to, ws.cells, ws.path, ws.sc.work, False)
+    status = merge_cells(m, ta, tb, np.int64(0), table, constant, ms, st, ws.to, ws.cells, ws.path, ws.sc.work,
+                         np.bool_(False))
     if status == NEED_ROOM:
         need[0] = R_MERGE
         return -1, 0, 0
@@ -512,7 +515,7 @@ def merge_and_simplify(pal, m, ta, tb, table, constant, box, ws, seed, need):
         la = ws.to.label[leaf]
         if la == 0:
             continue
-        if not clip_cell(m, ws.cells[i, 1], la, ws.to, ws.sc, ws.out, False):
+        if not clip_cell(m, np.int64(ws.cells[i, 1]), np.int64(la), ws.to, ws.sc, ws.out, np.bool_(False)):
             need[0] = R_PIECES
             return -1, 0, 0
     if ws.out.counts[1] == 0:
@@ -622,7 +625,7 @@ def _centre_point(lo, size, pt):
     store_int64_at(pt, 0, 3, 2)
 
 
-@jit(inline="always")
+@jit
 def boolean_cell(pal, oc, pool, amap, node, tool_kind, tool, cand, table, constant, ws, seed, need):
     """Apply the Boolean to one leaf cell and write its result. Returns 1 done, 0 short of room."""
     if oc.kind[node] == UNIFORM and constant[oc.label[node]] >= 0:
@@ -722,7 +725,7 @@ def _alloc_children(oc, node):
     return first
 
 
-@jit(inline="always")
+@jit
 def split_step(pal, oc, pool, amap, node, st, ws, threshold, min_size, seed, need):
     """Split cell ``node`` into its 8 children (resumable per child). Returns 1 done, 0 short of room."""
     if oc.child[node] < 0:
@@ -941,7 +944,7 @@ def _boolean_kernel(pal, oc, pool, amap, work, cand, done, tool_kind, tool, tlo,
 # combine (Figure 8)
 
 
-@jit(inline="always")
+@jit
 def combine_parent(pal, oc, pool, amap, node, ws, threshold, seed, need):
     """Replace the 8 leaf children of ``node`` by one cell if their solid fits ``threshold`` nodes.
 

@@ -386,7 +386,7 @@ def _frame_arrays(q: Quadric):
         raise TypeError(f"expected a csgnb.quadric.Quadric, got {type(q).__name__}")
     center, axes, lam, beta = np.empty(3), np.empty((3, 3)), np.empty(3), np.empty(3)
     form, coef = np.empty(3, dtype=np.int64), np.empty((3, 5))
-    central, gamma, _, _ = frame_kernel(np.ascontiguousarray(q.matrix), center, axes, lam, beta, form, coef)
+    central, gamma, _, _ = frame_kernel(np.array(q.matrix, np.float64, order="C"), center, axes, lam, beta, form, coef)
     return center, axes, lam, beta, form, coef, bool(central), float(gamma)
 
 

@@ -138,10 +138,10 @@ def jobs_kernel(center, axes, form, coef, box, unit, jt, jplane, jsheet, juv, jq
                 m = 4
                 lines = region_lines(fk, ax, bx, ay, by, ac, octant)
                 if not same_octants:
-                    m = _clip_uv(px, py, m, lines[0], lines[1], lines[2], qx, qy)
+                    m = _clip_uv(px, py, np.int64(m), lines[0], lines[1], lines[2], qx, qy)
                     px[:m] = qx[:m]
                     py[:m] = qy[:m]
-                m = _clip_uv(px, py, m, lines[3], lines[4], lines[5], qx, qy)
+                m = _clip_uv(px, py, np.int64(m), lines[3], lines[4], lines[5], qx, qy)
                 px[:m] = qx[:m]
                 py[:m] = qy[:m]
                 if flat:  # a single plane: clip by the box's faces, exactly its polygon
@@ -152,11 +152,11 @@ def jobs_kernel(center, axes, form, coef, box, unit, jt, jplane, jsheet, juv, jq
                         cv = axes[e, j]
                         c0 = center[e] + tz * axes[e, k]
                         if m >= 3:
-                            m = _clip_uv(px, py, m, -cu, -cv, box[3 + e] - c0, qx, qy)
+                            m = _clip_uv(px, py, np.int64(m), -cu, -cv, box[3 + e] - c0, qx, qy)
                             px[:m] = qx[:m]
                             py[:m] = qy[:m]
                         if m >= 3:
-                            m = _clip_uv(px, py, m, cu, cv, c0 - box[e], qx, qy)
+                            m = _clip_uv(px, py, np.int64(m), cu, cv, c0 - box[e], qx, qy)
                             px[:m] = qx[:m]
                             py[:m] = qy[:m]
                 if m < 3:
@@ -216,7 +216,7 @@ def quadric_jobs(q: Quadric, box, unit: float | None = None):
     unit = 0.5 * float(np.linalg.norm(box[3:] - box[:3])) if unit is None else as_positive(unit, "unit")
     center, axes, lam, beta = np.empty(3), np.empty((3, 3)), np.empty(3), np.empty(3)
     form, coef = np.empty(3, dtype=np.int64), np.empty((3, 5))
-    frame_kernel(np.ascontiguousarray(q.matrix), center, axes, lam, beta, form, coef)
+    frame_kernel(np.array(q.matrix, np.float64, order="C"), center, axes, lam, beta, form, coef)
     jt = np.empty((JOBS_PER_QUADRIC, 3, 2))
     jp = np.empty(JOBS_PER_QUADRIC, dtype=np.int64)
     js = np.empty(JOBS_PER_QUADRIC)

@@ -209,7 +209,7 @@ def _tasks_kernel(Ms, C, term_start, surface, orient, boxes, term_box, radius, u
         # jobs
         frame_kernel(Ms[s], center, axes, lam, beta, fm, cf)
         j0 = nj
-        nj = jobs_kernel(center, axes, fm, cf, bx, unit, jt, jp, js, ju, jq, nj)
+        nj = jobs_kernel(center, axes, fm, cf, bx, unit, jt, jp, js, ju, jq, np.int64(nj))
         if nj == j0:
             no, nx, ns = o0, x0, s0
             continue
