@@ -90,7 +90,6 @@ class Compensation:
         self.left, self.radius, self.word = left, radius, word
         self.first = True
         self.queue: list[_Queued] = []
-        self.queue_start: np.ndarray | None = None  # XY where the queued moves begin (LinuxCNC's endpoint)
         self.programmed: np.ndarray | None = None  # (2,) the last programmed XY end
 
     # -- geometry --------------------------------------------------------------------------------------------
@@ -132,7 +131,7 @@ class Compensation:
                                      self.word)
                 self.queue[i] = replace(q, move=replace(m, end=end, angle=new))
             else:
-                if float(q.direction @ (xy - self.queue_start)) < 0:
+                if float(q.direction @ (xy - self.queue[0].move.start[:2])) < 0:  # from where the queue begins
                     raise GCodeError(line, "cutter compensation: the straight move on line "
                                      f"{m.line} cannot reach the concave corner without gouging: it is shorter than "
                                      "the tool needs to turn there (use a smaller tool or change the contour)",
@@ -247,7 +246,6 @@ class Compensation:
             alpha = _angle(p1 - here) + self._gamma
             end = move.end.copy()
             end[:2] = p1 + self.radius * _unit(alpha)
-            self.queue_start = here
             self.queue = [_Queued(replace(move, end=end), np.zeros(2))]
             self.first = False
         elif np.array_equal(p0, p1):  # no XY motion: stay at the compensated XY
@@ -262,7 +260,6 @@ class Compensation:
             begin = self._corner(it, alpha, mid, {"kind": "line", "direction": alpha}, rapid, move, line)
             start, end = move.start.copy(), move.end.copy()
             start[:2], end[:2] = begin, p1 + self.radius * normal
-            self.queue_start = begin
             self.queue = [_Queued(replace(move, start=start, end=end), p1 - p0)]
         self.programmed = p1
 
@@ -297,7 +294,6 @@ class Compensation:
             sweep = _sweep(here, end_xy, centre, move.clockwise) + (move.angle - _sweep(p0, p1, c, move.clockwise))
             if not sweep > 0:
                 sweep += 2 * math.pi
-            self.queue_start = here
             self.queue = [_Queued(replace(move, start=start, end=end, center=new_centre, angle=sweep), np.zeros(2),
                                   sweep)]
             self.first = False
@@ -314,7 +310,6 @@ class Compensation:
         # The programmed turn, less what the start moved on and plus what the end moved on (full circles stay full).
         moved = (_angle(begin - c) - _angle(mid - c) + math.pi) % (2 * math.pi) - math.pi
         sweep = move.angle - (moved if not move.clockwise else -moved)
-        self.queue_start = begin
         self.queue = [_Queued(replace(move, start=start, end=end, angle=sweep), np.zeros(2), sweep)]
         self.programmed = p1
 
