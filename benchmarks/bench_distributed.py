@@ -1,4 +1,4 @@
-"""A batch of milling jobs on a Dask LocalCluster against the same jobs one by one in this process.
+"""A batch of milling jobs and a sharded carving on a Dask LocalCluster, against the same work in one process.
 
 The batch: the two shipped programs (:mod:`csgnb.apps.examples`) with four tools each and two
 feed scales (the feed changes the program's text, its digest and its cut time, not the part):
@@ -7,8 +7,9 @@ feed scales (the feed changes the program's text, its digest and its cut time, n
 
 Printed and written (``--json PATH``):
 
-* ``serial``: the jobs run one by one here (:func:`csgnb.distributed.run_job`), wall and CPU s
-  (kernels loaded first, so no compilation is timed);
+* ``serial``: the jobs run one by one here (:func:`csgnb.distributed.run_job`), wall and CPU s,
+  after :func:`csgnb.distributed.cluster.warm_worker` -- the same warm-up every worker gets (kernels
+  loaded, one small job run), so neither side times compilation or first-use imports;
 * ``batch``: :func:`csgnb.distributed.run_batch` on a 2-worker ``LocalCluster`` (1 thread each),
   wall s, CPU s (this process and the workers, ``time.process_time`` deltas), the cluster's
   start-up with the kernel warm-up (timed apart), and per-task overhead: ``(workers x wall -
@@ -18,6 +19,16 @@ Printed and written (``--json PATH``):
   flagged ``"quiet": false`` (other processes shared the cores).
 
 Every batch result is checked against its serial run: exact volumes ``==``, STL SHA-256 equal.
+
+The sharded carving (``--workloads sharded``): ``--dodecahedra`` (default 1,000) turned dodecahedra
+just outside a sphere subtracted from a block (the carving of ``bench_milling.py``), by one
+:class:`csgnb.octree.Workpiece` in a fresh process and by a :class:`csgnb.distributed.sharded.ShardedWorkpiece`
+of ``--shards`` (default 8) on the 2-worker cluster. Both build every hull from its float points
+(tool preparation included). Printed: wall and CPU s of each (the sharded CPU adds this process and
+the workers), the exact volumes (must be equal), the workers' time inside Booleans against the
+time they had (the rest is communication and idling), Booleans per message, and memory: each
+process's peak resident set during the carving (``VmHWM`` after ``clear_refs``), whole and above
+its resident set before it (the loaded kernels and libraries every process carries).
 """
 
 from __future__ import annotations
@@ -30,11 +41,12 @@ import sys
 import tempfile
 import time
 
+import numpy as np
 from distributed import Client, LocalCluster
 
 from csgnb.distributed import MillingJob, run_batch, run_job
-from csgnb.distributed.cluster import WarmUpPlugin, local_cluster_kwargs
-from csgnb.warmup import warm_up
+from csgnb.distributed.cluster import WarmUpPlugin, local_cluster_kwargs, warm_worker
+from csgnb.exact.rational import fraction_text, parse_fraction
 
 TOOLS = {"pocket.nc": ["flat:6", "flat:5", "bull:6:1", "ball:6"], "relief.nc": ["ball:4", "ball:3", "bull:4:1",
                                                                               "flat:4"]}
@@ -61,16 +73,135 @@ def _load() -> float:
     return os.getloadavg()[0]
 
 
+def _memory_kb() -> tuple[int, int]:
+    """This process's resident set and its peak (kB) since the last :func:`_reset_peak`."""
+    fields = dict(line.split(":", 1) for line in open("/proc/self/status").read().splitlines() if ":" in line)
+    return int(fields["VmRSS"].split()[0]), int(fields["VmHWM"].split()[0])
+
+
+def _reset_peak() -> int:
+    """Start a new peak (``VmHWM``) for this process; return its resident set now (kB)."""
+    with open("/proc/self/clear_refs", "w") as fh:
+        fh.write("5")
+    return _memory_kb()[0]
+
+
+def _carving(n: int, radius: float):
+    from csgnb.apps import carving
+    from csgnb.exact import Grid
+
+    grid = Grid.fit([-6.0] * 3, [6.0] * 3)
+    c = carving.carving_placements(carving.sphere_target(radius=4.0), n, radius, grid=grid, seed=15)
+    return grid, c
+
+
+def _single_carve(n: int, radius: float, threshold: int) -> dict:
+    """In a fresh process: one workpiece carved, timed, its peak memory measured."""
+    from csgnb.octree import Workpiece
+
+    warm_worker()
+    grid, c = _carving(n, radius)
+    w = Workpiece.box([-4.6] * 3, [4.6] * 3, grid=grid, threshold=threshold)
+    base = _reset_peak()
+    cpu0, t0 = time.process_time(), time.perf_counter()
+    for i in range(n):
+        w.difference(c.hull(i))
+    wall, cpu = time.perf_counter() - t0, time.process_time() - cpu0
+    return {"wall_s": wall, "cpu_s": cpu, "volume": fraction_text(w.volume()), "rss_before_kb": base,
+            "peak_kb": _memory_kb()[1], "cells": w.n_cells}
+
+
+def sharded_workload(args) -> dict:
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor
+
+    from csgnb.distributed.sharded import ShardedWorkpiece
+    from csgnb.octree import Workpiece
+
+    n = args.dodecahedra
+    with ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn")) as pool:
+        single = pool.submit(_single_carve, n, args.dodecahedron_radius, args.threshold).result()
+    print(f"single workpiece: {n} dodecahedra in {single['wall_s']:.1f} s wall, {single['cpu_s']:.1f} s CPU; "
+          f"peak {single['peak_kb'] / 1024:.0f} MB ({(single['peak_kb'] - single['rss_before_kb']) / 1024:.0f} MB "
+          "above its start)", flush=True)
+    cluster = LocalCluster(**local_cluster_kwargs(args.workers))
+    client = Client(cluster)
+    client.register_plugin(WarmUpPlugin(), name=WarmUpPlugin.name)
+    try:
+        grid, c = _carving(n, args.dodecahedron_radius)
+        s = ShardedWorkpiece(Workpiece.box([-4.6] * 3, [4.6] * 3, grid=grid, threshold=args.threshold), client,
+                             args.shards, batch=args.batch)
+        bases = client.run(_reset_peak)
+        worker_cpu0 = sum(client.run(time.process_time).values())
+        cpu0, t0 = time.process_time(), time.perf_counter()
+        for i in range(n):
+            s.difference(c.hull(i))
+        s.flush()
+        wall = time.perf_counter() - t0
+        cpu = time.process_time() - cpu0 + sum(client.run(time.process_time).values()) - worker_cpu0
+        peaks = {a: kb[1] for a, kb in client.run(_memory_kb).items()}
+        stats = s.stats()
+        volume = s.volume()
+    finally:
+        client.close()
+        cluster.close()
+    if volume != parse_fraction(single["volume"]):
+        raise SystemExit("MISMATCH: the sharded volume differs from the single workpiece's")
+    busy: dict[str, float] = {}
+    for st in stats:
+        busy[st["worker"]] = busy.get(st["worker"], 0.0) + st["busy_s"]
+    idle = args.workers * wall - sum(busy.values())
+    peak_worker = max(peaks.values())
+    above = max(peaks[a] - bases[a] for a in peaks)
+    single_above = single["peak_kb"] - single["rss_before_kb"]
+    print(f"sharded ({s.n_shards} shards {s.counts}, {args.workers} workers, batch {args.batch}): {wall:.1f} s wall, "
+          f"{cpu:.1f} s CPU -- {wall / single['wall_s']:.2f}x the single workpiece's wall time")
+    print(f"  Booleans routed {s.messages} ({s.messages / n:.2f} shards per dodecahedron) in {s.calls} messages; "
+          f"workers inside Booleans {sum(busy.values()):.1f} s of {args.workers * wall:.1f} s "
+          f"(communication and idling {idle:.1f} s)")
+    print(f"  memory: worker peak {peak_worker / 1024:.0f} MB ({above / 1024:.0f} MB above its start) against "
+          f"{single['peak_kb'] / 1024:.0f} MB ({single_above / 1024:.0f} MB) for the single workpiece: "
+          f"{peak_worker / single['peak_kb']:.0%} whole, {above / max(single_above, 1):.0%} above the start")
+    print("  exact volumes: sharded == single")
+    return {"dodecahedra": n, "shards": s.n_shards, "batch": args.batch, "single": single,
+            "sharded": {"wall_s": wall, "cpu_s": cpu, "messages": s.messages, "calls": s.calls,
+                        "busy_s_per_worker": busy, "idle_s": idle, "worker_peak_kb": peaks,
+                        "worker_start_kb": bases, "per_shard": stats},
+            "wall_ratio": wall / single["wall_s"], "memory_ratio": peak_worker / single["peak_kb"],
+            "memory_ratio_above_start": above / max(single_above, 1)}
+
+
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--json", default=None, help="write the figures here")
-    p.add_argument("--resolution", type=float, default=1.0, help="grid step in mm (0: fitted as the CLI does)")
+    p.add_argument("--resolution", type=float, default=0.0,
+                   help="grid step in mm (default 0: fitted as `python -m csgnb.mill` does; 1.0 for a quick run)")
     p.add_argument("--jobs", type=int, default=16, help="how many of the 16 jobs")
     p.add_argument("--workers", type=int, default=2)
+    p.add_argument("--workloads", nargs="+", default=["batch", "sharded"], choices=["batch", "sharded"])
+    p.add_argument("--dodecahedra", type=int, default=1000, help="dodecahedra of the sharded carving")
+    p.add_argument("--dodecahedron-radius", type=float, default=0.5)
+    p.add_argument("--threshold", type=int, default=150, help="the workpieces' BSP threshold (as bench_milling)")
+    p.add_argument("--shards", type=int, default=8)
+    p.add_argument("--batch", type=int, default=32, help="Booleans per message to a shard")
     args = p.parse_args(argv)
+    figures = {}
+    if "batch" in args.workloads:
+        figures["batch"] = batch_workload(args)
+        if figures["batch"] is None:
+            return 1
+    if "sharded" in args.workloads:
+        figures["sharded"] = sharded_workload(args)
+    if args.json:
+        with open(args.json, "w") as fh:
+            json.dump(figures, fh, indent=1, default=str)
+    return 0
+
+
+def batch_workload(args) -> dict | None:
     batch = jobs(args.resolution or None, args.jobs)
     load_before = _load()
-    warm_up("exact", "mesh", "bsp", "octree", progress=False, parallel=False)
+    warm_worker()  # as every worker is warmed: kernels loaded, first-use imports done
 
     cpu0, t0 = time.process_time(), time.perf_counter()
     serial = [run_job(j) for j in batch]
@@ -103,29 +234,27 @@ def main(argv=None) -> int:
            != (s.part_volume, s.removed_per_move, s.stl_sha256)]
     if bad:
         print(f"MISMATCH between the batch and the serial runs: {bad}", file=sys.stderr)
-        return 1
+        return None
     inside = sum(r.wall_s for r in results)
     overhead_ms = (args.workers * batch_wall - inside) * 1000 / len(batch)
     quiet = max(load_before, load_after) <= (os.cpu_count() or 1)
     print(f"batch:  {len(batch)} jobs on {args.workers} workers in {batch_wall:.1f} s wall, {batch_cpu:.1f} s CPU "
           f"(cluster start + warm-up {startup:.1f} s, not included); speed-up {serial_wall / batch_wall:.2f}x")
-    print(f"per-task overhead {overhead_ms:.0f} ms (idle tail included); empty task round trip {noop_ms:.2f} ms")
+    median = float(np.median([r.wall_s for r in results]))
+    print(f"per-task overhead {overhead_ms:.0f} ms ({overhead_ms / 10 / median:.1f}% of the median job, "
+          f"{median:.2f} s; idle tail included); empty task round trip {noop_ms:.2f} ms")
     print(f"load average {load_before:.1f} before, {load_after:.1f} after, {os.cpu_count()} cores"
           + ("" if quiet else ": NOT QUIET, other processes shared the cores; the figures are provisional"))
     print("exact volumes and STL bytes: batch == serial for every job")
-    if args.json:
-        with open(args.json, "w") as fh:
-            json.dump({"jobs": len(batch), "workers": args.workers, "resolution_mm": args.resolution,
-                       "serial": {"wall_s": serial_wall, "cpu_s": serial_cpu},
-                       "batch": {"wall_s": batch_wall, "cpu_s": batch_cpu, "startup_s": startup,
-                                 "task_s": inside, "per_task_overhead_ms": overhead_ms},
-                       "noop_task_ms": noop_ms, "speedup": serial_wall / batch_wall,
-                       "load_before": load_before, "load_after": load_after, "cores": os.cpu_count(),
-                       "quiet": quiet, "per_job": {r.name: {"serial_s": s.wall_s, "batch_task_s": r.wall_s,
-                                                             "moves": r.moves} for r, s in zip(results, serial,
-                                                                                                strict=True)}},
-                      fh, indent=1)
-    return 0
+    return {"jobs": len(batch), "workers": args.workers, "resolution_mm": args.resolution,
+            "serial": {"wall_s": serial_wall, "cpu_s": serial_cpu},
+            "batch": {"wall_s": batch_wall, "cpu_s": batch_cpu, "startup_s": startup, "task_s": inside,
+                      "per_task_overhead_ms": overhead_ms},
+            "median_job_s": float(np.median([r.wall_s for r in results])),
+            "noop_task_ms": noop_ms, "speedup": serial_wall / batch_wall,
+            "load_before": load_before, "load_after": load_after, "cores": os.cpu_count(), "quiet": quiet,
+            "per_job": {r.name: {"serial_s": s.wall_s, "batch_task_s": r.wall_s, "moves": r.moves}
+                        for r, s in zip(results, serial, strict=True)}}
 
 
 if __name__ == "__main__":

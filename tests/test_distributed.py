@@ -283,13 +283,45 @@ def single():
     return w, volumes
 
 
+def _oriented_area_per_plane(surface) -> dict:
+    """Exact oriented area vector summed per supporting plane (plane as primitive integers): two closed surfaces
+    with equal dicts cover the same oriented regions of every plane, however their polygons are cut."""
+    import math
+
+    from csgnb.exact import from_wide
+
+    pos = surface.exact_positions()
+    planes = from_wide(surface.palette)
+    out: dict = {}
+    for i, poly in enumerate(surface.polygons()):
+        sup = int(surface.support[i])  # ~row: the polygon faces the row's negative side
+        row = [int(v) if sup >= 0 else -int(v) for v in planes[sup if sup >= 0 else ~sup]]
+        g = math.gcd(*row)
+        key = tuple(v // g for v in row)
+        pts = [pos[v] for v in poly]
+        area = [Fraction(0)] * 3
+        for a, b in zip(pts, pts[1:] + pts[:1], strict=True):
+            area = [area[0] + a[1] * b[2] - a[2] * b[1], area[1] + a[2] * b[0] - a[0] * b[2],
+                    area[2] + a[0] * b[1] - a[1] * b[0]]
+        total = out.get(key, [Fraction(0)] * 3)
+        out[key] = [x + y for x, y in zip(total, area, strict=True)]
+    return {k: tuple(v) for k, v in out.items() if any(v)}
+
+
+def _same_surface(sharded, w) -> None:
+    got, expected = sharded.surface(), w.surface()
+    assert got.is_closed()
+    assert got.exact_volume() == expected.exact_volume() == w.volume()
+    assert _oriented_area_per_plane(got) == _oriented_area_per_plane(expected)
+
+
 @pytest.mark.parametrize("shards", [1, 2, 8])
 def test_sharded_workpiece_equals_one_workpiece(client, single, shards, tmp_path):
     from csgnb.distributed.sharded import ShardedWorkpiece
     from csgnb.octree import Workpiece
 
     w, volumes = single
-    s = ShardedWorkpiece(Workpiece.box([-16, -16, -16], [16, 16, 16]), client, shards)
+    s = ShardedWorkpiece(Workpiece.box([-16, -16, -16], [16, 16, 16]), client, shards, batch=1)
     assert s.volume() == volumes[0]
     reached = []
     for (tool, fn), v in zip(_sequence(), volumes[1:], strict=True):
@@ -303,13 +335,119 @@ def test_sharded_workpiece_equals_one_workpiece(client, single, shards, tmp_path
     expected = w.classify(pts)
     assert set(expected.tolist()) == {-2, 0, 1}
     assert s.classify(pts).tolist() == expected.tolist()
-    back = ShardedWorkpiece.load(s.save(tmp_path / "saved"), client)
+    _same_surface(s, w)
+    back = ShardedWorkpiece.load(s.save(tmp_path / "saved", step=5), client)
+    assert back.step == 5
     assert back.volume() == volumes[-1]
     assert back.classify(pts).tolist() == expected.tolist()
 
 
+def _random_sequence(seed: int, n: int):
+    """Random hulls over the stock and across the shards' walls, with every named Boolean (as the octree fuzz)."""
+    import numpy as np
+
+    from csgnb.bsp.solid import DIFFERENCE, INTERSECTION, UNION
+    from csgnb.mesh.hull import convex_hull
+
+    rng = np.random.default_rng(seed)
+    out = []
+    for i in range(n):
+        centre = rng.integers(-14, 15, 3)
+        size = rng.integers(2, 12)
+        pts = centre + rng.integers(-size, size + 1, (int(rng.integers(5, 10)), 3))
+        if np.linalg.matrix_rank(pts[1:] - pts[0]) < 3:
+            continue
+        fn = INTERSECTION if i % 9 == 8 else (UNION if rng.random() < 0.25 else DIFFERENCE)
+        if fn is INTERSECTION:
+            pts = rng.integers(-20, 21, 3) // 4 + np.array([[x, y, z] for x in (-18, 18) for y in (-18, 18)
+                                                               for z in (-18, 18)])
+        out.append((convex_hull(pts), fn))
+    return out
+
+
+@pytest.mark.parametrize("seed, shards, batch", [(1, 2, 4), (2, 8, 32), (3, (4, 2, 1), 1)])
+def test_sharded_workpiece_fuzz(client, seed, shards, batch):
+    """Random sequences, queued in batches: volume, labels of random points and the surface equal one
+    workpiece's after the sequence, and the volume half-way."""
+    import numpy as np
+
+    from csgnb.distributed.sharded import ShardedWorkpiece
+    from csgnb.octree import Workpiece
+
+    seq = _random_sequence(seed, 24)
+    w = Workpiece.box([-12, -12, -12], [12, 12, 12], threshold=12)
+    s = ShardedWorkpiece(Workpiece.box([-12, -12, -12], [12, 12, 12], threshold=12), client, shards, batch=batch)
+    for i, (tool, fn) in enumerate(seq):
+        w.boolean(tool, fn)
+        s.boolean(tool, fn)
+        if i == len(seq) // 2:
+            assert s.volume() == w.volume()
+    assert s.volume() == w.volume()
+    pts = np.random.default_rng(seed).integers(-20, 21, (400, 3))
+    assert s.classify(pts).tolist() == w.classify(pts).tolist()
+    _same_surface(s, w)
+    if batch > 1:
+        assert s.calls < s.messages  # Booleans travelled several to a message
+
+
+async def _die():
+    os.kill(os.getpid(), signal.SIGKILL)  # the worker's process, as the OOM killer would
+
+
+def test_killed_sharded_run_resumes_from_its_checkpoint(client, single, tmp_path):
+    """A worker holding shards is killed mid-run: the next call fails clearly, and the run resumes from the
+    last checkpoint (its step stored in the manifest) to the single workpiece's answers."""
+    from csgnb.distributed.sharded import ShardedWorkpiece, ShardFailure
+    from csgnb.octree import Workpiece
+
+    w, volumes = single
+    seq = _sequence()
+    s = ShardedWorkpiece(Workpiece.box([-16, -16, -16], [16, 16, 16]), client, 2, batch=2)
+    folder = tmp_path / "run"
+    for i, (tool, fn) in enumerate(seq[:3]):
+        s.boolean(tool, fn)
+        if i == 1:
+            s.save(folder, step=i + 1)
+    victim = s.actors[1]._address
+    client.run(_die, workers=[victim], wait=False)
+    with pytest.raises(Exception):  # noqa: B017 (Dask's own error for a lost actor)
+        s.flush()
+        s.volume()
+    with pytest.raises(ShardFailure, match="load the last checkpoint"):
+        s.boolean(*seq[3])
+    client.wait_for_workers(2, timeout=60)
+    back = ShardedWorkpiece.load(folder, client)
+    assert back.step == 2 and back.volume() == volumes[2]
+    for tool, fn in seq[back.step:]:
+        back.boolean(tool, fn)
+    assert back.volume() == volumes[-1]
+    assert back.classify(_points()).tolist() == w.classify(_points()).tolist()
+
+
+def test_sharded_checkpoint_is_replaced_whole(client, tmp_path):
+    """A second save leaves only the files its manifest names; a damaged or missing shard file is refused."""
+    from csgnb.distributed.sharded import MANIFEST, ShardedWorkpiece
+    from csgnb.mesh.hull import convex_hull
+    from csgnb.octree import Workpiece
+
+    s = ShardedWorkpiece(Workpiece.box([-4, -4, -4], [4, 4, 4]), client, 2)
+    folder = s.save(tmp_path / "s", step=0)
+    first = sorted(p.name for p in folder.glob("shard-*.wp"))
+    s.difference(convex_hull([[-1, -1, -1], [3, -1, -1], [-1, 3, -1], [-1, -1, 3]]))
+    s.save(folder, step=1)
+    manifest = json.loads((folder / MANIFEST).read_text())
+    names = sorted(e["file"] for e in manifest["shards"])
+    assert sorted(p.name for p in folder.glob("shard-*.wp")) == names != first
+    assert manifest["step"] == 1 and not list(folder.glob(".*.tmp"))
+    (folder / names[0]).unlink()
+    with pytest.raises(ValueError, match="does not match the manifest"):
+        ShardedWorkpiece.load(folder, client)
+    with pytest.raises(ValueError, match="is missing"):
+        ShardedWorkpiece.load(tmp_path / "nothing", client)
+
+
 def test_sharded_workpiece_refuses_bad_input(client, tmp_path):
-    from csgnb.distributed.sharded import ShardedWorkpiece, shard_boxes
+    from csgnb.distributed.sharded import MANIFEST, ShardedWorkpiece, shard_boxes
     from csgnb.octree import Workpiece
 
     with pytest.raises(ValueError, match="power of two"):
@@ -318,10 +456,13 @@ def test_sharded_workpiece_refuses_bad_input(client, tmp_path):
         shard_boxes([0, 0, 0], 16, (3, 1, 1))
     with pytest.raises(TypeError, match="csgnb.octree.Workpiece"):
         ShardedWorkpiece("box", client, 2)
+    with pytest.raises(ValueError, match="batch must be a positive integer"):
+        ShardedWorkpiece(Workpiece.box([-4, -4, -4], [4, 4, 4]), client, 2, batch=0)
     s = ShardedWorkpiece(Workpiece.box([-4, -4, -4], [4, 4, 4]), client, 2)
     with pytest.raises(TypeError, match="ConvexHull"):
         s.difference("tool")
     folder = s.save(tmp_path / "s")
-    (folder / "shard-001.wp").write_bytes(b"junk")
+    name = json.loads((folder / MANIFEST).read_text())["shards"][1]["file"]
+    (folder / name).write_bytes(b"junk")
     with pytest.raises(ValueError, match="does not match the manifest"):
         ShardedWorkpiece.load(folder, client)

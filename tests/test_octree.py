@@ -247,3 +247,32 @@ def test_bad_tools_are_clear_errors_and_leave_the_workpiece_unchanged():
     after = w._arrays()
     for name in before:
         assert np.array_equal(before[name], after[name]), name
+
+
+def test_a_boolean_within_a_box_is_right_in_the_box_and_refuses_what_it_cannot_do():
+    """``within=``: the cells meeting the box take the Boolean (labels there equal a full workpiece's), cells
+    far outside keep the old solid; with ``track_volume`` or a bad box it refuses."""
+    tool = convex_hull(np.array([[-6, -6, -6], [9, -6, -6], [-6, 9, -6], [-6, -6, 9]]))
+    full, part = Workpiece.box([-8, -8, -8], [8, 8, 8], threshold=8), Workpiece.box([-8, -8, -8], [8, 8, 8],
+                                                                                    threshold=8)
+    rng = np.random.default_rng(3)
+    for _ in range(30):  # small cuts all over: the octree splits into small cells
+        c = rng.integers(-7, 7, 3)
+        chip = convex_hull(c + np.array([[0, 0, 0], [2, 0, 0], [0, 2, 0], [0, 0, 2]]))
+        full.difference(chip)
+        part.difference(chip)
+    full.difference(tool)
+    part.difference(tool, within=([0, 0, 0], [8, 8, 8]))
+    r = np.arange(0, 9)
+    inside = np.stack(np.meshgrid(r, r, r, indexing="ij"), -1).reshape(-1, 3)
+    assert part.classify(inside).tolist() == full.classify(inside).tolist()
+    far_points = np.array([[-5, -5, -5], [-4, -5, -5], [-5, -4, -5], [-5, -5, -4], [-4, -4, -5]])
+    assert part.classify(far_points).tolist() != full.classify(far_points).tolist()  # left behind out there
+    with pytest.raises(GeometryError, match="track_volume"):
+        part.difference(tool, within=([0, 0, 0], [8, 8, 8]), track_volume=True)
+    with pytest.raises(GeometryError, match="lo <= hi"):
+        part.difference(tool, within=([0, 0, 0], [-1, 8, 8]))
+    before = part.volume()
+    far = convex_hull(np.array([[-7, -7, -7], [-5, -7, -7], [-7, -5, -7], [-7, -7, -5]]))
+    part.difference(far, within=([0, 0, 0], [8, 8, 8]))  # the tool's box misses the box: nothing changes
+    assert part.volume() == before

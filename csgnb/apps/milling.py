@@ -24,8 +24,6 @@ from __future__ import annotations
 
 import hashlib
 import json
-import os
-import tempfile
 import time
 from dataclasses import asdict, dataclass
 from fractions import Fraction
@@ -34,6 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
+from csgnb._files import write_atomic
 from csgnb.apps.export import export_stl
 from csgnb.apps.gcode import Move, Program
 from csgnb.apps.sweep import straight_sweep
@@ -191,15 +190,6 @@ def _record_from_json(d: dict) -> MoveRecord:
     return MoveRecord(**dict(d, removed=parse_fraction(d["removed"])))
 
 
-def _write_atomic(path: Path, data: bytes) -> None:
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=path.name + ".", suffix=".tmp")
-    with os.fdopen(fd, "wb") as fh:
-        fh.write(data)
-        fh.flush()
-        os.fsync(fh.fileno())
-    os.replace(tmp, path)
-
-
 def _checkpoint(path: Path, workpiece, records: list[MoveRecord], stock: Fraction, program_key: str) -> None:
     # The workpiece goes to a file named by the move count, then the index that names it, then the old file is
     # removed: a crash at any point leaves an index whose workpiece file exists and matches it.
@@ -210,7 +200,7 @@ def _checkpoint(path: Path, workpiece, records: list[MoveRecord], stock: Fractio
     old = json.loads(path.read_text())["workpiece"] if path.exists() else None
     index = {"done": done, "workpiece": wp_path.name, "sha256": digest, "program": program_key,
              "stock": fraction_text(stock), "records": [_record_json(r) for r in records]}
-    _write_atomic(path, json.dumps(index).encode())
+    write_atomic(path, json.dumps(index).encode())
     if old and old != wp_path.name:
         path.with_name(old).unlink(missing_ok=True)
 

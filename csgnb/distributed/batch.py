@@ -31,7 +31,6 @@ from __future__ import annotations
 
 import hashlib
 import json
-import os
 import re
 import tempfile
 import time
@@ -43,6 +42,7 @@ from pathlib import Path
 import numpy as np
 
 import csgnb
+from csgnb._files import write_atomic
 from csgnb.apps.milling import CHORD_TOLERANCE, RAPID_RATE
 from csgnb.errors import CsgnbError
 from csgnb.exact.rational import fraction_text, parse_fraction
@@ -372,17 +372,6 @@ def _worker_address() -> str | None:
         return None
 
 
-def _write_atomic(path: Path, data: bytes) -> None:
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(data)
-        os.replace(tmp, path)
-    finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-
-
 def _sha256(data: bytes) -> str:
     return hashlib.sha256(data).hexdigest()
 
@@ -394,12 +383,12 @@ def _store(data: dict, out_dir: Path) -> JobResult:
     data = dict(data)
     stl_bytes, wp_bytes = data.pop("stl_bytes", None), data.pop("workpiece_bytes", None)
     if stl_bytes is not None:
-        _write_atomic(folder / "part.stl", stl_bytes)
-        _write_atomic(folder / "part.wp", wp_bytes)
+        write_atomic(folder / "part.stl", stl_bytes)
+        write_atomic(folder / "part.wp", wp_bytes)
         data.update(stl_path="part.stl", workpiece_path="part.wp")
     data["report_path"] = "report.json"
     result = JobResult.from_report(data, folder)
-    _write_atomic(folder / "report.json", json.dumps(result.report(), indent=1).encode())
+    write_atomic(folder / "report.json", json.dumps(result.report(), indent=1).encode())
     return result
 
 

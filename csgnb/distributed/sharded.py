@@ -9,39 +9,51 @@ the cuts lie on octree cell boundaries). Shard ``k`` holds the whole solid as se
 closed box ``S_k``: the same start (a box workpiece, or any workpiece given) and every Boolean
 whose tool's closed box meets ``S_k`` -- a tool that misses ``S_k`` changes nothing in a
 neighbourhood of it (for a label function with ``fn(a, 0) == a``: difference, union; an
-intersection goes to every shard). So on ``S_k`` the shard's solid *is* the solid of one
-workpiece run through the same sequence, and
+intersection goes to every shard) -- applied to the octree cells that meet ``S_k`` only
+(``Workpiece.boolean(..., within=)`` with ``S_k`` grown by one grid unit, so the cells touching
+``S_k`` from outside are right too, and with them the labels around points on its walls; further
+out the shard's solid is left behind, and nothing is asked of it there). So on ``S_k`` the
+shard's solid *is* the solid of one workpiece run through the same sequence, and
 
 * ``classify(points)`` asks, for each point, a shard whose closed box holds it: the labels are
   the single workpiece's, on shard boundaries too;
 * ``volume()`` adds the shards' exact volumes inside their own boxes (``Fraction`` sums; the
   boxes tile the root cube, their common faces have no volume): equal with ``==``;
 * a Boolean is sent only to the shards its tool's box meets, and they work in parallel;
-* ``save(folder)`` writes each shard's workpiece (``Workpiece.save``) and a manifest;
-  :meth:`ShardedWorkpiece.load` starts the actors again from them.
+* ``surface()`` extracts the boundary of one BSP made of axis planes at the shards' walls over
+  each shard's tree (:func:`combine_shard_trees`): walls where solid continues leave no face,
+  as cell walls inside one workpiece leave none;
+* Booleans are queued and sent ``batch`` at a time per shard (one message, one round trip), one
+  batch in flight per shard, so the shards work while the caller prepares the next tools;
+* ``save(folder, step=)`` is a checkpoint: each shard's workpiece (``Workpiece.save``, files
+  named by content) and then a manifest, each written atomically; :meth:`ShardedWorkpiece.load`
+  starts the actors again from them and gives back ``step``, where the caller's sequence resumes.
 
 Tools are :class:`~csgnb.mesh.hull.ConvexHull`\\ s, :class:`~csgnb.octree.Tool`\\ s or integer
 meshes ``(vertices, faces)`` in grid coordinates, as for a workpiece. ``track_volume`` is not
-offered: a shard's change includes its solid outside its box; measure ``volume()`` before and after.
+offered: a shard measures nothing outside its box; measure ``volume()`` before and after.
 
 Known limits: a shard lives on one worker (Dask actors are not moved or retried): a lost worker loses its
-shards, and the next call raises Dask's "Worker holding Actor was lost" -- ``save`` regularly and
-:meth:`ShardedWorkpiece.load` to resume. ``volume()`` clips a copy of every shard (a save and a load each).
+shards; the next call raises Dask's error and every later one :class:`ShardFailure` -- ``save``
+regularly and :meth:`ShardedWorkpiece.load` to resume. ``volume()`` clips a copy of every shard (a save
+and a load each).
 """
 
 from __future__ import annotations
 
 import hashlib
 import json
+import threading
+import time
 from fractions import Fraction
 from pathlib import Path
 
 import numpy as np
 
-from csgnb.errors import GeometryError
+from csgnb.errors import CsgnbError, GeometryError
 from csgnb.exact.rational import fraction_text, parse_fraction
 
-__all__ = ["Shard", "ShardedWorkpiece", "shard_boxes"]
+__all__ = ["Shard", "ShardFailure", "ShardedWorkpiece", "combine_shard_trees", "shard_boxes"]
 
 MANIFEST = "shards.json"
 
@@ -74,17 +86,67 @@ def shard_boxes(root_lo, root_size: int, counts) -> list[tuple[np.ndarray, np.nd
     return out
 
 
+_SCRATCH: dict = {}  # (width, threshold) -> the octree kernels' Workspace shared by this process's shards
+_SCRATCH_LOCK = threading.Lock()
+
+
 class Shard:
-    """A Dask actor: one :class:`csgnb.octree.Workpiece` and the box it answers for."""
+    """A Dask actor: one :class:`csgnb.octree.Workpiece` and the box it answers for.
+
+    The shards on one worker share one scratch workspace (:class:`csgnb.octree.workspace.Workspace`,
+    tens of MB once grown): each workpiece would otherwise keep its own, and a worker holds several
+    shards. They take turns (a lock; Dask runs an actor's calls on one thread anyway).
+    """
 
     def __init__(self, lo, hi, workpiece_bytes: bytes) -> None:
         self.lo = np.asarray(lo, np.int64)
         self.hi = np.asarray(hi, np.int64)
         self.w = _from_bytes(workpiece_bytes)
+        self.busy_s = 0.0  # time spent applying Booleans (the benchmark's communication overhead is the rest)
+        self.applied = 0
+
+    def apply(self, steps: list) -> list[int]:
+        """Apply ``[(tool, fn), ...]`` in order; return the cells each touched.
+
+        A step that fails raises :class:`ShardFailure` naming how many of ``steps`` were applied.
+        """
+        t0 = time.perf_counter()
+        cells = []
+        with _SCRATCH_LOCK:
+            self._take_scratch()
+            try:
+                self._apply(steps, cells)
+            finally:
+                _SCRATCH[self._scratch_key] = self.w.ws  # grown, perhaps
+                self.applied += len(cells)
+                self.busy_s += time.perf_counter() - t0
+        return cells
+
+    @property
+    def _scratch_key(self) -> tuple[int, int]:
+        return self.w.width, self.w.threshold
+
+    def _take_scratch(self) -> None:
+        from csgnb.octree.workspace import with_palette
+
+        shared = _SCRATCH.get(self._scratch_key)
+        if shared is not None and shared is not self.w.ws:
+            self.w.ws = with_palette(shared, self.w.palette)
+
+    def _apply(self, steps: list, cells: list) -> None:
+        for i, (tool, fn) in enumerate(steps):
+            try:
+                # Only the cells meeting this shard's box grown by one grid unit: every cell that touches
+                # the closed box is right, so are the labels around a point on its walls.
+                cells.append(self.w.boolean(tool, fn, within=(self.lo - 1, self.hi + 1)).cells)
+            except Exception as exc:
+                raise ShardFailure(f"Boolean {self.applied + i} of this shard (box {self.lo.tolist()}.."
+                                   f"{self.hi.tolist()}) failed after {i} of the {len(steps)} sent with it: "
+                                   f"{type(exc).__name__}: {exc}") from exc
 
     def boolean(self, tool, fn) -> int:
         """Apply ``fn`` with ``tool``; return the cells touched."""
-        return self.w.boolean(tool, fn).cells
+        return self.apply([(tool, fn)])[0]
 
     def volume(self) -> str:
         """The exact volume of the solid inside this shard's box (grid units³), as text."""
@@ -97,7 +159,7 @@ class Shard:
         lo, hi = np.maximum(self.lo, -limit), np.minimum(self.hi, limit)
         if np.any(lo >= hi):
             return "0"
-        clipped = _from_bytes(_to_bytes(self.w))  # a copy: the shard keeps its solid beyond its box
+        clipped = _from_bytes(_to_bytes(self.w))  # a copy: the shard keeps its (stale) solid beyond its box
         corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])],
                            np.int64)
         clipped.boolean(convex_hull(corners), INTERSECTION)
@@ -107,12 +169,26 @@ class Shard:
         """The workpiece's labels of integer grid points ``(n, 3)``."""
         return np.asarray(self.w.classify(points))
 
+    def tree(self) -> tuple[np.ndarray, ...]:
+        """The shard's whole solid as one BSP: ``(palette, plane, neg, pos, label)`` arrays."""
+        t = self.w.global_tree()
+        return t.palette, t.plane, t.neg, t.pos, t.label
+
     def workpiece_bytes(self) -> bytes:
         """The shard's workpiece as ``Workpiece.save`` writes it."""
         return _to_bytes(self.w)
 
     def n_cells(self) -> int:
         return self.w.n_cells
+
+    def stats(self) -> dict:
+        """Time applying Booleans, Booleans applied, cells, BSP nodes."""
+        return {"busy_s": self.busy_s, "applied": self.applied, "cells": self.w.n_cells,
+                "bsp_nodes": self.w.n_bsp_nodes}
+
+
+class ShardFailure(CsgnbError):
+    """A shard could not apply a Boolean: the shards no longer hold one solid (load the last checkpoint)."""
 
 
 def _to_bytes(w) -> bytes:
@@ -165,23 +241,33 @@ class ShardedWorkpiece:
         The actors are placed round-robin on its workers.
     shards : int or (3,) int
         1, 2, 4, 8, ... shards, or counts per axis (powers of two).
+    batch : int
+        Booleans queued per shard before they are sent in one message (default 32): a shard works on
+        one batch while the next is queued, and a message's round trip is paid once per batch, not
+        per Boolean. ``batch=1`` sends every Boolean at once and waits for it. Queued Booleans are
+        sent by :meth:`flush`, which every query (``volume``, ``classify``, ``surface``, ``save``) calls.
     """
 
-    def __init__(self, workpiece, client, shards=8) -> None:
+    def __init__(self, workpiece, client, shards=8, *, batch: int = 32) -> None:
         from csgnb.octree import Workpiece
 
         if not isinstance(workpiece, Workpiece):
             raise TypeError(f"workpiece must be a csgnb.octree.Workpiece, got {type(workpiece).__name__}")
-        self._start(client, workpiece, _counts(shards), [_to_bytes(workpiece)] * int(np.prod(_counts(shards))))
+        counts = _counts(shards)
+        self._start(client, workpiece, counts, [_to_bytes(workpiece)] * int(np.prod(counts)), batch)
 
-    def _start(self, client, template, counts, blobs: list[bytes]) -> None:
+    def _start(self, client, template, counts, blobs: list[bytes], batch: int) -> None:
         from distributed import Client
 
         if not isinstance(client, Client):
             raise TypeError(f"client must be a distributed.Client, got {type(client).__name__}")
+        if int(batch) != batch or batch < 1:
+            raise ValueError(f"batch must be a positive integer (Booleans per message), got {batch!r}")
         self.client = client
+        self.batch = int(batch)
         self.grid, self.width = template.grid, template.width
         self.template = template  # the tool conversions' grid and width; holds no solid of interest
+        self.root_lo, self.root_size = np.asarray(template.root_lo, np.int64), int(template.root_size)
         self.counts = counts
         self.boxes = shard_boxes(template.root_lo, template.root_size, counts)
         workers = sorted(client.scheduler_info(n_workers=-1)["workers"])
@@ -189,7 +275,12 @@ class ShardedWorkpiece:
                                  allow_other_workers=False)
                    for k, ((lo, hi), blob) in enumerate(zip(self.boxes, blobs, strict=True))]
         self.actors = [f.result() for f in futures]
-        self.messages = 0  # Booleans sent (one per shard reached)
+        self.messages = 0  # Booleans routed (one per shard reached)
+        self.calls = 0  # messages sent to the shards' actors with Booleans
+        self.step: int | None = None  # the caller's step count stored by the checkpoint this was loaded from
+        self._pending: list[list] = [[] for _ in self.actors]
+        self._inflight: list = [None] * len(self.actors)
+        self._broken: str | None = None
 
     @property
     def n_shards(self) -> int:
@@ -200,21 +291,64 @@ class ShardedWorkpiece:
         lo, hi = np.asarray(lo, np.int64), np.asarray(hi, np.int64)
         return [k for k, (a, b) in enumerate(self.boxes) if np.all(a <= hi) and np.all(lo <= b)]
 
+    def _check_usable(self) -> None:
+        if self._broken is not None:
+            raise ShardFailure(f"this sharded workpiece is inconsistent since a shard failed ({self._broken}); "
+                               "load the last checkpoint (ShardedWorkpiece.load) and go on from its step")
+
     def boolean(self, tool, fn) -> list[int]:
-        """Apply ``fn(workpiece label, tool label)`` with ``tool`` on the shards it can change; return their indices."""
+        """Apply ``fn(workpiece label, tool label)`` with ``tool`` on the shards it can change; return their indices.
+
+        The tool is checked and converted here (a bad tool raises at once); the Boolean is queued and
+        sent with the next batch (see ``batch``).
+        """
         from csgnb.bsp.merging import merge_table
 
+        self._check_usable()
         t = _tool(tool, self.template)
         table = merge_table(fn, [0, 1], [0, 1])
         if all(int(table[a, 0]) == a for a in (0, 1)):
             targets = [] if t.kind == "empty" else self.shards_meeting(t.lo, t.hi)
         else:
             targets = list(range(self.n_shards))
-        calls = [self.actors[k].boolean(t, fn) for k in targets]
-        for c in calls:
-            c.result()
+        for k in targets:
+            self._pending[k].append((t, fn))
+            if len(self._pending[k]) >= self.batch:
+                self._send(k)
         self.messages += len(targets)
+        if self.batch == 1:
+            self.flush()
         return targets
+
+    def _send(self, k: int) -> None:
+        # One batch in flight per shard: an actor's calls are not ordered among themselves, its batches must be.
+        self._wait(k)
+        steps, self._pending[k] = self._pending[k], []
+        self._inflight[k] = self.actors[k].apply(steps)
+        self.calls += 1
+
+    def _wait(self, k: int) -> None:
+        future, self._inflight[k] = self._inflight[k], None
+        if future is None:
+            return
+        try:
+            future.result()
+        except ShardFailure as exc:
+            self._broken = f"shard {k}: {exc}"
+            raise ShardFailure(f"shard {k}: {exc}; the shards no longer hold one solid: load the last "
+                               "checkpoint (ShardedWorkpiece.load) and go on from its step") from exc
+        except Exception:
+            self._broken = f"shard {k} was lost (its worker died?)"
+            raise
+
+    def flush(self) -> None:
+        """Send every queued Boolean and wait until every shard has applied them."""
+        self._check_usable()
+        for k in range(self.n_shards):
+            if self._pending[k]:
+                self._send(k)
+        for k in range(self.n_shards):
+            self._wait(k)
 
     def difference(self, tool) -> list[int]:
         """Subtract ``tool``; return the shards it reached."""
@@ -236,13 +370,19 @@ class ShardedWorkpiece:
 
     def volume(self) -> Fraction:
         """Exact volume (grid units³): the shards' volumes inside their boxes, gathered and added."""
+        self.flush()
         calls = [a.volume() for a in self.actors]
         return sum((parse_fraction(c.result()) for c in calls), Fraction(0))
+
+    def model_volume(self) -> Fraction:
+        """Exact volume in model units cubed."""
+        return self.volume() / Fraction(self.grid.scale) ** 3
 
     def classify(self, points) -> np.ndarray:
         """Labels of integer grid points ``(n, 3)`` (-2: on the boundary), each asked of a shard whose box holds it."""
         from csgnb.exact.integral import integer_array
 
+        self.flush()
         q = integer_array(points, "points")
         if q.ndim != 2 or q.shape[1] != 3:
             raise GeometryError(f"points must be integer grid points (n, 3), got shape {q.shape}")
@@ -257,38 +397,165 @@ class ShardedWorkpiece:
             out[index == k] = c.result()
         return out
 
-    def save(self, folder) -> Path:
-        """Write every shard's workpiece and a manifest (``shards.json``, with SHA-256s) into ``folder``."""
+    def global_tree(self):
+        """The whole solid as one :class:`csgnb.bsp.BSPTree`: axis splits at the shards' walls, each shard's tree
+        in its box (:func:`combine_shard_trees`)."""
+        self.flush()
+        calls = [a.tree() for a in self.actors]
+        return combine_shard_trees([c.result() for c in calls], self.boxes, self.counts)
+
+    def surface(self):
+        """The exact, closed boundary (:class:`csgnb.bsp.surface.BoundarySurface`), shard walls removed where
+        solid continues across them -- as a single workpiece removes its cell walls."""
+        from csgnb.bsp.extract import extract_boundary
+
+        tree = self.global_tree()
+        return extract_boundary(tree, self.root_lo, self.root_lo + self.root_size, keep_cells=False).surface
+
+    def stats(self) -> list[dict]:
+        """Per shard: time spent applying Booleans, Booleans applied, cells, BSP nodes, worker address."""
+        self.flush()
+        calls = [a.stats() for a in self.actors]
+        return [dict(c.result(), worker=a._address) for a, c in zip(self.actors, calls, strict=True)]
+
+    def save(self, folder, *, step: int | None = None) -> Path:
+        """Write a checkpoint into ``folder``: every shard's workpiece, then the manifest (``shards.json``).
+
+        Shard files are named by their content's SHA-256 and written atomically; the manifest is
+        replaced atomically after them and names the files it needs, and only then are files of an
+        older checkpoint removed. A crash at any point leaves the previous checkpoint or the new one
+        whole. ``step`` (e.g. how many Booleans of a sequence are applied) is stored with it and comes
+        back as :attr:`step` from :meth:`load`, to resume the sequence there.
+        """
+        from csgnb._files import write_atomic
+
+        self.flush()
         folder = Path(folder)
         folder.mkdir(parents=True, exist_ok=True)
         calls = [a.workpiece_bytes() for a in self.actors]
         entries = []
         for k, c in enumerate(calls):
             data = c.result()
-            (folder / f"shard-{k:03d}.wp").write_bytes(data)
-            entries.append({"file": f"shard-{k:03d}.wp", "sha256": hashlib.sha256(data).hexdigest()})
-        (folder / MANIFEST).write_text(json.dumps({"format": 1, "counts": list(self.counts), "shards": entries},
-                                                  indent=1))
+            digest = hashlib.sha256(data).hexdigest()
+            name = f"shard-{k:03d}-{digest[:16]}.wp"
+            write_atomic(folder / name, data)
+            entries.append({"file": name, "sha256": digest})
+        manifest = {"format": 2, "counts": list(self.counts), "step": None if step is None else int(step),
+                    "shards": entries}
+        write_atomic(folder / MANIFEST, json.dumps(manifest, indent=1).encode())
+        keep = {e["file"] for e in entries}
+        for old in folder.glob("shard-*.wp"):
+            if old.name not in keep:
+                old.unlink(missing_ok=True)
+        self.step = manifest["step"]
         return folder
 
     @classmethod
-    def load(cls, folder, client) -> ShardedWorkpiece:
-        """The sharded workpiece saved in ``folder``, its actors started on ``client``'s workers."""
+    def load(cls, folder, client, *, batch: int = 32) -> ShardedWorkpiece:
+        """The sharded workpiece checkpointed in ``folder`` (its :attr:`step` as saved), actors on ``client``'s
+        workers."""
         folder = Path(folder)
-        manifest = json.loads((folder / MANIFEST).read_text())
+        path = folder / MANIFEST
+        if not path.is_file():
+            raise ValueError(f"{folder} holds no sharded workpiece: {MANIFEST} is missing")
+        manifest = json.loads(path.read_text())
+        if manifest.get("format") not in (1, 2):
+            raise ValueError(f"{path}: unknown format {manifest.get('format')!r} (this csgnb reads 1 and 2)")
         blobs = []
         for e in manifest["shards"]:
-            data = (folder / e["file"]).read_bytes()
+            file = folder / e["file"]
+            data = file.read_bytes() if file.is_file() else b""
             if hashlib.sha256(data).hexdigest() != e["sha256"]:
-                raise ValueError(f"{folder / e['file']} does not match the manifest (damaged or replaced)")
+                raise ValueError(f"{file} does not match the manifest (damaged, replaced or missing)")
             blobs.append(data)
         self = cls.__new__(cls)
-        self._start(client, _from_bytes(blobs[0]), _counts(manifest["counts"]), blobs)
+        self._start(client, _from_bytes(blobs[0]), _counts(manifest["counts"]), blobs, batch)
+        self.step = manifest.get("step")
         return self
 
     def close(self) -> None:
-        """Release the actors (their workpieces are dropped on the workers)."""
-        self.actors = []
+        """Release the actors (their workpieces are dropped on the workers); queued Booleans are dropped."""
+        self.actors, self._pending, self._inflight = [], [], []
 
     def __repr__(self) -> str:
         return f"ShardedWorkpiece({self.n_shards} shards {self.counts}, {self.width}-bit)"
+
+
+def combine_shard_trees(trees, boxes, counts):
+    """One BSP of the whole solid from the shards' trees.
+
+    Parameters
+    ----------
+    trees : list of (palette (m, 4) wide, plane, neg, pos, label (n,) int32)
+        Shard ``k``'s whole solid (right inside its box ``boxes[k]``, stale outside it).
+    boxes : list of (lo (3,), hi (3,)) int
+        The shards' boxes, x fastest (:func:`shard_boxes`).
+    counts : (3,) int
+
+    Returns
+    -------
+    BSPTree
+        Axis-plane nodes at the shards' walls (halving the widest count first), shard ``k``'s tree as
+        the subtree of box ``k``. Equal planes of different shards share one palette row, as in a
+        single workpiece's palette.
+    """
+    from csgnb.bsp.tree import BSPTree
+    from csgnb.exact.wide import to_wide, width_of
+
+    width = width_of(trees[0][0])
+    nx, ny, nz = counts
+    lo0 = np.asarray(boxes[0][0], np.int64)
+    step = np.asarray(boxes[0][1], np.int64) - lo0
+    walls: list[np.ndarray] = []  # the wall planes, in the order their nodes are made
+    wall_of: dict[int, int] = {}  # top node -> its wall plane
+    plane, neg, pos, label = [], [], [], []
+    shard_leaf = [-1] * (nx * ny * nz)  # the top node each shard's tree root replaces
+
+    def build(lo_idx, hi_idx) -> int:
+        node = len(plane)
+        plane.append(-1), neg.append(-1), pos.append(-1), label.append(-1)
+        span = [h - lo for lo, h in zip(lo_idx, hi_idx, strict=True)]
+        if max(span) == 1:
+            shard_leaf[lo_idx[0] + nx * (lo_idx[1] + ny * lo_idx[2])] = node
+            return node
+        axis = int(np.argmax(span))  # x first on ties
+        mid = (lo_idx[axis] + hi_idx[axis]) // 2
+        row = np.zeros(4, np.int64)
+        row[axis], row[3] = 1, -(int(lo0[axis]) + mid * int(step[axis]))  # x_axis = wall: negative side below
+        wall_of[node] = len(walls)
+        walls.append(row)
+        below, above = list(hi_idx), list(lo_idx)
+        below[axis] = above[axis] = mid
+        neg[node] = build(lo_idx, below)
+        pos[node] = build(above, hi_idx)
+        return node
+
+    build([0, 0, 0], [nx, ny, nz])
+    # The palette: the wall planes, then every shard's rows; byte-equal rows share one row (first one kept).
+    parts = [to_wide(np.array(walls, np.int64).reshape(-1, 4), width)] + [t[0] for t in trees]
+    stacked = np.ascontiguousarray(np.concatenate(parts))
+    keys = stacked.view(np.dtype((np.void, stacked.dtype.itemsize * 4))).ravel()
+    _, first, inverse = np.unique(keys, return_index=True, return_inverse=True)
+    rank = np.empty(len(first), np.int64)
+    rank[np.argsort(first)] = np.arange(len(first))
+    remap = rank[inverse.ravel()]  # stacked row -> palette row
+    palette = stacked[np.sort(first)]
+    for node, r in wall_of.items():
+        plane[node] = int(remap[r])
+    top = [np.array(a, np.int64) for a in (plane, neg, pos, label)]
+    pieces = [top]
+    offset, base = len(plane), len(walls)
+    for k, (pal, p, n, q, lab) in enumerate(trees):
+        p, n, q, lab = (np.asarray(x, np.int64) for x in (p, n, q, lab))
+        # Shard node 0 (its root) takes the place of its top leaf; node i >= 1 goes to offset + i - 1 (no child
+        # is a root, so children map by the offset alone).
+        mapped = np.where(p >= 0, remap[base + np.maximum(p, 0)], -1)
+        n2, q2 = np.where(n >= 0, n + offset - 1, -1), np.where(q >= 0, q + offset - 1, -1)
+        leaf = shard_leaf[k]
+        top[0][leaf], top[1][leaf], top[2][leaf], top[3][leaf] = mapped[0], n2[0], q2[0], lab[0]
+        pieces.append([mapped[1:], n2[1:], q2[1:], lab[1:]])
+        offset += len(p) - 1
+        base += len(pal)
+    plane_a, neg_a, pos_a, label_a = (np.concatenate([piece[i] for piece in pieces]).astype(np.int32)
+                                      for i in range(4))
+    return BSPTree(palette, plane_a, neg_a, pos_a, label_a)

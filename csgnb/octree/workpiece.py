@@ -330,14 +330,27 @@ class Workpiece:
 
     # -- Booleans -----------------------------------------------------------------------
 
-    def boolean(self, tool, fn: Callable[[int, int], int], *, track_volume: bool = False) -> OpReport:
+    def boolean(self, tool, fn: Callable[[int, int], int], *, track_volume: bool = False,
+                within=None) -> OpReport:
         """Replace the solid by ``fn(workpiece label, tool label)`` everywhere (labels 0 = out, 1 = in).
 
         Only the cells that meet the tool's box are touched (unless ``fn`` changes labels outside
         the tool, as an intersection does). Returns an :class:`OpReport`; with ``track_volume`` it
         carries the exact volume change.
+
+        ``within=(lo, hi)`` (integer grid corners) touches only the cells that also meet that closed box:
+        the solid stays right inside the box and is left behind outside it. That is what a shard of
+        :class:`csgnb.distributed.sharded.ShardedWorkpiece` wants (it answers for its box only); a
+        workpiece used so answers for that box only. It cannot be combined with ``track_volume``.
         """
         t0 = time.perf_counter()
+        if within is not None:
+            if track_volume:
+                raise GeometryError("track_volume measures every cell the tool reaches; with within= only those in "
+                                    "the box change: measure volume() before and after instead")
+            w_lo, w_hi = (integer_array(c, "within") for c in within)
+            if w_lo.shape != (3,) or w_hi.shape != (3,) or np.any(w_lo > w_hi):
+                raise GeometryError(f"within must be two integer corners (lo, hi) with lo <= hi, got {within!r}")
         tool = self._tool(tool)
         labels_a = [0, 1]  # one material: boolean() refuses label functions that make others
         table = self._tables.get(fn)
@@ -353,6 +366,10 @@ class Workpiece:
             lo, hi = tool.lo, tool.hi  # cells outside the tool's box keep their labels
         else:
             lo, hi = self.root_lo - 1, self.root_lo + self.root_size + 1
+        if within is not None:
+            lo, hi = np.maximum(lo, w_lo), np.minimum(hi, w_hi)
+            if np.any(lo > hi):
+                return self._empty_tool(True, False, t0)  # no cell to touch: nothing changes in the box
         if tool.kind == "empty":
             if not outside_identity and int(table[0, 0]) != 0:
                 raise GeometryError("the tool is empty and the label function makes material outside it "
