@@ -1,13 +1,19 @@
 #!/usr/bin/env bash
-# Runs every check, in order (each step prints its time; the exit status is non-zero if any failed):
+# Runs every check (each step prints its time; the exit status is non-zero if any failed):
 #   1. lint: `ruff check` on the package, tests and benchmarks; `nbqa ruff` on the notebooks;
-#   2. doctests: `pytest --doctest-modules csgnb`;
-#   3. no-jit: a fast subset of the tests with NUMBA_DISABLE_JIT=1, so kernels stay valid Python
+#   2. kernels: `python -m csgnb.warmup` compiles every numba kernel once, its parts in parallel processes
+#      (minutes on a cold cache, seconds from the cache), so the workers below do not compile the same
+#      kernels twice at once;
+#   3. doctests: `pytest --doctest-modules csgnb`;
+#   4. no-jit: a fast subset of the tests with NUMBA_DISABLE_JIT=1, so kernels stay valid Python
 #      (the wide-integer kernels are LLVM intrinsics and exist only compiled: see NOJIT_TESTS below);
-#   4. pytest on tests/ (hypothesis properties, exactness against Python ints and Fractions, the
+#      it runs in the background beside step 5 and its output is printed after it;
+#   5. pytest on tests/ (hypothesis properties, exactness against Python ints and Fractions, the
 #      browser test: every notebook in JupyterLab + headless Chromium) and every notebook executed
-#      under nbval.
+#      under nbval, on two pytest-xdist workers (`--dist loadfile`: a module's tests, and a notebook's
+#      cells, stay together and in order on one worker); the 20 slowest tests are listed at the end.
 # Extra arguments go to the last pytest run, e.g. `bash scripts/test.sh -m slow` for the long fuzz runs.
+# CSGNB_TEST_WORKERS sets the number of workers (default 2; 0 runs step 5 in one process).
 source "$(dirname "${BASH_SOURCE[0]}")/setup.sh"
 set +e
 
@@ -42,12 +48,27 @@ step() {  # step NAME COMMAND...: run it, time it, remember a failure
 
 step "ruff (package, tests, benchmarks)" ruff check csgnb tests benchmarks
 step "nbqa ruff (notebooks)" nbqa ruff notebooks
+step "kernels (python -m csgnb.warmup)" python -m csgnb.warmup
 step "doctests" python -m pytest --doctest-modules csgnb -q -p no:cacheprovider
-step "no-jit subset (NUMBA_DISABLE_JIT=1)" env NUMBA_DISABLE_JIT=1 python -m pytest "${NOJIT_TESTS[@]}" -q \
-    -p no:cacheprovider
-step "pytest + nbval + browser" python -m pytest tests notebooks \
+
+workers="${CSGNB_TEST_WORKERS:-2}"
+nojit_log="$(mktemp)"
+nojit_t0=$SECONDS
+env NUMBA_DISABLE_JIT=1 python -m pytest "${NOJIT_TESTS[@]}" -q -p no:cacheprovider > "$nojit_log" 2>&1 &
+nojit_pid=$!
+parallel=()
+[ "$workers" -gt 0 ] && parallel=(-n "$workers" --dist loadfile)
+step "pytest + nbval + browser (${workers} workers)" python -m pytest tests notebooks "${parallel[@]}" \
     --nbval-lax --nbval-current-env --nbval-sanitize-with notebooks/nbval_sanitize.cfg \
     --durations=20 -p no:cacheprovider "$@"
+echo "=== csgnb test: no-jit subset (NUMBA_DISABLE_JIT=1), run beside the step above"
+wait "$nojit_pid"
+nojit_rc=$?
+cat "$nojit_log"
+rm -f "$nojit_log"
+echo "=== csgnb test: no-jit subset: $([ $nojit_rc = 0 ] && echo ok || echo "FAILED (exit $nojit_rc)") in" \
+     "$((SECONDS - nojit_t0)) s (wall, beside the step above)"
+[ $nojit_rc = 0 ] || failed+=("no-jit subset")
 
 if [ "${#failed[@]}" -gt 0 ]; then
     echo "csgnb test: FAILED: ${failed[*]}"
