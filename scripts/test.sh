@@ -10,7 +10,7 @@
 #      it runs in the background beside step 5 and its output is printed after it;
 #   5. pytest on tests/ (hypothesis properties, exactness against Python ints and Fractions, the
 #      browser test: every notebook in JupyterLab + headless Chromium) and every notebook executed
-#      under nbval, on two pytest-xdist workers (`--dist loadfile`: a module's tests, and a notebook's
+#      under nbval, on two pytest-xdist workers (`--dist loadscope`: a module's tests, a notebook's
 #      cells, stay together and in order on one worker); the 20 slowest tests are listed at the end.
 # Extra arguments go to the last pytest run, e.g. `bash scripts/test.sh -m slow` for the long fuzz runs.
 # CSGNB_TEST_WORKERS sets the number of workers (default 2; 0 runs step 5 in one process).
@@ -57,7 +57,7 @@ nojit_t0=$SECONDS
 env NUMBA_DISABLE_JIT=1 python -m pytest "${NOJIT_TESTS[@]}" -q -p no:cacheprovider > "$nojit_log" 2>&1 &
 nojit_pid=$!
 parallel=()
-[ "$workers" -gt 0 ] && parallel=(-n "$workers" --dist loadfile)
+[ "$workers" -gt 0 ] && parallel=(-n "$workers" --dist loadscope)
 step "pytest + nbval + browser (${workers} workers)" python -m pytest tests notebooks "${parallel[@]}" \
     --nbval-lax --nbval-current-env --nbval-sanitize-with notebooks/nbval_sanitize.cfg \
     --durations=20 -p no:cacheprovider "$@"

@@ -334,8 +334,7 @@ def _operate_widgets(page, name: str) -> list[str]:
     return done
 
 
-@pytest.mark.parametrize("name", NOTEBOOKS)
-def test_notebook_in_browser(lab, browser, name):
+def _check_in_browser(lab, browser, name: str) -> None:
     page = browser.new_page(viewport=VIEWPORT)
     try:
         page.goto(f"{lab.url}/lab/tree/{name}?reset", timeout=120_000)
@@ -353,3 +352,14 @@ def test_notebook_in_browser(lab, browser, name):
     finally:
         page.close()
         lab.shut_down_kernels()
+
+
+# One class per chapter: under `pytest -n 2 --dist loadscope` (scripts/test.sh) a class is one unit of work, so the
+# chapters (minutes each) spread over both workers; the module's lab and browser are made once per worker.
+for _name in NOTEBOOKS:
+    _stem = re.sub(r"\W", "_", _name.removesuffix(".ipynb"))
+    _cls = type(f"TestInBrowser_{_stem}", (), {
+        "__doc__": f"{_name} in JupyterLab and headless Chromium (the module docstring says what is checked).",
+        "test_notebook_in_browser": lambda self, lab, browser, name=_name: _check_in_browser(lab, browser, name),
+    })
+    globals()[_cls.__name__] = _cls
