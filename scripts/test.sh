@@ -12,7 +12,8 @@
 #      browser test: every notebook in JupyterLab + headless Chromium) and every notebook executed
 #      under nbval, on two pytest-xdist workers (`--dist loadscope`: a module's tests, a notebook's
 #      cells, stay together and in order on one worker); the 20 slowest tests are listed at the end.
-# Extra arguments go to the last pytest run, e.g. `bash scripts/test.sh -m slow` for the long fuzz runs.
+# Extra arguments go to the last pytest run: `bash scripts/test.sh -m slow` runs the long cases (fuzz runs, the
+# browser test of the longer chapters), `-m "slow or not slow"` everything.
 # CSGNB_TEST_WORKERS sets the number of workers (default 2; 0 runs step 5 in one process).
 source "$(dirname "${BASH_SOURCE[0]}")/setup.sh"
 set +e

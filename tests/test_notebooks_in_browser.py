@@ -356,10 +356,16 @@ def _check_in_browser(lab, browser, name: str) -> None:
 
 # One class per chapter: under `pytest -n 2 --dist loadscope` (scripts/test.sh) a class is one unit of work, so the
 # chapters (minutes each) spread over both workers; the module's lab and browser are made once per worker.
+# The default run takes the chapters in DEFAULT_RUN (the tour, and the quickest chapters whose widgets drive
+# pictures: ~4 minutes); the others (1.5-2.5 minutes each, every cell of theirs also runs under nbval) are marked
+# slow: `bash scripts/test.sh -m "slow or not slow"` runs all of them.
+DEFAULT_RUN = {"00_tour.ipynb", "01_exact_predicates.ipynb", "07_adaptive_sampling.ipynb", "08_rendering.ipynb"}
 for _name in NOTEBOOKS:
     _stem = re.sub(r"\W", "_", _name.removesuffix(".ipynb"))
     _cls = type(f"TestInBrowser_{_stem}", (), {
         "__doc__": f"{_name} in JupyterLab and headless Chromium (the module docstring says what is checked).",
         "test_notebook_in_browser": lambda self, lab, browser, name=_name: _check_in_browser(lab, browser, name),
     })
+    if _name not in DEFAULT_RUN:
+        _cls = pytest.mark.slow(_cls)
     globals()[_cls.__name__] = _cls
