@@ -159,6 +159,15 @@ def test_viewer_renders_on_drag_and_checks_its_shape():
     assert v.reference_image.value and v.difference_image.value
     v.zoom.value = 2.0
     assert v.frame.stats.covered > frame.stats.covered
+    # The wheel zooms through the slider: the slider shows what the wheel did, and the picture follows it.
+    covered, distance = v.frame.stats.covered, np.linalg.norm(v.camera.eye - v.camera.target)
+    for _ in range(3):
+        v._on_event({"type": "wheel", "deltaY": -100})
+    assert v.zoom.value > 2.0 * 1.2
+    assert np.linalg.norm(v.camera.eye - v.camera.target) < distance and v.frame.stats.covered > covered
+    for _ in range(200):  # out as far as the slider goes, and no further
+        v._on_event({"type": "wheel", "deltaY": 100})
+    assert v.zoom.value == 2.0 ** v.zoom.min
     with pytest.raises(GeometryError, match="another shape"):
         Viewer(cloud, shape=tour_part(), size=(32, 24))
 

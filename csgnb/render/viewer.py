@@ -22,6 +22,8 @@ __all__ = ["Viewer"]
 
 #: Degrees of orbit per pixel of drag.
 DRAG_DEGREES = 0.4
+#: Zoom factor per wheel step (through the zoom slider, which bounds it).
+WHEEL_ZOOM = 1.1
 
 
 class Viewer:
@@ -160,9 +162,10 @@ class Viewer:
             self._drag = None
             self.update(reference=True)
         elif kind == "wheel":
-            zoom = 1.1 if event.get("deltaY", 0) < 0 else 1 / 1.1
-            self._base = self._base.orbited(zoom=zoom)
-            self._set_camera(self.camera.orbited(zoom=zoom), reference=True)
+            # Through the zoom slider, so that it shows the zoom the wheel sets (its observer re-renders); the
+            # slider's range bounds the wheel's too.
+            factor = WHEEL_ZOOM if event.get("deltaY", 0) < 0 else 1 / WHEEL_ZOOM
+            self.zoom.value = self.zoom.value * factor
 
     def drag(self, dx: float, dy: float) -> Frame:
         """Orbit as a mouse drag by (dx, dy) pixels would (for scripts and tests); return the frame."""
