@@ -305,7 +305,8 @@ def _run(args) -> int:
         print(f"  tool {'*' if k is None else k}: {t}", file=sys.stderr)
         if t.collapsed_faces:
             print(f"note: tool {'*' if k is None else k}: rounding to the {grid.resolution:g} mm grid merged corners "
-                  f"of {t.collapsed_faces} of its {len(t.shape.faces)} faces (dropped: the tool is the rounded one); "
+                  f"of {t.collapsed_faces} of its {len(t.shape.faces)} faces or put them on one line (dropped: the "
+                  "tool is the rounded one); "
                   "a finer --resolution or --width 256 keeps more of its shape", file=sys.stderr)
     t0 = time.perf_counter()
     try:

@@ -305,22 +305,66 @@ def test_rejects_bad_arrays():
         bsp_from_mesh(V * 10_000, F)
 
 
-def test_refuses_flat_faces_and_drops_collapsed_ones():
+def test_splits_flat_faces_drops_collapsed_ones_and_refuses_the_rest():
     V, F = SOLIDS["tetrahedron"]
-    V2 = np.r_[V, [[3, 0, 0]]]  # on the edge (0, 1): three distinct collinear corners
-    F2 = np.r_[F, [[0, 4, 1]]]
-    with pytest.raises(GeometryError, match="face 4 .* flat"):
-        bsp_from_mesh(V2, F2)
     expected = BSP.from_mesh(V, F).volume()
+    # Quantizing a fine mesh can round a vertex onto the segment between two others: here (3, 0, 0) on the edge
+    # (0, 1). One side of that edge is split there, the other is not, and a flat face (0, 1, 4) closes the gap --
+    # closed and edge-manifold, but a face without area. It is removed by splitting the other side at vertex 4.
+    V2 = np.r_[V, [[3, 0, 0]]]
+    F2 = np.array([[0, 2, 1], [0, 4, 3], [4, 1, 3], [0, 3, 2], [1, 2, 3], [0, 1, 4]])
+    report = {}
+    W, T = validate_mesh(V2, F2, report=report)
+    assert report == {"collapsed_faces": 0, "flat_faces": 1} and T.shape[0] == 6
+    normal = np.cross(W[T[:, 1]] - W[T[:, 0]], W[T[:, 2]] - W[T[:, 0]])
+    assert normal.any(axis=1).all()
+    assert BSP.from_mesh(V2, F2).volume() == expected
+    assert BSP.from_mesh(V2, F2[[5, 0, 1, 2, 3, 4]]).volume() == expected  # wherever the flat face comes
+    # A flat face whose long edge has no single neighbour cannot be split: refused, named.
+    V3 = np.r_[V, [[1, 1, 1], [2, 2, 2], [3, 3, 3]]]
+    with pytest.raises(GeometryError, match="face 4 .* flat"):
+        bsp_from_mesh(V3, np.r_[F, [[4, 5, 6]]])
+    # A flat face added to a closed mesh without the matching split leaves it open after the repair: refused.
+    with pytest.raises(GeometryError, match="open"):
+        bsp_from_mesh(V2, np.r_[F, [[0, 4, 1]]])
     # A face with a repeated corner, and one whose corners weld into one position (what quantizing a fine float
     # mesh does): no area, no volume; they are dropped and counted, and the solid is the same.
     for V3, F3 in ((V, np.r_[F[:1], [[0, 1, 1]], F[1:]]), (np.r_[V, V[:1]], np.r_[[[0, 2, 4]], F])):
         report = {}
         W, T = validate_mesh(V3, F3, report=report)
-        assert report == {"collapsed_faces": 1} and T.shape[0] == F.shape[0]
+        assert report == {"collapsed_faces": 1, "flat_faces": 0} and T.shape[0] == F.shape[0]
         assert BSP.from_mesh(V3, F3).volume() == expected
     with pytest.raises(GeometryError, match="no closed mesh is left"):
         bsp_from_mesh(V, np.r_[F[:3], [[0, 0, 1]]])
+
+
+@pytest.mark.parametrize("name", sorted(SOLIDS))
+def test_a_vertex_rounded_onto_any_edge_gives_the_same_solid(name):
+    """For every edge of every catalogue solid: a vertex inserted at the edge's midpoint on one side, a flat face on
+    the other (what rounding a fine mesh makes). The mesh is repaired, and volume and labels equal the original's."""
+    V, F = SOLIDS[name]
+    V = 2 * np.asarray(V)  # even coordinates: every midpoint is a grid point
+    original = BSP.from_mesh(V, F)
+    rng = np.random.default_rng(7)
+    lo, hi = V.min(axis=0) - 1, V.max(axis=0) + 1
+    points = rng.integers(lo, hi + 1, (150, 3))
+    expected = original.classify(points).tolist()
+    tried = 0
+    for f in range(0, F.shape[0], max(1, F.shape[0] // 6)):  # a few faces of each solid, each edge of those
+        for r in range(3):
+            a, b, c = (int(F[f, (r + i) % 3]) for i in range(3))
+            m = V.shape[0]
+            V2 = np.r_[V, [(V[a] + V[b]) // 2]]
+            # face f (a, b, c) split at m on its side; the flat face (a, b, m) pairs the other side's b -> a
+            F2 = np.r_[np.delete(F, f, axis=0), [[a, m, c], [m, b, c], [a, b, m]]]
+            report = {}
+            validate_mesh(V2, F2, report=report)
+            assert report["flat_faces"] == 1
+            repaired = BSP.from_mesh(V2, F2)
+            assert repaired.volume() == original.volume()
+            assert repaired.classify(points).tolist() == expected
+            tried += 1
+    assert tried >= 3
 
 
 def test_rejects_open_meshes():

@@ -147,9 +147,10 @@ class ToolShape:
                 "Use a finer grid or a coarser angular resolution"
             ) from exc
         tool = GridTool(self, grid, V, F)
-        # Faces whose corners rounding merged bound no volume and were dropped (the solid is the rounded one, as
-        # for every point on the grid); many of them mean the grid is coarse for this tool: callers report it.
-        tool.collapsed_faces = int(report.get("collapsed_faces", 0))
+        # Faces whose corners rounding merged, or put on one line, bound no volume: dropped (a flat one after
+        # splitting its neighbour at the middle corner; the solid is the rounded one, as for every point on the
+        # grid); many of them mean the grid is coarse for this tool: callers report it.
+        tool.collapsed_faces = int(report.get("collapsed_faces", 0)) + int(report.get("flat_faces", 0))
         return tool
 
     def __repr__(self) -> str:

@@ -15,9 +15,12 @@ No plane is created: every node plane is a face's support and every vertex a tri
 of palette planes, so the import is exact and within the palette's bit budget.
 
 :func:`bsp_from_mesh` first checks that an integer triangle mesh bounds a solid —
-within the budget, no degenerate faces, closed, edge-manifold, consistently and
-outwardly oriented, not self-intersecting, its shells properly nested (cavities face
-inward) — and raises an error naming the first defect it finds.
+within the budget, closed, edge-manifold, consistently and outwardly oriented, not
+self-intersecting, its shells properly nested (cavities face inward) — and raises an
+error naming the first defect it finds. Faces without area that rounding a fine mesh
+onto a grid makes are removed first, the surface unchanged: collapsed ones (two
+corners welded) dropped, flat ones (a corner rounded onto the opposite edge) dropped
+after splitting their neighbour at that corner (:func:`validate_mesh`).
 """
 
 from __future__ import annotations
@@ -600,6 +603,60 @@ def _describe_edge(first_index, V, a: int, b: int) -> str:
     return f"({int(first_index[a])}, {int(first_index[b])}) from {V[a].tolist()} to {V[b].tolist()}"
 
 
+def _split_flat_faces(W, T, F, face_ids, first_index):
+    """Remove flat faces (three distinct collinear corners) by splitting the neighbour across their long edge.
+
+    A flat face ``(p, m, n)`` with ``m`` strictly between ``n`` and ``p`` covers no area: its long edge ``n -> p``
+    is matched by one neighbour ``(p, n, x)``, and its short edges ``p -> m``, ``m -> n`` by the faces on the other
+    side. Replacing the neighbour by ``(p, m, x)`` and ``(m, n, x)`` and dropping the flat face leaves the same
+    surface, closed and oriented as before (what quantizing a fine mesh makes: a vertex rounded onto an edge). A
+    piece that is flat in turn (the neighbour was flat too) is repaired the same way. A flat face whose long edge
+    has no single neighbour is left for the caller's checks to refuse.
+
+    Returns ``(T, F, face_ids, count)``: the faces (welded and input indices, their input face numbers) and how many
+    flat faces were removed.
+    """
+    normal = np.cross(W[T[:, 1]] - W[T[:, 0]], W[T[:, 2]] - W[T[:, 0]])
+    queue = np.flatnonzero(~normal.any(axis=1)).tolist()
+    if not queue:
+        return T, F, face_ids, 0
+    tri, src, ids = T.tolist(), F.tolist(), face_ids.tolist()
+    alive = [True] * len(tri)
+    half_edges: dict[tuple[int, int], list[int]] = {}  # (a, b) -> faces with that half-edge (dead ones filtered)
+    for g, (a, b, c) in enumerate(tri):
+        for e in ((a, b), (b, c), (c, a)):
+            half_edges.setdefault(e, []).append(g)
+    count = 0
+    while queue:
+        f = queue.pop()
+        if not alive[f]:
+            continue
+        P = W[tri[f]]
+        axis = int(np.argmax(P.max(axis=0) - P.min(axis=0)))
+        k = int(np.argsort(P[:, axis], kind="stable")[1])  # the middle corner
+        m, n, p = tri[f][k], tri[f][(k + 1) % 3], tri[f][(k + 2) % 3]
+        hits = [g for g in half_edges.get((p, n), []) if alive[g] and g != f]
+        if len(hits) != 1:
+            continue
+        g = hits[0]
+        x = next(tri[g][(r + 2) % 3] for r in range(3) if tri[g][r] == p and tri[g][(r + 1) % 3] == n)
+        alive[f] = alive[g] = False
+        for piece in ([p, m, x], [m, n, x]):
+            new = len(tri)
+            tri.append(piece)
+            src.append(first_index[piece].tolist())
+            ids.append(ids[g])
+            alive.append(True)
+            a, b, c = piece
+            for e in ((a, b), (b, c), (c, a)):
+                half_edges.setdefault(e, []).append(new)
+            if not np.cross(W[b] - W[a], W[c] - W[a]).any():
+                queue.append(new)
+        count += 1
+    keep = np.flatnonzero(alive)
+    return (np.array(tri, np.int64)[keep], np.array(src, np.int64)[keep], np.array(ids, np.int64)[keep], count)
+
+
 def validate_mesh(vertices, faces, width: int = DEFAULT_WIDTH, *,
                   report: dict | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Check that an integer triangle mesh bounds a solid; return it welded: ``(vertices, faces)``.
@@ -608,10 +665,13 @@ def validate_mesh(vertices, faces, width: int = DEFAULT_WIDTH, *,
     corners is fine), and faces that merging collapsed (two corners at one point: what
     quantizing a fine float mesh onto a grid makes) are dropped -- such a face bounds no
     volume, and its two remaining edges cancel, so the rest closes up as before; their
-    number goes to ``report["collapsed_faces"]`` when a dict is given. Then, in this
+    number goes to ``report["collapsed_faces"]`` when a dict is given. Flat faces (three
+    distinct collinear corners: a vertex rounded onto the segment between two others) are
+    removed by splitting the one neighbour across their long edge at the middle corner
+    (the same surface; counted in ``report["flat_faces"]``). Then, in this
     order, the mesh must be: integer ``(n, 3)`` / ``(m, 3)`` arrays with valid indices;
-    within the mesh budget of ``width``; free of flat faces (three distinct collinear
-    corners: an edge of the neighbour would need splitting); closed (every edge has an
+    within the mesh budget of ``width``; free of flat faces that could not be split that
+    way; closed (every edge has an
     opposite half-edge); edge-manifold (two faces per edge); consistently oriented; outward (positive exact volume);
     free of self-intersections (exact tests between faces whose bounding boxes
     overlap, including touching faces and coplanar faces folded over a shared edge);
@@ -666,13 +726,17 @@ def validate_mesh(vertices, faces, width: int = DEFAULT_WIDTH, *,
         face_ids = keep
     else:
         face_ids = np.arange(T.shape[0])
+    T, F, face_ids, split = _split_flat_faces(W, T, F, face_ids, first_index)
+    if report is not None:
+        report["flat_faces"] = split
     normal = np.cross(W[T[:, 1]] - W[T[:, 0]], W[T[:, 2]] - W[T[:, 0]])  # fits int64 within the budget
     degenerate = np.flatnonzero(~normal.any(axis=1))
     if degenerate.size:
         f = int(degenerate[0])
         raise GeometryError(
             f"face {int(face_ids[f])} {F[f].tolist()} is flat: its corners {W[T[f]].tolist()} are three distinct "
-            "collinear points (a neighbour's edge passes through the middle one); remove it and split that edge"
+            "collinear points, and the edge through the middle one is not shared by exactly one other face (so it "
+            "cannot be split there); remove the face and split that edge"
         )
 
     # Half-edges (a -> b) of face f; an undirected edge must carry exactly one each way.
