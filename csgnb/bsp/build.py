@@ -610,8 +610,9 @@ def _split_flat_faces(W, T, F, face_ids, first_index):
     is matched by one neighbour ``(p, n, x)``, and its short edges ``p -> m``, ``m -> n`` by the faces on the other
     side. Replacing the neighbour by ``(p, m, x)`` and ``(m, n, x)`` and dropping the flat face leaves the same
     surface, closed and oriented as before (what quantizing a fine mesh makes: a vertex rounded onto an edge). A
-    piece that is flat in turn (the neighbour was flat too) is repaired the same way. A flat face whose long edge
-    has no single neighbour is left for the caller's checks to refuse.
+    piece that is flat in turn (the neighbour was flat too) is repaired the same way; a neighbour that is the flat
+    face's mirror image ``(p, n, m)`` goes with it (the two pair each other's edges and bound nothing). A flat
+    face whose long edge has no single neighbour is left for the caller's checks to refuse.
 
     Returns ``(T, F, face_ids, count)``: the faces (welded and input indices, their input face numbers) and how many
     flat faces were removed.
@@ -642,6 +643,8 @@ def _split_flat_faces(W, T, F, face_ids, first_index):
         x = next(tri[g][(r + 2) % 3] for r in range(3) if tri[g][r] == p and tri[g][(r + 1) % 3] == n)
         alive[f] = alive[g] = False
         for piece in ([p, m, x], [m, n, x]):
+            if x == m:  # the neighbour is f's mirror image (both flat): the pieces collapse, their edges cancel
+                continue
             new = len(tri)
             tri.append(piece)
             src.append(first_index[piece].tolist())
