@@ -60,6 +60,8 @@ def test_html_is_a_self_contained_vtkjs_scene_with_the_texts_laid_over(tmp_path)
     # One caption per subplot, in its half of the view.
     assert "panel 0" in out.data and "panel 1" in out.data
     assert "left:0.000%" in out.data and "left:50.000%" in out.data
+    # The view fits a narrower output area: at most the window's width, its aspect kept.
+    assert "width:100%;max-width:320px;aspect-ratio:320/240" in out.data
 
 
 def test_show_works_outside_the_main_thread_as_in_a_widget_callback():

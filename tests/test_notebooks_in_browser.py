@@ -6,6 +6,7 @@ JupyterLab's autosave never rewrites the committed files:
 1. open it, clear its outputs, click Run -> Run All Cells and wait until every code cell has run;
 2. assert that no cell wrote to stderr (errors, tracebacks, warnings);
 3. write screenshots of the whole notebook, page by page, to ``out/browser/<notebook>-NN.png``;
+   then, with the file browser open (a narrower notebook), check that every 3D view fits its output area;
 4. operate every widget with real input -- a slider by arrow keys on its handle, a dropdown by choosing another
    option, a button by a click, a 3D view by a mouse drag -- and assert that the output it drives changed, still
    holds its pictures and shows no warning or error.
@@ -334,6 +335,30 @@ def _operate_widgets(page, name: str) -> list[str]:
     return done
 
 
+# Every 3D view's right edge and the right edge of the output area holding it, in CSS pixels.
+VIEW_FIT_JS = """
+() => Array.from(document.querySelectorAll('.csgnb-view > div')).map((v) => {
+  const area = v.closest('.jp-OutputArea-output') || v.parentElement;
+  const a = area.getBoundingClientRect(), r = v.getBoundingClientRect();
+  return {right: r.right, limit: a.right, width: r.width, height: r.height};
+})
+"""
+
+
+def _check_views_fit(page, name: str) -> None:
+    """With the file browser open (a narrower notebook, as a reader has it), every 3D view fits its output area
+    and keeps a height (the views shrink with the area, keeping their aspect)."""
+    page.keyboard.press("Control+b")  # show the file browser again
+    page.wait_for_timeout(800)
+    try:
+        views = page.evaluate(VIEW_FIT_JS)
+        wide = [v for v in views if v["right"] > v["limit"] + 1 or v["height"] < 10]
+        assert not wide, f"{name}: {len(wide)} of {len(views)} 3D views do not fit their output area: {wide[:3]}"
+    finally:
+        page.keyboard.press("Control+b")
+        page.wait_for_timeout(300)
+
+
 def _check_in_browser(lab, browser, name: str) -> None:
     page = browser.new_page(viewport=VIEWPORT)
     try:
@@ -345,6 +370,7 @@ def _check_in_browser(lab, browser, name: str) -> None:
         errors = _stderr_texts(page)
         _screenshots(page, Path(name).stem)
         assert not errors, f"{name}: Run All wrote to stderr:\n" + "\n---\n".join(errors)
+        _check_views_fit(page, name)
         operated = _operate_widgets(page, name)
         print(f"{name}: operated {len(operated)} widgets and views")
         for line in operated:
