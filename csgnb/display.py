@@ -248,8 +248,10 @@ def _scene_html(plotter) -> str:
     frame = (f'<iframe class="csgnb-scene" title="3D view: drag to rotate, scroll to zoom" '
              f'srcdoc="{html.escape(page, quote=True)}" '
              f'style="position:absolute;left:0;top:0;width:100%;height:100%;border:1px solid #ddd"></iframe>')
-    view = (f'<div style="position:relative;width:{width}px;height:{height}px;flex:none">'
-            f'{frame}{"".join(_captions(plotter, width, height))}</div>')
+    # At most the window's size, narrower when the output area is: the view shrinks with it and keeps its aspect
+    # (a fixed width was cut off in a narrow notebook), as a picture does.
+    view = (f'<div style="position:relative;width:100%;max-width:{width}px;aspect-ratio:{width}/{height};'
+            f'flex:none">{frame}{"".join(_captions(plotter, width, height))}</div>')
     hint = ('<div style="font:12px sans-serif;color:#666;margin-top:2px">3D view: drag to rotate, '
             'shift-drag to pan, scroll to zoom</div>')
     return f'<div class="csgnb-view">{view}{hint}</div>'
