@@ -642,9 +642,8 @@ def _split_flat_faces(W, T, F, face_ids, first_index):
         g = hits[0]
         x = next(tri[g][(r + 2) % 3] for r in range(3) if tri[g][r] == p and tri[g][(r + 1) % 3] == n)
         alive[f] = alive[g] = False
-        for piece in ([p, m, x], [m, n, x]):
-            if x == m:  # the neighbour is f's mirror image (both flat): the pieces collapse, their edges cancel
-                continue
+        # A neighbour that is f's mirror image (x == m, both flat) leaves no piece: the two pair each other's edges.
+        for piece in ([p, m, x], [m, n, x]) if x != m else ():
             new = len(tri)
             tri.append(piece)
             src.append(first_index[piece].tolist())

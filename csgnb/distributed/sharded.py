@@ -182,9 +182,11 @@ class Shard:
         return self.w.n_cells
 
     def stats(self) -> dict:
-        """Time applying Booleans, Booleans applied, cells, BSP nodes."""
+        """Time applying Booleans, Booleans applied, cells, BSP nodes, the worker holding this shard."""
+        from csgnb.distributed.batch import _worker_address
+
         return {"busy_s": self.busy_s, "applied": self.applied, "cells": self.w.n_cells,
-                "bsp_nodes": self.w.n_bsp_nodes}
+                "bsp_nodes": self.w.n_bsp_nodes, "worker": _worker_address()}
 
 
 class ShardFailure(CsgnbError):
@@ -416,7 +418,7 @@ class ShardedWorkpiece:
         """Per shard: time spent applying Booleans, Booleans applied, cells, BSP nodes, worker address."""
         self.flush()
         calls = [a.stats() for a in self.actors]
-        return [dict(c.result(), worker=a._address) for a, c in zip(self.actors, calls, strict=True)]
+        return [c.result() for c in calls]
 
     def save(self, folder, *, step: int | None = None) -> Path:
         """Write a checkpoint into ``folder``: every shard's workpiece, then the manifest (``shards.json``).
