@@ -276,3 +276,22 @@ def test_a_boolean_within_a_box_is_right_in_the_box_and_refuses_what_it_cannot_d
     far = convex_hull(np.array([[-7, -7, -7], [-5, -7, -7], [-7, -5, -7], [-7, -7, -5]]))
     part.difference(far, within=([0, 0, 0], [8, 8, 8]))  # the tool's box misses the box: nothing changes
     assert part.volume() == before
+
+
+@pytest.mark.parametrize("op", ["union_into_empty", "intersect_box"])
+def test_first_cell_larger_than_the_empty_pool(op):
+    """A many-faceted hull (553 facets) written into a workpiece whose BSP pool is still empty: the pool must grow
+    (it used to be asked for room again and again, 100 times, and end in an InternalError)."""
+    k = np.arange(313)
+    z = 1 - 2 * (k + 0.5) / 313
+    phi = k * np.pi * (3 - 5**0.5)
+    pts = np.rint(400 * np.stack([np.sqrt(1 - z * z) * np.cos(phi), np.sqrt(1 - z * z) * np.sin(phi), z], 1))
+    hull = convex_hull(pts.astype(np.int64), width=128)
+    assert hull.planes.shape[0] > 500
+    if op == "union_into_empty":
+        w = Workpiece.empty(width=128)
+        w |= hull
+    else:
+        w = Workpiece.box([-500] * 3, [500] * 3, width=128)
+        w &= hull
+    assert w.volume() == hull.volume()

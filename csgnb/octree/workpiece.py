@@ -693,7 +693,9 @@ class Workpiece:
 
     def _grow(self, resource: int) -> None:
         if resource == R_POOL:
-            self.pool = grown_pool(self.pool, int(self.oc.counts[N_POOL]), max(1024, self.pool.plane.shape[0]))
+            # At least double: a kernel asks again with the same need, and an empty pool (used = 0) must grow too.
+            size = self.pool.plane.shape[0]
+            self.pool = grown_pool(self.pool, max(int(self.oc.counts[N_POOL]), size), max(1024, size))
         elif resource == R_NODES:
             self.oc = grown_octree(self.oc, max(64, self.oc.child.shape[0]))
         elif resource == R_PALETTE:
