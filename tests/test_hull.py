@@ -347,3 +347,29 @@ def test_wrong_qhull_output_is_detected_and_replaced(monkeypatch, mode):
     if mode != "duplicate":  # a repeated triangle is the same plane: harmless, and accepted
         assert _qhull_facets(L, _independent(L)) is None
     assert hull_planes(convex_hull(P)) == expect
+
+
+@settings(max_examples=150, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.sampled_from([3, 40, 10**6]), st.integers(11, 60))
+def test_compiled_face_rings_match_the_python_reference(seed, extent, n):
+    """The compiled face rings and closure check (int64) agree with the Python-integer ones, ring for ring, on
+    hulls with many coplanar and collinear points (small extents) and on wide ones; and both refuse the same
+    incomplete or duplicated plane sets."""
+    from csgnb.mesh import hull as H
+
+    rng = np.random.default_rng(seed)
+    P = rng.integers(-extent, extent + 1, (n, 3))
+    try:
+        h = convex_hull(P, width=256)
+    except GeometryError:
+        return
+    L, N = h._candidates, h._normals
+    S = h._side(L)
+    for j, ring in enumerate(h._faces_local):
+        on = np.flatnonzero(S[:, j] == 0)
+        assert np.array_equal(ring, on[H._polygon_order(L[on], N[j])])
+    assert H._faces_close(L, N, h._d_local, S) and H._faces_close_py(L, N, S)
+    k = N.shape[0]
+    for keep in (np.delete(np.arange(k), rng.integers(k)), np.r_[np.arange(k), rng.integers(k)]):
+        Nk, dk, Sk = N[keep], h._d_local[keep], S[:, keep]
+        assert H._faces_close(L, Nk, dk, Sk) == H._faces_close_py(L, Nk, Sk) is False

@@ -33,6 +33,7 @@ from math import gcd
 
 import numpy as np
 
+from csgnb._jit import jit
 from csgnb.errors import GeometryError, InternalError
 from csgnb.exact.budgets import check_mesh_points
 from csgnb.exact.wide import DEFAULT_WIDTH, to_wide
@@ -112,6 +113,106 @@ def _polygon_order(L: np.ndarray, normal) -> np.ndarray:
     if n[ax] < 0:
         ring = ring[::-1]
     return np.array(ring, np.int64)
+
+
+_RING_SAFE = 1 << 28
+"""Local coordinates below this keep the face kernels' 2-D keys and cross products (~2·E²) exact in int64."""
+
+
+@jit
+def _face_rings(L, N, S):
+    """Every facet's polygon, as :func:`_polygon_order` orders it, for int64 points in one compiled pass.
+
+    ``L`` (n, 3) int64 local points, ``N`` (k, 3) int64 facet normals, ``S`` (n, k) int64 signed values
+    (0 = on the facet), with every ``|L| < _RING_SAFE``. Returns ``offsets`` (k + 1,) int64 and ``ring``
+    int64: facet j's vertices are ``ring[offsets[j]:offsets[j + 1]]`` (fewer than three when its points
+    are collinear).
+    """
+    n, k = S.shape
+    total = 0
+    for j in range(k):
+        for i in range(n):
+            if S[i, j] == 0:
+                total += 1
+    ring = np.empty(total, np.int64)
+    offsets = np.zeros(k + 1, np.int64)
+    on = np.empty(n, np.int64)
+    key = np.empty(n, np.int64)
+    chain = np.empty(2 * n + 2, np.int64)
+    pos = 0
+    for j in range(k):
+        ax = 0  # the dominant axis, the first of equals (as Python's max)
+        if abs(N[j, 1]) > abs(N[j, ax]):
+            ax = 1
+        if abs(N[j, 2]) > abs(N[j, ax]):
+            ax = 2
+        u, v = (ax + 1) % 3, (ax + 2) % 3
+        m = 0
+        for i in range(n):
+            if S[i, j] == 0:
+                on[m] = i
+                key[m] = (L[i, u] + _RING_SAFE) * (2 * _RING_SAFE + 1) + (L[i, v] + _RING_SAFE)
+                m += 1
+        order = np.argsort(key[:m], kind="mergesort")
+        pts = on[:m][order]
+        if m < 3:
+            for t in range(m):
+                ring[pos + t] = pts[t]
+            pos += m
+            offsets[j + 1] = pos
+            continue
+        c = 0
+        for sweep in range(2):  # the lower chain over sorted points, then the upper one over them reversed
+            base = c
+            for t in range(m):
+                p = pts[t] if sweep == 0 else pts[m - 1 - t]
+                while c - base >= 2:
+                    a, b = chain[c - 2], chain[c - 1]
+                    cross = (L[b, u] - L[a, u]) * (L[p, v] - L[a, v]) - (L[b, v] - L[a, v]) * (L[p, u] - L[a, u])
+                    if cross > 0:
+                        break
+                    c -= 1
+                chain[c] = p
+                c += 1
+            c -= 1  # each chain's last point starts the other
+        if N[j, ax] < 0:
+            for t in range(c):
+                ring[pos + t] = chain[c - 1 - t]
+        else:
+            for t in range(c):
+                ring[pos + t] = chain[t]
+        pos += c
+        offsets[j + 1] = pos
+    return offsets, ring[:pos]
+
+
+@jit
+def _rings_close(offsets, ring, n):
+    """Whether the polygons ``ring[offsets[j]:offsets[j + 1]]`` over ``n`` points form a closed surface:
+    every ring has three or more vertices, and every directed edge occurs once, its reverse once."""
+    total = offsets[-1]
+    keys = np.empty(total, np.int64)
+    for j in range(offsets.shape[0] - 1):
+        s, e = offsets[j], offsets[j + 1]
+        if e - s < 3:
+            return False
+        for t in range(s, e):
+            keys[t] = ring[t] * n + ring[s + (t + 1 - s) % (e - s)]
+    keys.sort()
+    for t in range(1, total):
+        if keys[t] == keys[t - 1]:
+            return False
+    for t in range(total):
+        rev = (keys[t] % n) * n + keys[t] // n
+        at = np.searchsorted(keys, rev)
+        if at == total or keys[at] != rev:
+            return False
+    return True
+
+
+def _rings_fit_int64(L: np.ndarray, N: np.ndarray, S: np.ndarray) -> bool:
+    return L.dtype != object and N.dtype != object and S.dtype != object and \
+        int(np.abs(L).max(initial=0)) < _RING_SAFE
 
 
 class ConvexHull:
@@ -194,6 +295,9 @@ class ConvexHull:
     @cached_property
     def _faces_local(self) -> list[np.ndarray]:
         S = self._side(self._candidates)
+        if _rings_fit_int64(self._candidates, self._normals, S):
+            offsets, ring = _face_rings(self._candidates, self._normals, S)
+            return [ring[offsets[j]:offsets[j + 1]] for j in range(self.n_planes)]
         faces = []
         for j in range(self.n_planes):
             on = np.flatnonzero(S[:, j] == 0)
@@ -495,6 +599,14 @@ def _enumerate_facets(L: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 def _faces_close(L: np.ndarray, N: np.ndarray, d: np.ndarray, S: np.ndarray) -> bool:
     """Whether the faces of these supporting planes form a closed surface (every edge once each way)."""
+    if _rings_fit_int64(L, N, S):
+        offsets, ring = _face_rings(L, N, S)
+        return bool(_rings_close(offsets, ring, L.shape[0]))
+    return _faces_close_py(L, N, S)
+
+
+def _faces_close_py(L: np.ndarray, N: np.ndarray, S: np.ndarray) -> bool:
+    """:func:`_faces_close` in Python integers (any size; the reference the compiled path is tested against)."""
     half = {}
     for j in range(N.shape[0]):
         on = np.flatnonzero(S[:, j] == 0)
