@@ -27,12 +27,14 @@ from __future__ import annotations
 import argparse
 import json
 import time
+from fractions import Fraction
 
 import numpy as np
 from _clock import nominal_clock_label
 
 from csgnb.apps import sweep, tools
 from csgnb.exact import Grid
+from csgnb.mesh.hull import convex_hull
 from csgnb.octree import Tool, Workpiece
 
 
@@ -104,6 +106,136 @@ def drill_workload(args) -> dict:
             "per_step_ms": [x * 1e3 for x in csg_t], "manifold3d_per_step_ms": [x * 1e3 for x in mf_t]}
 
 
+def _unit_sphere(n_lat: int = 6, n_lon: int = 10) -> np.ndarray:
+    """Points of a UV sphere of radius 1 ``(2 + (n_lat - 1) n_lon, 3)``, rings staggered."""
+    pts = [[0.0, 0.0, 1.0], [0.0, 0.0, -1.0]]
+    for i in range(1, n_lat):
+        th = np.pi * i / n_lat
+        ph = 2 * np.pi * (np.arange(n_lon) + 0.5 * (i % 2)) / n_lon
+        pts += np.stack([np.sin(th) * np.cos(ph), np.sin(th) * np.sin(ph), np.full(n_lon, np.cos(th))], 1).tolist()
+    return np.array(pts)
+
+
+def dome_setup(steps: int, width: int, radius: float = 10.0, groove: float = 0.6, turns: int = 10):
+    """A hemisphere (radius 10 mm, 313 points) and ``steps`` capsules (radius 0.6 mm, 102 points each) whose axes
+    follow a spiral on its surface from the pole down to 8 % above the rim: grid points, model ``(grid, dome,
+    [capsule points])``. Consecutive capsules overlap most of their length, like a ball-nose groove."""
+    grid = Grid.fit([-radius - 2, -radius - 2, -1.0], [radius + 2, radius + 2, radius + 2], width=width)
+    rings = [np.zeros((1, 3)) + [0, 0, radius]]
+    for i in range(1, 13):
+        th = 0.5 * np.pi * i / 12
+        ph = 2 * np.pi * np.arange(24) / 24
+        rings.append(radius * np.stack([np.sin(th) * np.cos(ph), np.sin(th) * np.sin(ph), np.full(24, np.cos(th))], 1))
+    dome = np.concatenate(rings + [rings[-1] * [1, 1, 0]])
+    t = np.linspace(0.0, 1.0, steps + 1)
+    th = 0.05 + t * (0.46 * np.pi - 0.05)
+    ph = 2 * np.pi * turns * t
+    path = radius * np.stack([np.sin(th) * np.cos(ph), np.sin(th) * np.sin(ph), np.cos(th)], 1)
+    ball = groove * _unit_sphere()
+    caps = [grid.to_grid(np.concatenate([path[i] + ball, path[i + 1] + ball])) for i in range(steps)]
+    return grid, grid.to_grid(dome), caps
+
+
+def dome_workload(args, steps: int) -> dict:
+    """The hemisphere minus ``steps`` capsules; each step builds its tool from the capsule's points (csgnb: the exact
+    hull; manifold3d: ``hull_points`` of the same grid points) and subtracts it, both timed."""
+    import manifold3d as m3
+
+    grid, dome, caps = dome_setup(steps, args.width)
+    warm = Workpiece.empty(grid, threshold=args.threshold)  # kernels loaded before anything is timed
+    warm |= convex_hull(dome, grid=grid)
+    for c in caps[:3]:
+        warm -= convex_hull(c, grid=grid)
+    w = Workpiece.empty(grid, threshold=args.threshold)
+    w |= convex_hull(dome, grid=grid)
+    wall, cpu = time.perf_counter(), time.process_time()
+    ts = []
+    for c in caps:
+        t = time.perf_counter()
+        w -= convex_hull(c, grid=grid)
+        ts.append(time.perf_counter() - t)
+    csg_wall, csg_cpu = time.perf_counter() - wall, time.process_time() - cpu
+    solid = m3.Manifold.hull_points(grid.to_model(dome))
+    wall, cpu = time.perf_counter(), time.process_time()
+    mts = []
+    for c in caps:
+        t = time.perf_counter()
+        solid = solid - m3.Manifold.hull_points(grid.to_model(c))
+        solid.num_tri()  # manifold3d evaluates lazily: force the Boolean
+        mts.append(time.perf_counter() - t)
+    mf_wall, mf_cpu = time.perf_counter() - wall, time.process_time() - cpu
+    vol = float(w.model_volume())
+    first, last = _tenths(ts)
+    return {"steps": steps, "csgnb_s": csg_wall, "csgnb_cpu_s": csg_cpu, "manifold3d_s": mf_wall,
+            "manifold3d_cpu_s": mf_cpu, "median_ms": float(np.median(ts) * 1e3),
+            "manifold3d_median_ms": float(np.median(mts) * 1e3), "first_tenth_median_ms": first * 1e3,
+            "last_tenth_median_ms": last * 1e3, "faces": w.surface().n_polygons,
+            "manifold3d_triangles": int(solid.num_tri()), "cells": w.n_cells, "bsp_nodes": w.n_bsp_nodes,
+            "volume": vol, "manifold3d_volume": float(solid.volume()),
+            "volume_rel_dev": abs(vol - float(solid.volume())) / vol}
+
+
+def lattice_ops(n: int, seed: int = 7) -> list[tuple[str, np.ndarray, np.ndarray]]:
+    """``n`` Booleans of axis-aligned cubes on a 10 x 10 x 10 lattice (pitch 10, integer corners): cubes of side 12
+    (overlapping their neighbours, so faces are coplanar and edges meet) unioned, and cubes of side 6 centred on
+    lattice points or on cell centres subtracted, two unions to one difference, in a random order."""
+    rng = np.random.default_rng(seed)
+    ops = []
+    for i in range(n):
+        site = rng.integers(0, 10, 3) * 10 + 20
+        if i % 3 == 2:
+            centre = site + (5 if rng.random() < 0.5 else 0)
+            ops.append(("difference", centre - 3, centre + 3))
+        else:
+            ops.append(("union", site - 6, site + 6))
+    return ops
+
+
+def _box_points(lo, hi) -> np.ndarray:
+    return np.array([[(hi if k & (1 << a) else lo)[a] for a in range(3)] for k in range(8)], np.int64)
+
+
+def lattice_workload(args, n: int) -> dict:
+    """The cube lattice on the identity grid: csgnb with the exact volume change of every step (``track_volume``)
+    checked against an independent voxel count (each cube covers whole unit voxels), manifold3d on the same cubes
+    with its volume compared at every step."""
+    import manifold3d as m3
+
+    ops = lattice_ops(n)
+    occupancy = np.zeros((140, 140, 140), bool)  # unit voxels [0, 140)^3 hold every cube
+    w = Workpiece.empty(width=args.width, threshold=args.threshold)
+    warm = Workpiece.empty(width=args.width, threshold=args.threshold)  # kernels loaded before anything is timed
+    for op, lo, hi in ops[:6]:
+        getattr(warm, op)(convex_hull(_box_points(lo, hi), width=args.width), track_volume=True)
+    ts, volume, mismatches, csg_cpu = [], Fraction(0), 0, 0.0
+    for op, lo, hi in ops:
+        t, cpu = time.perf_counter(), time.process_time()
+        report = getattr(w, op)(convex_hull(_box_points(lo, hi), width=args.width), track_volume=True)
+        ts.append(time.perf_counter() - t)
+        csg_cpu += time.process_time() - cpu
+        volume += report.volume_change
+        occupancy[lo[0]:hi[0], lo[1]:hi[1], lo[2]:hi[2]] = op == "union"
+        mismatches += volume != int(occupancy.sum())
+    exact_final = w.volume() == int(occupancy.sum())
+    solid = m3.Manifold()
+    mts, mf_dev = [], 0.0
+    cpu = time.process_time()
+    for op, lo, hi in ops:
+        t = time.perf_counter()
+        cube = m3.Manifold.cube((hi - lo).astype(float).tolist()).translate(lo.astype(float).tolist())
+        solid = solid + cube if op == "union" else solid - cube
+        solid.num_tri()
+        mts.append(time.perf_counter() - t)
+    mf_cpu = time.process_time() - cpu
+    mf_dev = abs(float(solid.volume()) - int(occupancy.sum())) / int(occupancy.sum())
+    return {"ops": n, "csgnb_s": float(sum(ts)), "csgnb_cpu_s": csg_cpu, "manifold3d_s": float(sum(mts)),
+            "manifold3d_cpu_s": mf_cpu, "median_ms": float(np.median(ts) * 1e3),
+            "manifold3d_median_ms": float(np.median(mts) * 1e3), "volume": int(occupancy.sum()),
+            "exact_volume_mismatches": int(mismatches), "exact_final_volume": bool(exact_final),
+            "manifold3d_volume_rel_dev": mf_dev, "cells": w.n_cells, "bsp_nodes": w.n_bsp_nodes,
+            "faces": w.surface().n_polygons, "manifold3d_triangles": int(solid.num_tri())}
+
+
 def gear_hulls(samples: int, width: int):
     grid = Grid.fit([-10, -20, -10], [70, 40, 20], width=width)
     gear = tools.spur_gear().on(grid)
@@ -152,7 +284,8 @@ def gear_workload(args, samples: int, threshold: int, with_manifold: bool = True
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--workloads", nargs="+", default=["drill", "gear_sweep"], choices=["drill", "gear_sweep"])
+    parser.add_argument("--workloads", nargs="+", default=["drill", "gear_sweep", "dome", "lattice"],
+                        choices=["drill", "gear_sweep", "dome", "lattice"])
     parser.add_argument("--width", type=int, default=128)
     parser.add_argument("--threshold", type=int, default=150)
     parser.add_argument("--turns", type=int, default=3)
@@ -161,6 +294,8 @@ def main() -> None:
     parser.add_argument("--mf-gear-ops", type=int, default=2000, help="gear unions manifold3d runs (one by one)")
     parser.add_argument("--sweep", type=int, nargs="*", default=None, help="thresholds for the Figure 11 sweep")
     parser.add_argument("--faces", action="store_true", help="extract the gear sweep's surface to count faces")
+    parser.add_argument("--dome-steps", type=int, nargs="+", default=[1000], help="capsules per dome carve")
+    parser.add_argument("--lattice-ops", type=int, default=2000, help="cube lattice Booleans")
     parser.add_argument("--verbose", action="store_true")
     parser.add_argument("--json", type=str, default=None)
     args = parser.parse_args()
@@ -199,6 +334,31 @@ def main() -> None:
         main_gear = gears[args.samples[0]]
         result["workloads"]["gear_sweep"] = main_gear
         result["workloads"]["gear_sweep_by_samples"] = {str(k): v for k, v in gears.items()}
+    if "dome" in args.workloads:
+        domes = {}
+        for n in args.dome_steps:
+            d = dome_workload(args, n)
+            domes[str(n)] = d
+            half = d["csgnb_cpu_s"] <= 0.5 * d["manifold3d_cpu_s"]
+            print(f"\ndome carve, {n} capsules: csgnb {d['csgnb_s']:.2f} s wall / {d['csgnb_cpu_s']:.2f} s CPU, manifold3d "
+                  f"{d['manifold3d_s']:.2f} s wall / {d['manifold3d_cpu_s']:.2f} s CPU (target csgnb CPU <= 0.5x "
+                  f"manifold3d's: {'met' if half else 'NOT met'}; 1,000 steps <= 3 s: "
+                  f"{'met' if n != 1000 or d['csgnb_s'] <= 3 else 'NOT met' if n == 1000 else '-'})")
+            print(f"  per step: median {d['median_ms']:.2f} ms (manifold3d {d['manifold3d_median_ms']:.2f}), first/last "
+                  f"tenth {d['first_tenth_median_ms']:.2f}/{d['last_tenth_median_ms']:.2f} ms; {d['faces']} polygons "
+                  f"vs {d['manifold3d_triangles']} triangles; volume rel. dev. {d['volume_rel_dev']:.1e}")
+        result["workloads"]["dome"] = domes
+    if "lattice" in args.workloads:
+        d = lattice_workload(args, args.lattice_ops)
+        result["workloads"]["lattice"] = d
+        half = d["csgnb_cpu_s"] <= 0.5 * d["manifold3d_cpu_s"]
+        print(f"\ncube lattice, {d['ops']} Booleans: csgnb {d['csgnb_s']:.2f} s / {d['csgnb_cpu_s']:.2f} s CPU (exact "
+              f"volume tracked every step), manifold3d {d['manifold3d_s']:.2f} s / {d['manifold3d_cpu_s']:.2f} s CPU "
+              f"(target csgnb CPU <= 0.5x: {'met' if half else 'NOT met'}); median {d['median_ms']:.2f} vs "
+              f"{d['manifold3d_median_ms']:.2f} ms")
+        print(f"  exact volume vs voxel count: {d['exact_volume_mismatches']} mismatches in {d['ops']} steps, final "
+              f"{'equal' if d['exact_final_volume'] else 'DIFFERENT'}; manifold3d final rel. dev. "
+              f"{d['manifold3d_volume_rel_dev']:.1e}; {d['faces']} polygons vs {d['manifold3d_triangles']} triangles")
     if args.sweep:
         print(f"\nFigure 11: gear sweep (S = {args.samples[0]}) total time by BSP threshold")
         rows = []
