@@ -131,7 +131,9 @@ def crafted_cases(header, a):
     leaves = np.flatnonzero((a["oc_child"] == -1) & (a["oc_parent"] >= 0))
     bsp = leaves[a["oc_kind"][leaves] == 1]
     uniform = leaves[a["oc_kind"][leaves] == 0]
-    big = int(bsp[np.argmax(a["oc_length"][bsp])])
+    # the longest BSP among cells that can still split (a cell of min_cell may legitimately exceed the threshold)
+    splittable = bsp[a["oc_size"][bsp] > header["min_cell"]]
+    big = int(splittable[np.argmax(a["oc_length"][splittable])])
     small = int(bsp[np.argmin(a["oc_length"][bsp])])
     used = np.flatnonzero(a["axis_keys"] >= 0)
     pin = np.flatnonzero(a["pool_plane"] >= 0)

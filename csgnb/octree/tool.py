@@ -18,12 +18,49 @@ from __future__ import annotations
 
 import numpy as np
 
+from csgnb._jit import jit
 from csgnb.bsp.build import bsp_from_polygons, validate_mesh
 from csgnb.bsp.polygon import PolygonSet, polygons_from_triangles
 from csgnb.errors import GeometryError
 from csgnb.exact.wide import from_wide, is_wide, to_wide, width_of
 
 __all__ = ["Tool"]
+
+
+@jit
+def spread_order(normals):
+    """A farthest-first order of the directions ``normals`` ``(k, 3)`` float64 (not necessarily unit): the first,
+    then repeatedly the one whose largest cosine to those already chosen is smallest. ``(k,)`` int64.
+
+    A convex tool's planes reach a cell in this order (its linear BSP): a cell beside the tool
+    meets a plane facing it among the first few, and the walk through the chain ends there. In
+    the hull's lexicographic order, neighbouring planes face nearly the same way, and a cell on
+    the far side walked through most of them first (a dome carve's merges: -15 % time).
+    """
+    k = normals.shape[0]
+    unit = np.empty((k, 3))
+    for i in range(k):
+        r = np.sqrt(normals[i, 0] ** 2 + normals[i, 1] ** 2 + normals[i, 2] ** 2)
+        for c in range(3):
+            unit[i, c] = normals[i, c] / r
+    order = np.empty(k, np.int64)
+    taken = np.zeros(k, np.bool_)
+    closest = np.full(k, -2.0)
+    pick = 0
+    for j in range(k):
+        order[j] = pick
+        taken[pick] = True
+        best, nxt = 2.0, -1
+        for i in range(k):
+            if taken[i]:
+                continue
+            c = unit[i, 0] * unit[pick, 0] + unit[i, 1] * unit[pick, 1] + unit[i, 2] * unit[pick, 2]
+            if c > closest[i]:
+                closest[i] = c
+            if closest[i] < best:
+                best, nxt = closest[i], i
+        pick = nxt
+    return order
 
 
 def _object_planes(planes) -> np.ndarray:
@@ -61,12 +98,16 @@ class Tool:
 
     @classmethod
     def from_hull(cls, hull) -> Tool:
-        """A convex tool from a :class:`~csgnb.mesh.hull.ConvexHull` (its exact facet planes)."""
+        """A convex tool from a :class:`~csgnb.mesh.hull.ConvexHull` (its exact facet planes, in
+        :func:`spread_order`)."""
         from csgnb.mesh.hull import ConvexHull
 
         if not isinstance(hull, ConvexHull):
             raise TypeError(f"Tool.from_hull takes a csgnb.mesh.hull.ConvexHull, got {type(hull).__name__}")
-        return cls("convex", _object_planes(hull.planes), hull.lo, hull.hi, grid=getattr(hull, "grid", None))
+        planes = _object_planes(hull.planes)
+        if planes.shape[0] > 4:
+            planes = planes[spread_order(planes[:, :3].astype(np.float64))]
+        return cls("convex", planes, hull.lo, hull.hi, grid=getattr(hull, "grid", None))
 
     @classmethod
     def from_mesh(cls, vertices, faces, *, width: int, grid=None, seed: int = 0) -> Tool:
