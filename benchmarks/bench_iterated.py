@@ -432,12 +432,13 @@ def main() -> None:
             domes[str(n)] = d
             half = d["csgnb_cpu_s"] <= 0.5 * d["manifold3d_cpu_s"]
             print(f"\ndome carve, {n} capsules: csgnb {d['csgnb_s']:.2f} s wall / {d['csgnb_cpu_s']:.2f} s CPU, "
-                  f"manifold3d {d['manifold3d_s']:.2f} s wall / {d['manifold3d_cpu_s']:.2f} s CPU (target csgnb CPU <= 0.5x "
-                  f"manifold3d's: {'met' if half else 'NOT met'}; 1,000 steps <= 3 s: "
+                  f"manifold3d {d['manifold3d_s']:.2f} s wall / {d['manifold3d_cpu_s']:.2f} s CPU (target csgnb "
+                  f"CPU <= 0.5x manifold3d's: {'met' if half else 'NOT met'}; 1,000 steps <= 3 s: "
                   f"{'-' if n != 1000 else 'met' if d['csgnb_s'] <= 3 else 'NOT met'})")
             print(f"  per step: median {d['median_ms']:.2f} ms (manifold3d {d['manifold3d_median_ms']:.2f}), "
-                  f"first/last tenth {d['first_tenth_median_ms']:.2f}/{d['last_tenth_median_ms']:.2f} ms; {d['faces']} polygons "
-                  f"vs {d['manifold3d_triangles']} triangles; volume rel. dev. {d['volume_rel_dev']:.1e}")
+                  f"first/last tenth {d['first_tenth_median_ms']:.2f}/{d['last_tenth_median_ms']:.2f} ms; "
+                  f"{d['faces']} polygons vs {d['manifold3d_triangles']} triangles; volume rel. dev. "
+                  f"{d['volume_rel_dev']:.1e}")
         result["workloads"]["dome"] = domes
     if "lattice" in args.workloads:
         d = lattice_workload(args, args.lattice_ops)
