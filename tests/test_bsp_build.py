@@ -315,17 +315,18 @@ def test_splits_flat_faces_drops_collapsed_ones_and_refuses_the_rest():
     F2 = np.array([[0, 2, 1], [0, 4, 3], [4, 1, 3], [0, 3, 2], [1, 2, 3], [0, 1, 4]])
     report = {}
     W, T = validate_mesh(V2, F2, report=report)
-    assert report == {"collapsed_faces": 0, "flat_faces": 1} and T.shape[0] == 6
+    assert report == {"collapsed_faces": 0, "cancelled_faces": 0, "flat_faces": 1} and T.shape[0] == 6
     normal = np.cross(W[T[:, 1]] - W[T[:, 0]], W[T[:, 2]] - W[T[:, 0]])
     assert normal.any(axis=1).all()
     assert BSP.from_mesh(V2, F2).volume() == expected
     assert BSP.from_mesh(V2, F2[[5, 0, 1, 2, 3, 4]]).volume() == expected  # wherever the flat face comes
-    # Two flat faces back to back on one segment (a thin strip rounded flat): both go, the solid stays.
+    # Two flat faces back to back on one segment (a thin strip rounded flat): both go (a pair on the same corners
+    # facing opposite ways cancels), the solid stays.
     V4 = np.r_[V, [[2, 2, 2], [4, 4, 4]]]
     F4 = np.r_[F, [[4, 5, 0], [0, 5, 4]]]  # flat (collinear with vertex 0) and mirrored: a shell of no volume
     report = {}
     W, T = validate_mesh(V4, F4, report=report)
-    assert report["flat_faces"] == 1 and T.shape[0] == F.shape[0]
+    assert report["cancelled_faces"] == 2 and report["flat_faces"] == 0 and T.shape[0] == F.shape[0]
     assert BSP.from_mesh(V4, F4).volume() == expected
     # A flat face whose long edge has no single neighbour cannot be split: refused, named.
     V3 = np.r_[V, [[1, 1, 1], [2, 2, 2], [3, 3, 3]]]
@@ -339,7 +340,7 @@ def test_splits_flat_faces_drops_collapsed_ones_and_refuses_the_rest():
     for V3, F3 in ((V, np.r_[F[:1], [[0, 1, 1]], F[1:]]), (np.r_[V, V[:1]], np.r_[[[0, 2, 4]], F])):
         report = {}
         W, T = validate_mesh(V3, F3, report=report)
-        assert report == {"collapsed_faces": 1, "flat_faces": 0} and T.shape[0] == F.shape[0]
+        assert report == {"collapsed_faces": 1, "cancelled_faces": 0, "flat_faces": 0} and T.shape[0] == F.shape[0]
         assert BSP.from_mesh(V3, F3).volume() == expected
     with pytest.raises(GeometryError, match="no closed mesh is left"):
         bsp_from_mesh(V, np.r_[F[:3], [[0, 0, 1]]])
@@ -380,13 +381,67 @@ def test_rejects_open_meshes():
         bsp_from_mesh(V, F[1:])
 
 
+def test_parts_touching_along_an_edge_are_one_solid():
+    """Two cubes sharing only an edge (4 faces on it, alternately in and out around it): a solid, as manifold3d's
+    outputs are where parts touch; its BSP has the exact volume and classifies points on both sides right."""
+    from csgnb.bsp import BSP
+
+    V, F = voxels([(0, 0, 0), (1, 1, 0)])
+    solid = BSP.from_mesh(V, F)
+    assert solid.volume() == 2 * 2**3
+    points = np.array([[1, 1, 1], [3, 3, 1], [3, 1, 1], [1, 3, 1], [2, 2, 1], [5, 5, 1]])
+    assert solid.classify(points).tolist() == [1, 1, 0, 0, -2, 0]  # (2, 2, 1) lies on the shared edge: boundary
+
+
 def test_rejects_non_manifold_edges():
-    V, F = voxels([(0, 0, 0), (1, 1, 0)])  # two cubes sharing an edge only
-    with pytest.raises(GeometryError, match="not manifold: edge .* shared by 4 faces"):
-        bsp_from_mesh(V, F)
     V, F = SOLIDS["tetrahedron"]
-    with pytest.raises(GeometryError, match="not manifold"):
+    with pytest.raises(GeometryError, match="not manifold"):  # 3 faces on an edge
         bsp_from_mesh(V, np.r_[F, F[:1]])
+    # Two tetrahedra on one edge (the z axis) whose wedges overlap: 0-90 and 45-135 degrees around it.
+    edge = [[0, 0, 0], [0, 0, 8]]
+    A = np.array(edge + [[8, 0, 4], [0, 8, 4]])
+    B = np.array(edge + [[8, 8, 4], [-8, 8, 4]])
+    tet = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])
+    V = np.r_[A, B]
+    F = np.r_[tet, tet + 4]
+    for part in (A, B):  # each tetrahedron alone is outward
+        assert bsp_from_mesh(part, tet) is not None
+    with pytest.raises(GeometryError, match="do not alternate in and out|intersects itself"):
+        bsp_from_mesh(V, F)
+
+
+def test_faces_rounding_folded_onto_each_other_cancel():
+    """Two cubes 0.3 grid units apart: rounding welds them along a face, whose triangles from either cube now lie
+    on the same three vertices facing opposite ways. Such a pair bounds nothing: it cancels, and what is left is
+    the 8 x 4 x 4 box, exactly."""
+    from csgnb.bsp import BSP
+
+    Va, Fa = voxels([(0, 0, 0)], scale=4)
+    Vb, Fb = voxels([(1, 0, 0)], scale=4)
+    V = np.rint(np.r_[Va.astype(float), Vb + [-0.3, 0.0, 0.0]])
+    F = np.r_[Fa, Fb + len(Va)]
+    report = {}
+    validate_mesh(V, F, 128, report=report)
+    assert report["cancelled_faces"] == 4
+    assert BSP.from_mesh(V, F).volume() == 8 * 4 * 4
+
+
+def test_defects_rounding_made_say_the_grid_is_too_coarse():
+    """Two cubes 0.6 grid units apart: rounding pushes one 1 unit into the other, and their faces cross. The
+    refusal says what rounding did and which finer grids exist; the same defect in a mesh given welded (nothing
+    merged, collapsed or split) gets no hint."""
+    Va, Fa = voxels([(0, 0, 0)], scale=4)
+    Vb, Fb = voxels([(1, 0, 0)], scale=4)
+    V = np.r_[Va.astype(float), Vb + [-0.6, 0.5, 0.5]]
+    F = np.r_[Fa, Fb + len(Va)]
+    budgets = r"\(\|coordinate\| <= 4,567 at 128 bits, 631,462 at 192, 87,298,202 at 256\)"
+    with pytest.raises(GeometryError, match=r"intersects itself.* vertices fell on the grid points of others.*finer "
+                                            r"grid " + budgets):
+        validate_mesh(np.rint(V), F, 128)
+    W, inverse = np.unique(np.rint(V), axis=0, return_inverse=True)  # welded: no vertex merges in validate_mesh
+    with pytest.raises(GeometryError, match="intersects itself") as caught:
+        validate_mesh(W, inverse.reshape(-1)[F], 128)
+    assert "finer grid" not in str(caught.value)
 
 
 def test_rejects_inconsistent_orientation():

@@ -150,7 +150,7 @@ class ToolShape:
         # Faces whose corners rounding merged, or put on one line, bound no volume: dropped (a flat one after
         # splitting its neighbour at the middle corner; the solid is the rounded one, as for every point on the
         # grid); many of them mean the grid is coarse for this tool: callers report it.
-        tool.collapsed_faces = int(report.get("collapsed_faces", 0)) + int(report.get("flat_faces", 0))
+        tool.collapsed_faces = sum(int(report.get(k, 0)) for k in ("collapsed_faces", "cancelled_faces", "flat_faces"))
         return tool
 
     def __repr__(self) -> str:

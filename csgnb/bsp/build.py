@@ -33,7 +33,7 @@ from csgnb._jit import jit
 from csgnb.bsp.polygon import PolygonSet, _checked_vertices, copy_point, polygons_from_triangles, split_polygon
 from csgnb.bsp.tree import OUT, BSPTree
 from csgnb.errors import GeometryError, InternalError, PrecisionError
-from csgnb.exact.budgets import check_mesh_points
+from csgnb.exact.budgets import budget, check_mesh_points
 from csgnb.exact.integral import exact_int, integer_array
 from csgnb.exact.intrinsics import classify_at, plane_from_points_into, signed_distance_into, wide_sign_at
 from csgnb.exact.wide import DEFAULT_WIDTH, is_wide, wide_dtype
@@ -599,6 +599,83 @@ def _check_nesting(W, T, shell, n_shells, volume6, first_face) -> None:
         )
 
 
+def _cancel_opposite_pairs(T: np.ndarray, F: np.ndarray, face_ids: np.ndarray):
+    """Drop pairs of faces on the same three vertices facing opposite ways (a fin of zero thickness: rounding
+    flattens a thin wedge onto itself, and mesh Booleans leave them where parts touch). A pair bounds no volume and
+    its edges cancel, so the solid is unchanged. Returns ``(T, F, face_ids, number of faces dropped)``."""
+    if T.shape[0] == 0:
+        return T, F, face_ids, 0
+    # A face's rotation class: the smallest vertex first, the other two in order (orientation kept).
+    r = np.argmin(T, axis=1)
+    canon = np.stack([T[np.arange(T.shape[0]), (r + k) % 3] for k in range(3)], axis=1)
+    flipped = canon[:, [0, 2, 1]]
+    n = int(T.max()) + 1
+    key = (canon[:, 0] * n + canon[:, 1]) * n + canon[:, 2]
+    key_flipped = (flipped[:, 0] * n + flipped[:, 1]) * n + flipped[:, 2]
+    order = np.argsort(key, kind="stable")
+    drop = np.zeros(T.shape[0], bool)
+    # match each face with an opposite partner, one partner each (a multiset of faces)
+    pos = np.searchsorted(key[order], key_flipped)
+    for f in np.flatnonzero((pos < key.shape[0]) & (key[order][np.minimum(pos, key.shape[0] - 1)] == key_flipped)):
+        if drop[f]:
+            continue
+        i = int(pos[f])
+        while i < key.shape[0] and key[order[i]] == key_flipped[f]:
+            g = int(order[i])
+            if not drop[g] and g != f:
+                drop[f] = drop[g] = True
+                break
+            i += 1
+    keep = np.flatnonzero(~drop)
+    return T[keep], F[keep], face_ids[keep], int(drop.sum())
+
+
+def _wedges_alternate(W: np.ndarray, T: np.ndarray, tails: np.ndarray, faces: np.ndarray) -> bool:
+    """Whether the ``faces`` around one edge (more than two: the solid pinches there, as where two parts touch
+    along an edge, or where a mesh tool keeps two vertices at one point) bound wedges of solid that do not overlap:
+    in angular order around the edge, the faces run along it alternately one way and the other, and no two lie
+    in one half-plane. ``tails``: each face's half-edge's first vertex. Exact (Python integers)."""
+    if len(faces) % 2:
+        return False
+    p = int(min(int(x) for x in T[faces[0]] if x in T[faces[1]]))
+    ends = set(int(x) for x in T[faces[0]]) & set(int(x) for x in T[faces[1]])
+    q = next(e for e in ends if e != p)
+    P = [int(x) for x in W[p]]
+    d = [int(W[q][i]) - P[i] for i in range(3)]
+    dd = sum(x * x for x in d)
+
+    def det(u, v):  # (u x v) . d
+        return (u[1] * v[2] - u[2] * v[1]) * d[0] + (u[2] * v[0] - u[0] * v[2]) * d[1] + \
+            (u[0] * v[1] - u[1] * v[0]) * d[2]
+
+    spokes = []
+    for t, f in zip(tails.tolist(), faces.tolist(), strict=True):
+        r = next(int(x) for x in T[f] if int(x) not in (p, q))
+        u = [int(W[r][i]) - P[i] for i in range(3)]
+        ud = sum(u[i] * d[i] for i in range(3))
+        spokes.append(([dd * u[i] - ud * d[i] for i in range(3)], t == p))  # u's part across d, and the direction
+    ref = spokes[0][0]
+
+    def half(w) -> int:  # 0: angle in [0, pi) from ref around d, 1: [pi, 2 pi)
+        s = det(ref, w)
+        return 0 if s > 0 or (s == 0 and sum(x * y for x, y in zip(w, ref, strict=True)) > 0) else 1
+
+    def before(x, y) -> int:
+        hx, hy = half(x[0]), half(y[0])
+        return hx - hy if hx != hy else -det(x[0], y[0])
+
+    from functools import cmp_to_key
+
+    ring = sorted(spokes, key=cmp_to_key(lambda x, y: (before(x, y) > 0) - (before(x, y) < 0)))
+    n = len(ring)
+    for i in range(n):
+        w, forward = ring[i]
+        w2, forward2 = ring[(i + 1) % n]
+        if forward == forward2 or (half(w) == half(w2) and det(w, w2) == 0):
+            return False
+    return True
+
+
 def _describe_edge(first_index, V, a: int, b: int) -> str:
     return f"({int(first_index[a])}, {int(first_index[b])}) from {V[a].tolist()} to {V[b].tolist()}"
 
@@ -728,9 +805,35 @@ def validate_mesh(vertices, faces, width: int = DEFAULT_WIDTH, *,
         face_ids = keep
     else:
         face_ids = np.arange(T.shape[0])
+    T, F, face_ids, cancelled = _cancel_opposite_pairs(T, F, face_ids)
+    if report is not None:
+        report["cancelled_faces"] = cancelled
     T, F, face_ids, split = _split_flat_faces(W, T, F, face_ids, first_index)
     if report is not None:
         report["flat_faces"] = split
+    try:
+        _check_closed_solid(W, T, F, face_ids, first_index)
+    except GeometryError as exc:
+        collapsed = int(repeated.sum())
+        if collapsed + split + V.shape[0] - W.shape[0] == 0:
+            raise
+        # Merged vertices, collapsed and flat faces are what rounding a float mesh does when its detail is finer
+        # than the grid: the likelier cause of the defect than the mesh itself (a welded mesh gets no hint).
+        raise GeometryError(
+            f"{exc} -- before this check {V.shape[0] - W.shape[0]} vertices fell on the grid points of others, "
+            f"{collapsed} faces collapsed and {split} flat ones were split: if the mesh was quantized from a float "
+            f"mesh, its detail is finer than the grid; quantize it on a finer grid (|coordinate| <= "
+            f"{budget(width).max_mesh_coordinate:,} at {width} bits, "
+            + ", ".join(f"{budget(w).max_mesh_coordinate:,} at {w}" for w in (192, 256) if w > width)
+            + ") or coarsen the mesh first"
+        ) from None
+    return W, T
+
+
+def _check_closed_solid(W: np.ndarray, T: np.ndarray, F: np.ndarray, face_ids: np.ndarray,
+                        first_index: np.ndarray) -> None:
+    """The topological and geometric checks of :func:`validate_mesh` on the welded, repaired faces ``T``
+    (``F``: their input corners and ``face_ids`` their input rows, for the messages)."""
     normal = np.cross(W[T[:, 1]] - W[T[:, 0]], W[T[:, 2]] - W[T[:, 0]])  # fits int64 within the budget
     degenerate = np.flatnonzero(~normal.any(axis=1))
     if degenerate.size:
@@ -758,15 +861,16 @@ def validate_mesh(vertices, faces, width: int = DEFAULT_WIDTH, *,
             f"{int(face_ids[face[s]])} has no "
             "opposite half-edge (a hole or a crack; weld or fill it)"
         )
-    if np.any(counts > 2):
-        g = int(np.argmax(counts > 2))
+    for g in np.flatnonzero(counts > 2).tolist():
         s, c = int(starts[g]), int(counts[g])
-        faces_on = sorted(int(x) for x in face[s : s + c])
-        raise GeometryError(
-            f"the mesh is not manifold: edge {_describe_edge(first_index, W, a[s], b[s])} is shared by {c} faces "
-            f"{faces_on}; split the solid into parts that meet in at most a vertex"
-        )
-    same = a[starts] == a[starts + 1]
+        if not _wedges_alternate(W, T, a[s : s + c], face[s : s + c]):
+            faces_on = sorted(int(x) for x in face[s : s + c])
+            raise GeometryError(
+                f"the mesh is not manifold: edge {_describe_edge(first_index, W, a[s], b[s])} is shared by {c} faces "
+                f"{faces_on} that do not alternate in and out around it (parts overlapping there, or a fold); split "
+                "the solid into parts that meet in at most an edge"
+            )
+    same = (a[starts] == a[starts + 1]) & (counts == 2)
     if np.any(same):
         s = int(starts[np.argmax(same)])
         raise GeometryError(
@@ -813,7 +917,6 @@ def validate_mesh(vertices, faces, width: int = DEFAULT_WIDTH, *,
         )
     if n_shells > 1:
         _check_nesting(W, T, shell, n_shells, volume6, first_face)
-    return W, T
 
 
 def bsp_from_mesh(vertices, faces, *, width: int = DEFAULT_WIDTH, seed: int = 0, label: int = 1) -> BSPTree:
