@@ -384,8 +384,6 @@ def test_rejects_open_meshes():
 def test_parts_touching_along_an_edge_are_one_solid():
     """Two cubes sharing only an edge (4 faces on it, alternately in and out around it): a solid, as manifold3d's
     outputs are where parts touch; its BSP has the exact volume and classifies points on both sides right."""
-    from csgnb.bsp import BSP
-
     V, F = voxels([(0, 0, 0), (1, 1, 0)])
     solid = BSP.from_mesh(V, F)
     assert solid.volume() == 2 * 2**3
@@ -414,8 +412,6 @@ def test_faces_rounding_folded_onto_each_other_cancel():
     """Two cubes 0.3 grid units apart: rounding welds them along a face, whose triangles from either cube now lie
     on the same three vertices facing opposite ways. Such a pair bounds nothing: it cancels, and what is left is
     the 8 x 4 x 4 box, exactly."""
-    from csgnb.bsp import BSP
-
     Va, Fa = voxels([(0, 0, 0)], scale=4)
     Vb, Fb = voxels([(1, 0, 0)], scale=4)
     V = np.rint(np.r_[Va.astype(float), Vb + [-0.3, 0.0, 0.0]])
@@ -596,3 +592,22 @@ def test_a_public_mesh_rounded_onto_coarse_grids(cells):
     volume6 = sum(int(p @ np.cross(r, s)) for p, r, s in zip(P, R, S, strict=True))
     assert volume6 > 0
     assert BSP.from_mesh(Q, F).volume() == Fraction(volume6, 6)
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.sets(st.tuples(st.integers(0, 2), st.integers(0, 2), st.integers(0, 2)), min_size=1, max_size=14))
+def test_voxel_sets_touching_along_edges_import_exactly(cells):
+    """Any set of voxels in a 3 x 3 x 3 block -- parts touching along edges (pinches) and at vertices included --
+    imports as a BSP with the exact volume and the right label at every voxel centre, and subtracts from a block in
+    the octree workpiece exactly."""
+    from csgnb.octree import Workpiece
+
+    V, F = voxels(sorted(cells))
+    solid = BSP.from_mesh(V, F)
+    assert solid.volume() == 8 * len(cells)
+    centres = np.array([[2 * x + 1, 2 * y + 1, 2 * z + 1] for x in range(3) for y in range(3) for z in range(3)])
+    expected = [1 if (x, y, z) in cells else 0 for x in range(3) for y in range(3) for z in range(3)]
+    assert solid.classify(centres).tolist() == expected
+    w = Workpiece.box([-1, -1, -1], [7, 7, 7], threshold=16)
+    w -= (V, F)
+    assert w.volume() == 8**3 - 8 * len(cells)
