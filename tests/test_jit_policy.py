@@ -9,6 +9,8 @@ import subprocess
 import sys
 import textwrap
 
+import pytest
+
 import csgnb
 
 PACKAGE = pathlib.Path(csgnb.__file__).parent
@@ -128,3 +130,30 @@ def test_no_fastmath_and_one_jit_policy():
                 assert node.arg != "fastmath", f"{path}: fastmath"
             if isinstance(node, ast.ImportFrom) and node.module == "numba":
                 assert not {a.name for a in node.names} & {"njit", "jit"}, f"{path}: from numba import jit"
+
+
+def test_borrowing_kernels_return_no_arrays():
+    """A kernel compiled without reference counting (csgnb._jit.borrowing_jit) must hand back no array: a caller that
+    counts references would release one the kernel never took. Every signature compiled or loaded is checked; one
+    that returns an array (here its argument, which numba would allow) is refused with a clear error. The hot loops
+    are registered, and nothing else switches reference counting off."""
+    import numpy as np
+
+    import csgnb.octree  # noqa: F401 -- imports every module with a borrowing kernel
+    from csgnb._jit import BORROWING_KERNELS, borrowing_jit
+
+    names = {k.py_func.__name__ for k in BORROWING_KERNELS}
+    assert {"merge_cells", "clip_cell", "extract_into", "cut_cell", "build_kernel"} <= names
+
+    def first_row(a):
+        return a[0]
+
+    def itself(a):
+        return a
+
+    assert borrowing_jit(first_row)(np.arange(3.0)) == 0.0
+    with pytest.raises(TypeError, match="returns array.*needs csgnb._jit.jit"):
+        borrowing_jit(itself)(np.arange(3.0))
+    for path in PACKAGE.rglob("*.py"):
+        if path.name != "_jit.py":
+            assert "_nrt" not in path.read_text(), f"{path}: reference counting switched off outside csgnb._jit"

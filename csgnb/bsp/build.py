@@ -29,7 +29,7 @@ import numpy as np
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
-from csgnb._jit import jit
+from csgnb._jit import borrowing_jit, jit
 from csgnb.bsp.polygon import PolygonSet, _checked_vertices, copy_point, polygons_from_triangles, split_polygon
 from csgnb.bsp.tree import OUT, BSPTree
 from csgnb.errors import GeometryError, InternalError, PrecisionError
@@ -45,7 +45,7 @@ __all__ = ["bsp_from_polygons", "bsp_from_mesh", "validate_mesh", "check_seed", 
 # the insertion loop
 
 
-@jit
+@borrowing_jit
 def build_kernel(palette, support, offsets, edges, verts, order, label,
                   plane, neg, pos, lab, a_edges, a_verts, sides, st_node, st_start, st_k):
     """Insert polygons ``order[0], order[1], ...`` into a BSP; return the node count or a negative code.

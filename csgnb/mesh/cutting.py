@@ -31,7 +31,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from csgnb._jit import jit
+from csgnb._jit import borrowing_jit, jit
 from csgnb._views import unmanaged, unmanaged_tuple
 from csgnb.errors import GeometryError, InternalError
 from csgnb.exact.intrinsics import compare_cached_values_at, intersect_into, plane_value_into
@@ -326,7 +326,7 @@ def _march_and_separate(m, z0, hz0, s, opp_neg, opp_pos):
     return loop[0, LOOP_M], loop[0, LOOP_P]
 
 
-@jit
+@borrowing_jit
 def _march_and_separate_call(m, z0, hz0, s, opp_neg, opp_pos):
     """:func:`_march_and_separate`, compiled once for the naive baseline (not a hot path)."""
     return _march_and_separate(m, z0, hz0, s, opp_neg, opp_pos)
@@ -359,13 +359,13 @@ def cut_cell_inline(m, h0, s, opp_neg, opp_pos, path):
     return CUT_PROPER, a, b
 
 
-@jit
+@borrowing_jit
 def cut_cell(m, h0, s, opp_neg, opp_pos, path):
     """:func:`cut_cell_inline` as a compiled function (one copy for every caller that is not a cutting loop)."""
     return cut_cell_inline(m, h0, s, opp_neg, opp_pos, path)
 
 
-@jit
+@borrowing_jit
 def cut_cell_naive(m, work, h0, s, opp_neg, opp_pos):
     """The baseline: classify every vertex of the polytope, then march as :func:`cut_cell`.
 
