@@ -58,6 +58,20 @@ def _tenths(ts) -> tuple[float, float]:
     return float(np.median(ts[:k])), float(np.median(ts[-k:]))
 
 
+def _drill_steps(work, step_tools, feed, total: int, verbose: bool = False) -> list[float]:
+    """Subtract ``total`` drill steps from ``work``: step i is tool ``i mod 90`` moved down ``i // 90`` feeds (an
+    exact translation of the prepared tool). Returns each step's seconds."""
+    ts = []
+    for i in range(total):
+        turn, k = divmod(i, len(step_tools))
+        t = time.perf_counter()
+        work -= step_tools[k].translated(feed * turn)
+        ts.append(time.perf_counter() - t)
+        if verbose and i % 30 == 0:
+            print(f"  drill step {i}: {ts[-1] * 1e3:.0f} ms, {work}")
+    return ts
+
+
 def drill_workload(args) -> dict:
     import manifold3d as m3
 
@@ -82,14 +96,7 @@ def drill_workload(args) -> dict:
     total = args.turns * n_steps
     lo, hi = np.array([-10.0, -10.0, -15.0]), np.array([10.0, 10.0, 6.0])
     work = Workpiece.box(lo, hi, grid=grid, threshold=args.threshold)
-    csg_t = []
-    for i in range(total):
-        turn, k = divmod(i, n_steps)
-        t = time.perf_counter()
-        work -= tools_c[k].translated(ds.feed * turn)
-        csg_t.append(time.perf_counter() - t)
-        if args.verbose and i % 30 == 0:
-            print(f"  drill step {i}: {csg_t[-1] * 1e3:.0f} ms, {work}")
+    csg_t = _drill_steps(work, tools_c, ds.feed, total, args.verbose)
     lo_g, hi_g = grid.to_grid(np.stack([lo, hi]))
     cube = m3.Manifold.cube(list(grid.to_model(hi_g[None])[0] - grid.to_model(lo_g[None])[0])).translate(
         list(grid.to_model(lo_g[None])[0]))
@@ -150,12 +157,7 @@ def drill_mesh_workload(args) -> dict:
             return {"refused": f"sweep {k}: {exc}", "tool_triangles": int(sum(len(F) for _, F in meshes))}
     prep_s = time.perf_counter() - wall
     work = Workpiece.box(lo, hi, grid=grid, threshold=args.threshold)
-    ts = []
-    for i in range(total):
-        turn, k = divmod(i, n_steps)
-        t = time.perf_counter()
-        work -= prepared[k].translated(ds.feed * turn)
-        ts.append(time.perf_counter() - t)
+    ts = _drill_steps(work, prepared, ds.feed, total, args.verbose)
     csg_wall, csg_cpu = time.perf_counter() - wall, time.process_time() - cpu
     # -- manifold3d ---------------------------------------------------------------------
     lo_g, hi_g = grid.to_grid(np.stack([lo, hi]))
