@@ -216,7 +216,7 @@ BORROWING_KERNELS: list = []
 def borrowing_jit(fn):
     """:data:`jit` without reference counting (numba's ``_nrt=False``), for the hot inner loops that **borrow**
     arrays: they take arrays and views from their caller, never allocate (numba refuses ``np.empty`` and the like
-    in them at compile time), and return scalars only (``tests/test_jit_policy.py`` checks every signature).
+    in them at compile time), and return scalars only (every signature compiled or loaded is checked).
 
     Every binding of an array or of a member of a NamedTuple of arrays to a name emits an
     ``NRT_incref`` / ``NRT_decref`` call pair, even on the unmanaged views (no meminfo) csgnb's
@@ -243,4 +243,3 @@ def _holds_array(t) -> bool:
     if isinstance(t, numba.types.ArrayCompatible):
         return True
     return isinstance(t, numba.types.BaseTuple) and any(_holds_array(x) for x in t.types)
-

@@ -373,3 +373,26 @@ def test_compiled_face_rings_match_the_python_reference(seed, extent, n):
     for keep in (np.delete(np.arange(k), rng.integers(k)), np.r_[np.arange(k), rng.integers(k)]):
         Nk, dk, Sk = N[keep], h._d_local[keep], S[:, keep]
         assert H._faces_close(L, Nk, dk, Sk) == H._faces_close_py(L, Nk, Sk) is False
+
+
+@pytest.mark.parametrize("extent", [280_000, "budget"])
+def test_face_rings_at_the_edges_of_their_paths(extent):
+    """The compiled rings take points whose signed values fit int64 (24·E³ < 2**62: E up to ~580,000 local); at
+    half of that (local extent ~560,000) the compiled path runs, at the 256-bit mesh budget (local ~175 M) the
+    Python-integer one. Both agree with the Python reference ring for ring, and the hull is exact."""
+    from csgnb.exact import budget
+    from csgnb.mesh import hull as H
+
+    V = budget(256).max_mesh_coordinate if extent == "budget" else extent
+    rng = np.random.default_rng(3)
+    P = np.r_[np.array([[x, y, z] for x in (-V, V) for y in (-V, V) for z in (-V, V)]),
+              rng.integers(-V, V + 1, (40, 3)), [[V, 0, 0], [0, V, 0], [V, V, 0]]]
+    h = convex_hull(P, width=256)
+    L, N = h._candidates, h._normals
+    S = h._side(L)
+    assert H._rings_fit_int64(L, N, S) == (extent != "budget")
+    for j, ring in enumerate(h._faces_local):
+        on = np.flatnonzero(S[:, j] == 0)
+        assert np.array_equal(ring, on[H._polygon_order(L[on], N[j])])
+    assert H._faces_close(L, N, h._d_local, S) and H._faces_close_py(L, N, S)
+    assert h.volume() == (2 * V) ** 3

@@ -25,6 +25,8 @@ after splitting their neighbour at that corner (:func:`validate_mesh`).
 
 from __future__ import annotations
 
+from functools import cmp_to_key
+
 import numpy as np
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
@@ -603,43 +605,35 @@ def _cancel_opposite_pairs(T: np.ndarray, F: np.ndarray, face_ids: np.ndarray):
     """Drop pairs of faces on the same three vertices facing opposite ways (a fin of zero thickness: rounding
     flattens a thin wedge onto itself, and mesh Booleans leave them where parts touch). A pair bounds no volume and
     its edges cancel, so the solid is unchanged. Returns ``(T, F, face_ids, number of faces dropped)``."""
-    if T.shape[0] == 0:
+    m = T.shape[0]
+    if m == 0:
         return T, F, face_ids, 0
-    # A face's rotation class: the smallest vertex first, the other two in order (orientation kept).
+    # A face's rotation class: the smallest vertex first, the other two in order (orientation kept); its mirror
+    # image swaps the last two. Rows are numbered by np.unique (no packed key that could overflow).
     r = np.argmin(T, axis=1)
-    canon = np.stack([T[np.arange(T.shape[0]), (r + k) % 3] for k in range(3)], axis=1)
-    flipped = canon[:, [0, 2, 1]]
-    n = int(T.max()) + 1
-    key = (canon[:, 0] * n + canon[:, 1]) * n + canon[:, 2]
-    key_flipped = (flipped[:, 0] * n + flipped[:, 1]) * n + flipped[:, 2]
-    order = np.argsort(key, kind="stable")
-    drop = np.zeros(T.shape[0], bool)
-    # match each face with an opposite partner, one partner each (a multiset of faces)
-    pos = np.searchsorted(key[order], key_flipped)
-    for f in np.flatnonzero((pos < key.shape[0]) & (key[order][np.minimum(pos, key.shape[0] - 1)] == key_flipped)):
-        if drop[f]:
-            continue
-        i = int(pos[f])
-        while i < key.shape[0] and key[order[i]] == key_flipped[f]:
-            g = int(order[i])
-            if not drop[g] and g != f:
-                drop[f] = drop[g] = True
-                break
-            i += 1
+    canon = np.stack([T[np.arange(m), (r + k) % 3] for k in range(3)], axis=1)
+    _, ids = np.unique(np.r_[canon, canon[:, [0, 2, 1]]], axis=0, return_inverse=True)
+    ids = ids.reshape(-1)
+    own, mirror = ids[:m], ids[m:]
+    waiting: dict[int, list[int]] = {}  # faces of each class not yet paired
+    drop = np.zeros(m, bool)
+    for f in np.flatnonzero(np.isin(own, mirror)).tolist():
+        partners = waiting.get(int(mirror[f]))
+        if partners:
+            drop[f] = drop[partners.pop()] = True
+        else:
+            waiting.setdefault(int(own[f]), []).append(f)
     keep = np.flatnonzero(~drop)
     return T[keep], F[keep], face_ids[keep], int(drop.sum())
 
 
-def _wedges_alternate(W: np.ndarray, T: np.ndarray, tails: np.ndarray, faces: np.ndarray) -> bool:
-    """Whether the ``faces`` around one edge (more than two: the solid pinches there, as where two parts touch
-    along an edge, or where a mesh tool keeps two vertices at one point) bound wedges of solid that do not overlap:
-    in angular order around the edge, the faces run along it alternately one way and the other, and no two lie
-    in one half-plane. ``tails``: each face's half-edge's first vertex. Exact (Python integers)."""
+def _wedges_alternate(W: np.ndarray, T: np.ndarray, p: int, q: int, tails: np.ndarray, faces: np.ndarray) -> bool:
+    """Whether the ``faces`` around the edge ``(p, q)`` (more than two: the solid pinches there, as where two parts
+    touch along an edge, or where a mesh tool keeps two vertices at one point) bound wedges of solid that do not
+    overlap: in angular order around the edge, the faces run along it alternately one way and the other, and no
+    two lie in one half-plane. ``tails``: each face's half-edge's first vertex. Exact (Python integers)."""
     if len(faces) % 2:
         return False
-    p = int(min(int(x) for x in T[faces[0]] if x in T[faces[1]]))
-    ends = set(int(x) for x in T[faces[0]]) & set(int(x) for x in T[faces[1]])
-    q = next(e for e in ends if e != p)
     P = [int(x) for x in W[p]]
     d = [int(W[q][i]) - P[i] for i in range(3)]
     dd = sum(x * x for x in d)
@@ -660,13 +654,11 @@ def _wedges_alternate(W: np.ndarray, T: np.ndarray, tails: np.ndarray, faces: np
         s = det(ref, w)
         return 0 if s > 0 or (s == 0 and sum(x * y for x, y in zip(w, ref, strict=True)) > 0) else 1
 
-    def before(x, y) -> int:
+    def before(x, y) -> int:  # a comparison: negative when x comes first counter-clockwise about d
         hx, hy = half(x[0]), half(y[0])
         return hx - hy if hx != hy else -det(x[0], y[0])
 
-    from functools import cmp_to_key
-
-    ring = sorted(spokes, key=cmp_to_key(lambda x, y: (before(x, y) > 0) - (before(x, y) < 0)))
+    ring = sorted(spokes, key=cmp_to_key(before))
     n = len(ring)
     for i in range(n):
         w, forward = ring[i]
@@ -720,6 +712,7 @@ def _split_flat_faces(W, T, F, face_ids, first_index):
         x = next(tri[g][(r + 2) % 3] for r in range(3) if tri[g][r] == p and tri[g][(r + 1) % 3] == n)
         alive[f] = alive[g] = False
         # A neighbour that is f's mirror image (x == m, both flat) leaves no piece: the two pair each other's edges.
+        # (Input pairs are cancelled before this; a mirror can still arise among the pieces of earlier splits.)
         for piece in ([p, m, x], [m, n, x]) if x != m else ():
             new = len(tri)
             tri.append(piece)
@@ -814,13 +807,13 @@ def validate_mesh(vertices, faces, width: int = DEFAULT_WIDTH, *,
     try:
         _check_closed_solid(W, T, F, face_ids, first_index)
     except GeometryError as exc:
-        collapsed = int(repeated.sum())
-        if collapsed + split + V.shape[0] - W.shape[0] == 0:
+        collapsed, merged = int(repeated.sum()), V.shape[0] - W.shape[0]
+        if collapsed + split + merged == 0:
             raise
         # Merged vertices, collapsed and flat faces are what rounding a float mesh does when its detail is finer
         # than the grid: the likelier cause of the defect than the mesh itself (a welded mesh gets no hint).
         raise GeometryError(
-            f"{exc} -- before this check {V.shape[0] - W.shape[0]} vertices fell on the grid points of others, "
+            f"{exc} -- before this check {merged} vertices fell on the grid points of others, "
             f"{collapsed} faces collapsed and {split} flat ones were split: if the mesh was quantized from a float "
             f"mesh, its detail is finer than the grid; quantize it on a finer grid (|coordinate| <= "
             f"{budget(width).max_mesh_coordinate:,} at {width} bits, "
@@ -863,7 +856,7 @@ def _check_closed_solid(W: np.ndarray, T: np.ndarray, F: np.ndarray, face_ids: n
         )
     for g in np.flatnonzero(counts > 2).tolist():
         s, c = int(starts[g]), int(counts[g])
-        if not _wedges_alternate(W, T, a[s : s + c], face[s : s + c]):
+        if not _wedges_alternate(W, T, int(a[s]), int(b[s]), a[s : s + c], face[s : s + c]):
             faces_on = sorted(int(x) for x in face[s : s + c])
             raise GeometryError(
                 f"the mesh is not manifold: edge {_describe_edge(first_index, W, a[s], b[s])} is shared by {c} faces "
