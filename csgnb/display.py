@@ -54,19 +54,62 @@ def jupyter_backend(backend: str | None = None) -> str:
     return name
 
 
-def aim(plotter, focus, distance: float, direction=(1.0, -2.0, 0.9), up=(0.0, 0.0, 1.0)) -> None:
-    """Put the camera of ``plotter`` (its active subplot) at ``focus + distance * direction / |direction|``.
+def aim(plotter, focus=None, distance: float | None = None, direction=(1.0, -2.0, 0.9), up=(0.0, 0.0, 1.0), *,
+        bounds=None, margin: float = 0.06) -> None:
+    """Point the camera of ``plotter`` (its active subplot) along ``direction``, at ``focus`` from ``distance``.
 
-    One fixed camera per scene, so that the pictures of a sequence line up.
+    With ``distance`` given, the camera sits at ``focus + distance * direction / |direction|``: one fixed camera
+    per scene, so that the pictures of a sequence line up.
+
+    Without it (the usual call: ``aim(plotter)`` or ``aim(plotter, direction=...)``), the camera is *fitted*: the
+    box ``bounds`` (``(xmin, xmax, ymin, ymax, zmin, zmax)``; by default the bounds of what the subplot shows) is
+    centred in the picture and fills it but for ``margin`` (a fraction of the half-width) on its tightest side, in
+    perspective and for the subplot's aspect ratio. ``focus``, if given, is kept as the focal point.
+
+    Raises ``ValueError`` for a zero or non-finite direction, an up vector parallel to it, or empty bounds.
     """
-    d = np.asarray(direction, float)
+    d = np.asarray(direction, float).reshape(3)
     norm = np.linalg.norm(d)
     if not np.isfinite(norm) or norm == 0:
         raise ValueError(f"aim needs a non-zero, finite direction, got {direction!r}")
+    d = d / norm
+    up = np.asarray(up, float).reshape(3)
+    if distance is None:
+        box = np.asarray(plotter.renderer.ComputeVisiblePropBounds() if bounds is None else bounds, float)
+        if box.shape != (6,) or not np.all(np.isfinite(box)) or np.any(box[1::2] < box[0::2]):
+            raise ValueError(f"aim needs finite bounds (xmin, xmax, ymin, ymax, zmin, zmax) to fit, got {box}")
+        focus, distance = _fit(plotter, box, d, up, focus, margin)
     focus = np.asarray(focus, float).reshape(3)
     plotter.camera.focal_point = tuple(focus)
-    plotter.camera.position = tuple(focus + float(distance) * d / norm)
+    plotter.camera.position = tuple(focus + float(distance) * d)
     plotter.camera.up = tuple(float(u) for u in up)
+
+
+def _fit(plotter, box: np.ndarray, d: np.ndarray, up: np.ndarray, focus, margin: float):
+    """Focal point and distance along ``d`` at which the corners of ``box`` fill the subplot's view, centred."""
+    right = np.cross(-d, up)
+    if np.linalg.norm(right) < 1e-12 * np.linalg.norm(up):
+        raise ValueError(f"aim: the up vector {tuple(up)} is parallel to the view direction {tuple(d)}")
+    right /= np.linalg.norm(right)
+    true_up = np.cross(right, -d)
+    x0, y0, x1, y1 = plotter.renderer.GetViewport()
+    width, height = (x1 - x0) * plotter.window_size[0], (y1 - y0) * plotter.window_size[1]
+    tan_y = np.tan(np.radians(plotter.camera.view_angle) / 2) * (1 - margin)
+    tan_x = tan_y * width / height
+    corners = np.array(np.meshgrid(box[0:2], box[2:4], box[4:6], indexing="ij")).reshape(3, -1).T
+    centre = corners.mean(axis=0) if focus is None else np.asarray(focus, float).reshape(3)
+    size = max(float(np.ptp(corners, axis=0).max()), 1e-12)
+    for step in range(4):
+        rel = corners - centre
+        x, y, z = rel @ right, rel @ true_up, rel @ d
+        distance = max(float(np.max(z + np.abs(x) / tan_x)), float(np.max(z + np.abs(y) / tan_y)), size * 1e-3)
+        if focus is not None or step == 3:
+            break
+        # centre the corners' angular extent: move the focal point across the view by the midpoint of the extent
+        depth = distance - z
+        sx, sy = x / depth, y / depth
+        centre = centre + distance * ((sx.max() + sx.min()) / 2 * right + (sy.max() + sy.min()) / 2 * true_up)
+    return centre, distance
 
 
 def add_legend(plotter, entries, *, font_size: int = 12, corner: str = "upper right") -> None:

@@ -99,3 +99,42 @@ def test_legend_shows_in_both_backends(tmp_path):
     plotter = _scene()
     with pytest.raises(ValueError, match="corner"):
         display.add_legend(plotter, [("a", "red")], corner="middle")
+
+
+def _foreground_box(image: np.ndarray) -> tuple[int, int, int, int]:
+    """Rows and columns ``(top, bottom, left, right)`` spanned by pixels that differ from the corner pixel."""
+    rows, cols = np.nonzero(np.any(image != image[0, 0], axis=2))
+    return rows.min(), rows.max(), cols.min(), cols.max()
+
+
+@pytest.mark.parametrize("shape, size, direction", [
+    ("long box", (400, 300), (1.0, -2.0, 0.9)),
+    ("tall drill", (640, 480), (1.0, -1.0, 0.3)),
+    ("flat plate", (480, 640), (0.2, -1.0, 2.0)),
+    ("off-centre cube", (300, 300), (-1.0, 0.5, 0.4)),
+])
+def test_aim_fits_the_scene_in_the_picture_centred(shape, size, direction):
+    """Fitted: nothing touches the frame, the scene fills the picture on its tightest side, centred (the old fixed
+    cameras cut chapter 05's drill off at the top and the tour's octree cube at the bottom)."""
+    import pyvista as pv
+
+    solid = {"long box": pv.Box((-10, 30, -2, 2, -1, 1)),
+             "tall drill": pv.Cylinder(radius=1, height=12, direction=(0, 0, 1)),
+             "flat plate": pv.Box((-50, 50, -30, 30, 0, 3)),
+             "off-centre cube": pv.Cube(center=(100, -40, 7), x_length=2.0)}[shape]
+    plotter = pv.Plotter(off_screen=True, window_size=size)
+    plotter.add_mesh(solid, color="orange")
+    display.aim(plotter, direction=direction)
+    top, bottom, left, right = _foreground_box(display.snapshot(plotter))
+    w, h = size
+    gaps = np.array([top, h - 1 - bottom, left, w - 1 - right])
+    assert gaps.min() >= 1, f"{shape} touches the frame: gaps {gaps}"
+    assert min(gaps[0] + gaps[1], gaps[2] + gaps[3]) <= 0.2 * min(w, h), f"{shape} does not fill the picture: {gaps}"
+    assert abs(gaps[0] - gaps[1]) <= 0.08 * h and abs(gaps[2] - gaps[3]) <= 0.08 * w, f"{shape} off centre: {gaps}"
+
+
+def test_aim_refuses_what_it_cannot_fit():
+    with pytest.raises(ValueError, match="parallel"):
+        display.aim(_scene(), direction=(0, 0, 1), up=(0, 0, 2))
+    with pytest.raises(ValueError, match="finite bounds"):
+        display.aim(_scene(), bounds=(0, 1, 0, 1, 1, 0))

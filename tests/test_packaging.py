@@ -20,8 +20,9 @@ def test_environment_yml_lists_the_same_packages_as_pyproject():
         if line.startswith("dependencies:"):
             in_deps = True
             continue
-        m = re.match(r"^  - ([A-Za-z0-9_.\-]+)", line)
-        if in_deps and m and m.group(1) not in {"python", "pip"}:
+        # conda packages ("  - name"), and pip-only ones under "  - pip:" ("      - name"; not "-e .")
+        m = re.match(r"^(?:  |      )- ([A-Za-z0-9_.\-]+)", line)
+        if in_deps and m and m.group(1) not in {"python", "pip", "-e"}:
             conda_names.add(_name(m.group(1)))
     assert pip_names == conda_names
 
