@@ -61,10 +61,11 @@ def aim(plotter, focus=None, distance: float | None = None, direction=(1.0, -2.0
     With ``distance`` given, the camera sits at ``focus + distance * direction / |direction|``: one fixed camera
     per scene, so that the pictures of a sequence line up.
 
-    Without it (the usual call: ``aim(plotter)`` or ``aim(plotter, direction=...)``), the camera is *fitted*: the
-    box ``bounds`` (``(xmin, xmax, ymin, ymax, zmin, zmax)``; by default the bounds of what the subplot shows) is
-    centred in the picture and fills it but for ``margin`` (a fraction of the half-width) on its tightest side, in
-    perspective and for the subplot's aspect ratio. ``focus``, if given, is kept as the focal point.
+    Without it (the usual call: ``aim(plotter)`` or ``aim(plotter, direction=...)``), the camera is *fitted*: what
+    the subplot shows (the points of its visible meshes), or the box ``bounds`` (``(xmin, xmax, ymin, ymax, zmin,
+    zmax)``) when given, is centred in the picture and fills it but for ``margin`` (a fraction of the half-width) on
+    its tightest side, in perspective and for the subplot's aspect ratio. ``focus``, if given, stays the focal point.
+    Give ``bounds`` for a sequence of pictures that must line up.
 
     Raises ``ValueError`` for a zero or non-finite direction, an up vector parallel to it, or empty bounds.
     """
@@ -75,18 +76,45 @@ def aim(plotter, focus=None, distance: float | None = None, direction=(1.0, -2.0
     d = d / norm
     up = np.asarray(up, float).reshape(3)
     if distance is None:
-        box = np.asarray(plotter.renderer.ComputeVisiblePropBounds() if bounds is None else bounds, float)
-        if box.shape != (6,) or not np.all(np.isfinite(box)) or np.any(box[1::2] < box[0::2]):
-            raise ValueError(f"aim needs finite bounds (xmin, xmax, ymin, ymax, zmin, zmax) to fit, got {box}")
-        focus, distance = _fit(plotter, box, d, up, focus, margin)
+        points = _scene_points(plotter.renderer) if bounds is None else None
+        if points is None:
+            box = np.asarray(plotter.renderer.ComputeVisiblePropBounds() if bounds is None else bounds, float)
+            if box.shape != (6,) or not np.all(np.isfinite(box)) or np.any(box[1::2] < box[0::2]):
+                raise ValueError(f"aim needs finite bounds (xmin, xmax, ymin, ymax, zmin, zmax) to fit, got {box}")
+            points = np.array(np.meshgrid(box[0:2], box[2:4], box[4:6], indexing="ij")).reshape(3, -1).T
+        focus, distance = _fit(plotter, points, d, up, focus, margin)
     focus = np.asarray(focus, float).reshape(3)
     plotter.camera.focal_point = tuple(focus)
     plotter.camera.position = tuple(focus + float(distance) * d)
     plotter.camera.up = tuple(float(u) for u in up)
 
 
-def _fit(plotter, box: np.ndarray, d: np.ndarray, up: np.ndarray, focus, margin: float):
-    """Focal point and distance along ``d`` at which the corners of ``box`` fill the subplot's view, centred."""
+def _scene_points(renderer, most: int = 200_000) -> np.ndarray | None:
+    """The points of the visible meshes of ``renderer``, ``(n, 3) float``, at most ``most`` of them (an even
+    subsample of each mesh beyond that); ``None`` when it shows no points."""
+    import pyvista as pv
+
+    chunks = []
+    for actor in renderer.GetActors():
+        mapper = actor.GetMapper()
+        data = mapper.GetInput() if actor.GetVisibility() and mapper is not None else None
+        if data is None or data.GetNumberOfPoints() == 0:
+            continue
+        pts = np.asarray(pv.wrap(data).points, float)
+        if actor.GetUserMatrix() is not None or not np.allclose(actor.GetPosition(), 0):
+            matrix = pv.array_from_vtkmatrix(actor.GetMatrix())
+            pts = pts @ matrix[:3, :3].T + matrix[:3, 3]
+        chunks.append(pts)
+    total = sum(len(c) for c in chunks)
+    if total == 0:
+        return None
+    step = max(1, total // most)
+    return np.concatenate([c[::step] for c in chunks])
+
+
+def _fit(plotter, corners: np.ndarray, d: np.ndarray, up: np.ndarray, focus, margin: float):
+    """Focal point and distance along ``d`` at which ``corners`` (``(n, 3)`` points) fill the subplot's view,
+    centred."""
     right = np.cross(-d, up)
     if np.linalg.norm(right) < 1e-12 * np.linalg.norm(up):
         raise ValueError(f"aim: the up vector {tuple(up)} is parallel to the view direction {tuple(d)}")
@@ -96,8 +124,10 @@ def _fit(plotter, box: np.ndarray, d: np.ndarray, up: np.ndarray, focus, margin:
     width, height = (x1 - x0) * plotter.window_size[0], (y1 - y0) * plotter.window_size[1]
     tan_y = np.tan(np.radians(plotter.camera.view_angle) / 2) * (1 - margin)
     tan_x = tan_y * width / height
-    corners = np.array(np.meshgrid(box[0:2], box[2:4], box[4:6], indexing="ij")).reshape(3, -1).T
-    centre = corners.mean(axis=0) if focus is None else np.asarray(focus, float).reshape(3)
+    if focus is None:
+        centre = (corners.min(axis=0) + corners.max(axis=0)) / 2
+    else:
+        centre = np.asarray(focus, float).reshape(3)
     size = max(float(np.ptp(corners, axis=0).max()), 1e-12)
     for step in range(4):
         rel = corners - centre

@@ -112,6 +112,7 @@ def _foreground_box(image: np.ndarray) -> tuple[int, int, int, int]:
     ("tall drill", (640, 480), (1.0, -1.0, 0.3)),
     ("flat plate", (480, 640), (0.2, -1.0, 2.0)),
     ("off-centre cube", (300, 300), (-1.0, 0.5, 0.4)),
+    ("octahedron", (640, 480), (43.0, 21.0, 35.0)),  # fitted to its points, not to its (much larger) bounding box
 ])
 def test_aim_fits_the_scene_in_the_picture_centred(shape, size, direction):
     """Fitted: nothing touches the frame, the scene fills the picture on its tightest side, centred (the old fixed
@@ -121,7 +122,8 @@ def test_aim_fits_the_scene_in_the_picture_centred(shape, size, direction):
     solid = {"long box": pv.Box((-10, 30, -2, 2, -1, 1)),
              "tall drill": pv.Cylinder(radius=1, height=12, direction=(0, 0, 1)),
              "flat plate": pv.Box((-50, 50, -30, 30, 0, 3)),
-             "off-centre cube": pv.Cube(center=(100, -40, 7), x_length=2.0)}[shape]
+             "off-centre cube": pv.Cube(center=(100, -40, 7), x_length=2.0),
+             "octahedron": pv.PlatonicSolid("octahedron", radius=9.0)}[shape]
     plotter = pv.Plotter(off_screen=True, window_size=size)
     plotter.add_mesh(solid, color="orange")
     display.aim(plotter, direction=direction)
