@@ -201,9 +201,13 @@ def show(plotter, path: str | Path | None = None, *, backend: str | None = None)
     """
     from IPython.display import HTML, Image
 
+    from csgnb import plotting
+
     name = jupyter_backend(backend)
     if plotter.render_window is None:
         raise ValueError("this plotter is closed; build the scene again before showing it")
+    pin_corner_texts(plotter)
+    plotting.record_scene(scene_texts(plotter), int(plotter.window_size[0]))
     png = None
     if path is not None or name == "static":
         png = _png(snapshot(plotter, path, close=False))
@@ -219,6 +223,63 @@ def show(plotter, path: str | Path | None = None, *, backend: str | None = None)
     finally:
         if name not in _SERVED:
             plotter.close()
+
+
+# vtkCornerAnnotation slots 0-3 (lower left, lower right, upper left, upper right) as (x, y) in the viewport (a
+# fraction of its size), and the justification that anchors the text there.
+_CORNER_ANCHORS = {0: ((0.0, 0.0), 0, 0), 1: ((1.0, 0.0), 2, 0), 2: ((0.0, 1.0), 0, 2), 3: ((1.0, 1.0), 2, 2)}
+_CORNER_INSET_PX = 6
+
+
+def pin_corner_texts(plotter) -> int:
+    """Replace the corner texts of ``plotter`` (pyvista's ``add_text(position="upper_left")`` and the like) by plain
+    text actors of the size asked for; return how many were replaced.
+
+    A corner annotation shrinks its font as its text grows, so a long caption ends up a few pixels high with no
+    warning; a text actor keeps the size given (pyvista's ``font_size`` doubled, as ``add_text`` does with a
+    position in pixels). :func:`show` calls it, so every shown scene has text of a known size.
+    """
+    import vtk
+
+    replaced = 0
+    for renderer in plotter.renderers:
+        x0, y0, x1, y1 = renderer.GetViewport()
+        vw, vh = (x1 - x0) * plotter.window_size[0], (y1 - y0) * plotter.window_size[1]
+        for prop in _props(renderer):
+            if not (prop.IsA("vtkCornerAnnotation") and prop.GetVisibility()):
+                continue
+            size = int(round(4 * prop.GetLinearFontScaleFactor()))  # pyvista: factor = font_size // 2
+            for slot, ((fx, fy), horizontal, vertical) in _CORNER_ANCHORS.items():
+                text = prop.GetText(slot)
+                if not text:
+                    continue
+                actor = vtk.vtkTextActor()
+                actor.SetInput(text)
+                tp = actor.GetTextProperty()
+                tp.ShallowCopy(prop.GetTextProperty())
+                tp.SetFontSize(size)
+                tp.SetJustification(horizontal)
+                tp.SetVerticalJustification(vertical)
+                inset = np.array([1 - 2 * fx, 1 - 2 * fy]) * _CORNER_INSET_PX
+                actor.SetPosition(fx * vw + inset[0], fy * vh + inset[1])
+                renderer.AddViewProp(actor)
+            renderer.RemoveViewProp(prop)
+            replaced += 1
+    return replaced
+
+
+def scene_texts(plotter) -> list[tuple[str, float]]:
+    """The 2D texts of ``plotter`` with their font size in pixels at the window's size, ``[(text, px), ...]``.
+
+    A text actor's font is its property's size (measured: a capital letter is 0.72 of it, as in DejaVu Sans);
+    corner annotations are not measured (their size depends on their text): :func:`pin_corner_texts` first.
+    """
+    out = []
+    for renderer in plotter.renderers:
+        for prop in _props(renderer):
+            if prop.GetVisibility() and prop.IsA("vtkTextActor") and str(prop.GetInput() or "").strip():
+                out.append((str(prop.GetInput()), float(prop.GetTextProperty().GetFontSize())))
+    return out
 
 
 # --- the html backend -------------------------------------------------------------------------------------------
