@@ -171,11 +171,18 @@ def add_legend(plotter, entries, *, font_size: int = 12, corner: str = "upper ri
         prop.SetBackgroundOpacity(1.0)
 
 
-def snapshot(plotter, path: str | Path | None = None, *, close: bool = True) -> np.ndarray:
+def snapshot(plotter, path: str | Path | None = None, *, close: bool = True, record: bool = True) -> np.ndarray:
     """Render ``plotter`` off screen and return the picture, ``(h, w, 3) uint8``; also write it to ``path`` if given.
 
+    Corner texts are pinned to their asked size first (:func:`pin_corner_texts`), and with ``record`` the scene's
+    texts are recorded for :func:`csgnb.plotting.legibility_report` (a picture made for a widget is shown too).
     Closes the plotter unless ``close=False``.
     """
+    pin_corner_texts(plotter)
+    if record:
+        from csgnb import plotting
+
+        plotting.record_scene(scene_texts(plotter), int(plotter.window_size[0]))
     image = plotter.screenshot(str(path) if path is not None else None, return_img=True)
     if close:
         plotter.close()
@@ -210,7 +217,7 @@ def show(plotter, path: str | Path | None = None, *, backend: str | None = None)
     plotting.record_scene(scene_texts(plotter), int(plotter.window_size[0]))
     png = None
     if path is not None or name == "static":
-        png = _png(snapshot(plotter, path, close=False))
+        png = _png(snapshot(plotter, path, close=False, record=False))
     try:
         if name == "static":
             return Image(data=png, format="png")

@@ -16,6 +16,7 @@ from csgnb import display, plotting  # noqa: E402
 def _fresh_record():
     yield
     plotting._shown.clear()
+    plotting._collisions.clear()
     plotting._recording = False
     plt.close("all")
     matplotlib.rcdefaults()
@@ -56,13 +57,16 @@ def test_style_makes_every_text_legible_up_to_the_reader_width():
 
 
 def test_report_names_the_small_texts_of_shown_figures_and_scenes():
-    from IPython.core.interactiveshell import InteractiveShell
+    import io
+    import os
 
-    shell = InteractiveShell.instance()
+    from IPython.core.pylabtools import print_figure
+
     plotting.use_style()
-    shell.display_formatter.format(_figure(6, 12))
+    print_figure(_figure(6, 12), "png")  # as Jupyter's inline backend shows a figure
+    _figure(3, 5).savefig(os.devnull, format="png")  # saved to a file: not shown
     assert plotting.legibility_report().startswith("1 figures shown, every text at least 11 px")
-    shell.display_formatter.format(_figure(17, 9))
+    _figure(17, 9).savefig(io.BytesIO(), format="png")  # the bytes of a picture for a widget
 
     import pyvista as pv
 
@@ -73,6 +77,7 @@ def test_report_names_the_small_texts_of_shown_figures_and_scenes():
     report = plotting.legibility_report()
     lines = report.splitlines()
     assert lines[0].startswith("2 of 3 figures have text under 11 px"), report
+    assert lines[0].endswith("0 pairs of texts overlap:"), report
     assert lines[1] == "  figure 2: 13 of 13 texts, the smallest 'the title' 6.3 px", report
     assert lines[2].startswith("  figure 3: 1 of 1 texts, the smallest 'a long caption in the corner"), report
     assert len(lines) == 3
@@ -102,3 +107,15 @@ def test_corner_texts_keep_the_size_asked_for():
         rows = np.nonzero((display.snapshot(plotter) < 128).all(axis=2).any(axis=1))[0]
         sizes.append(rows.max() - rows.min())
     assert abs(sizes[0] - sizes[1]) <= 4, f"caption heights differ: {sizes}"
+
+
+def test_colliding_tick_labels_are_found():
+    """Chapter 04's octree-leaf bars had their labels run into each other ("64128256512"): the report names them."""
+    plotting.use_style(record=False)
+    fig, ax = plt.subplots(figsize=(4, 3))
+    sizes = [str(2**k) for k in range(1, 14)]
+    ax.bar(sizes, range(13))
+    pairs = plotting.overlapping_texts(fig)
+    assert ("1024", "2048") in pairs or ("2048", "4096") in pairs, pairs
+    ax.tick_params(axis="x", labelrotation=90)
+    assert plotting.overlapping_texts(fig) == []
