@@ -74,3 +74,18 @@ def test_the_installed_versions_are_the_locked_ones():
         if got != pinned:
             wrong[name] = (pinned, got)
     assert not wrong, f"installed versions differ from requirements.lock (re-run scripts/setup.sh): {wrong}"
+
+
+def test_every_chapter_checks_the_legibility_of_what_it_shows():
+    """Each chapter applies csgnb's style and ends with a checked legibility report (csgnb.plotting), so a figure
+    whose text shrinks under 11 px on screen, or whose labels collide, fails its notebook under nbval."""
+    import json
+
+    for path in sorted((ROOT / "notebooks").glob("*.ipynb")):
+        cells = [c for c in json.loads(path.read_text())["cells"] if c["cell_type"] == "code"]
+        sources = ["".join(c["source"]) for c in cells]
+        assert any("use_style()" in s for s in sources[:3]), f"{path.name}: no use_style() among its first cells"
+        last = sources[-1]
+        assert "# NBVAL_CHECK_OUTPUT" in last and "legibility_report()" in last, f"{path.name}: no report at the end"
+        shown = "".join("".join(o.get("text", "")) for o in cells[-1].get("outputs", []))
+        assert "every text at least 11 px on screen" in shown and "no texts overlap" in shown, (path.name, shown)
