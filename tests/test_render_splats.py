@@ -200,3 +200,16 @@ def test_bad_input_is_a_clear_error():
     with pytest.raises(ValueError, match="size"):
         compare(render(cloud, cam), raytrace(shape, cam.with_size(16, 12)))
     assert isinstance(SplatRenderer(cloud).render(cam).stats.ms, float)
+
+
+def test_reduced_radii_leave_no_hole_on_the_80_quadric_plate_at_1080p():
+    """The camera where reduced radii left a one-pixel hole (the sampler's unresolved feature tips)."""
+    from csgnb.csg.gallery import TABLE2
+
+    build, radii = TABLE2["perforated plate"]
+    shape = build()
+    cloud = sample_csg(shape, radii["large"], reduce_radius=True)
+    cam = Camera.fit(cloud, 1920, 1080, azimuth=-60, elevation=35)
+    agreement = compare(render(cloud, cam), raytrace(shape, cam))
+    assert agreement.holes == 0
+    assert_pixel_perfect(agreement)

@@ -551,6 +551,7 @@ def subdivide_all(
                 LI[nl, 0] = job
                 LI[nl, 1] = emit_kind
                 LI[nl, 3] = count
+                LF[nl, 9] = 0.0  # the radius the neighbour rule may raise a reduced radius to
                 LF[nl, 12] = delta
                 if emit_kind == 0:
                     LF[nl, 0] = v0x if best == 0 else (v1x if best == 1 else (v2x if best == 2 else fx))
@@ -784,6 +785,9 @@ def cover_by_neighbours(ts, LF, LI, UR, radius, reduce_radius, covered):
         cx, cy, cz, rho = UR[u, 0], UR[u, 1], UR[u, 2], UR[u, 3]
         if not rho < radius:
             continue
+        # With reduced radii, the sample that would cover the region at the full radius (the closest such) has
+        # its radius raised to what the region needs (LF[leaf, 9]): the guarantee holds, radii grow only here.
+        best_need, best_leaf = np.inf, -1
         # singles: a covering one is within one radius of the center, so in the ≤ 8 cells of the
         # box center ± radius
         a0, b0 = kind_first[3 * t], kind_first[3 * t + 1]
@@ -807,10 +811,13 @@ def cover_by_neighbours(ts, LF, LI, UR, radius, reduce_radius, covered):
                     while o < b0 and cell[o] == kc:
                         leaf = sorted_leaf[o]
                         dx, dy, dz = P[leaf, 0] - cx, P[leaf, 1] - cy, P[leaf, 2] - cz
-                        r_s = LF[leaf, 14] if reduce_radius else radius
-                        if math.sqrt(dx * dx + dy * dy + dz * dz) + rho <= r_s * (1.0 - tol.NEIGHBOUR_MARGIN):
+                        need = (math.sqrt(dx * dx + dy * dy + dz * dz) + rho) / (1.0 - tol.NEIGHBOUR_MARGIN)
+                        r_s = max(LF[leaf, 14], LF[leaf, 9]) if reduce_radius else radius
+                        if need <= r_s:
                             covered[u] = True
                             break
+                        if need <= radius and need < best_need:  # (reduced radii only: r_s < radius)
+                            best_need, best_leaf = need, leaf
                         o += 1
         if not covered[u] and not sorted_lattices:
             for g in range(3 * n_tasks):
@@ -834,10 +841,16 @@ def cover_by_neighbours(ts, LF, LI, UR, radius, reduce_radius, covered):
                 if abs(dy) > half or abs(dz) > half:
                     continue
                 dist = math.sqrt(dx * dx + dy * dy + dz * dz)
-                if dist - P[leaf, 3] + rho <= radius and _lattice_covers(ts, LF, LI, leaf, cx, cy, cz, rho, radius,
-                                                                         reduce_radius):
-                    covered[u] = True
-                    break
+                if dist - P[leaf, 3] + rho <= radius:
+                    need, r_s = _lattice_need(ts, LF, LI, leaf, cx, cy, cz, rho, radius, reduce_radius)
+                    if need <= r_s:
+                        covered[u] = True
+                        break
+                    if need <= radius and need < best_need:
+                        best_need, best_leaf = need, leaf
+        if not covered[u] and reduce_radius and best_leaf >= 0:
+            LF[best_leaf, 9] = max(LF[best_leaf, 9], best_need)
+            covered[u] = True
         if covered[u]:
             count += 1
     return count
@@ -853,8 +866,9 @@ def _cell_key(x, y, z, h):
 
 
 @inline_jit
-def _lattice_covers(ts, LF, LI, leaf, cx, cy, cz, rho, radius, reduce_radius):
-    """Whether a lattice point of ``leaf`` covers the ball (c, ρ) (see ``cover_by_neighbours``)."""
+def _lattice_need(ts, LF, LI, leaf, cx, cy, cz, rho, radius, reduce_radius):
+    """``(need, r_s)``: the smallest radius a lattice point of ``leaf`` near the ball (c, ρ) needs to cover it
+    (``inf`` if none is near), and the radius the leaf's samples have (see ``cover_by_neighbours``)."""
     origin, frame, coef, pform = ts.origin, ts.frame, ts.coef, ts.form
     job = LI[leaf, 0]
     task = ts.job_task[job]
@@ -863,7 +877,8 @@ def _lattice_covers(ts, LF, LI, leaf, cx, cy, cz, rho, radius, reduce_radius):
     v0x, v0y, v1x, v1y, v2x, v2y = LF[leaf, 0], LF[leaf, 1], LF[leaf, 2], LF[leaf, 3], LF[leaf, 4], LF[leaf, 5]
     rho_l = LF[leaf, 15]
     centers, steps, _, reach, cs, ct = lattice_plan(v0x, v0y, v1x, v1y, v2x, v2y, rho_l)
-    r_s = LF[leaf, 12] * reach + (radius - LF[leaf, 12] * rho_l) if reduce_radius else radius
+    r_s = max(LF[leaf, 12] * reach + (radius - LF[leaf, 12] * rho_l), LF[leaf, 9]) if reduce_radius else radius
+    best = np.inf
     inv = 1.0 / steps
     e1x, e1y, e2x, e2y = v1x - v0x, v1y - v0y, v2x - v0x, v2y - v0y
     # the ball's center in the leaf's plane, in lattice coordinates: only the lattice points around
@@ -873,7 +888,7 @@ def _lattice_covers(ts, LF, LI, leaf, cx, cy, cz, rho, radius, reduce_radius):
     ly = dx * frame[task, k, 0, 1] + dy * frame[task, k, 1, 1] + dz * frame[task, k, 2, 1] - v0y
     det = e1x * e2y - e1y * e2x
     if det == 0.0:
-        return False
+        return best, r_s
     a_ = (lx * e2y - ly * e2x) / det * steps
     b_ = (e1x * ly - e1y * lx) / det * steps
     for flip in range(2 if centers else 1):
@@ -906,9 +921,11 @@ def _lattice_covers(ts, LF, LI, leaf, cx, cy, cz, rho, radius, reduce_radius):
                     pform[task, k], coef[task, k, 0], coef[task, k, 1], coef[task, k, 2],
                     coef[task, k, 3], coef[task, k, 4], sheet, x, y)  # fmt: skip
                 ex, ey, ez = px - cx, py - cy, pz - cz
-                if math.sqrt(ex * ex + ey * ey + ez * ez) + rho <= r_s * (1.0 - tol.NEIGHBOUR_MARGIN):
-                    return True
-    return False
+                need = (math.sqrt(ex * ex + ey * ey + ez * ez) + rho) / (1.0 - tol.NEIGHBOUR_MARGIN)
+                if need <= r_s:
+                    return need, r_s
+                best = min(best, need)
+    return best, r_s
 
 
 @ieee_jit
@@ -960,7 +977,7 @@ def emit_all(C, ts, LF, LI, LA, radius, reduce_radius, center, scale, pos, nrm, 
         single = LI[leaf, 1] == 0
         v0x, v0y, v1x, v1y, v2x, v2y = LF[leaf, 0], LF[leaf, 1], LF[leaf, 2], LF[leaf, 3], LF[leaf, 4], LF[leaf, 5]
         if single:
-            r_s = LF[leaf, 14] if reduce_radius else radius
+            r_s = max(LF[leaf, 14], LF[leaf, 9]) if reduce_radius else radius
             centers, steps, reach, cs, ct = False, 0, 0.0, 0.0, 0.0
             n_loc = lan
             for i in range(lan):
@@ -969,7 +986,7 @@ def emit_all(C, ts, LF, LI, LA, radius, reduce_radius, center, scale, pos, nrm, 
             rho_l = LF[leaf, 15]
             centers, steps, _, reach, cs, ct = lattice_plan(v0x, v0y, v1x, v1y, v2x, v2y, rho_l)
             # the bulge, in world units, for reduced radii
-            r_s = delta * reach + (radius - delta * rho_l) if reduce_radius else radius
+            r_s = max(delta * reach + (radius - delta * rho_l), LF[leaf, 9]) if reduce_radius else radius
             # keep the quadrics that can reach a splat of this lattice: a surface that stays
             # farther than radius + (world reach of the triangle) from its first vertex cannot
             n_loc = 0
