@@ -245,7 +245,7 @@ def sample_csg(
     bounds=None,
     distortion: str = "bounds",
     min_size: float = 0.0,
-    reduce_radius: bool = False,
+    reduce_radius: bool = True,
     refine: bool = True,
     trace: bool = False,
     progress: bool = False,
@@ -273,7 +273,9 @@ def sample_csg(
         paper's speed-up, e.g. 0.1). Off by default: it can leave holes at features smaller
         than that.
     reduce_radius : bool
-        Give samples of small regions the smaller radius that covers their region (less overdraw).
+        Give samples of small regions the smaller radius that covers their region (the default: less overdraw,
+        the same guarantee -- where a region at a feature tip is covered only by a neighbouring sample, that
+        sample's radius is raised to reach it, never past ``radius``). ``False`` gives every sample ``radius``.
     refine : bool
         Split kept regions further (no distance queries) where their distortion varies, so that
         the sample lattice follows the local δ: fewer samples for the same guarantee.
