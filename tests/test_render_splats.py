@@ -213,3 +213,25 @@ def test_reduced_radii_leave_no_hole_on_the_80_quadric_plate_at_1080p():
     agreement = compare(render(cloud, cam), raytrace(shape, cam))
     assert agreement.holes == 0
     assert_pixel_perfect(agreement)
+
+
+def test_frames_are_bit_identical_on_one_and_two_threads():
+    """The raster runs over screen tiles on all cores: each tile is one thread's, so the image must not depend on
+    how many there are (depth, quadric, overdraw and colour buffers compared bit for bit)."""
+    import numba
+
+    shape = tour_part()
+    cloud = sample_csg(shape, 0.05)
+    cam = Camera.fit(cloud, 320, 240, azimuth=-40, elevation=30)
+    before = numba.get_num_threads()
+    frames = []
+    try:
+        for threads in (1, min(2, numba.config.NUMBA_NUM_THREADS)):
+            numba.set_num_threads(threads)
+            frames.append(render(cloud, cam))
+    finally:
+        numba.set_num_threads(before)
+    a, b = frames
+    for name in ("depth", "quadric", "overdraw", "rgb", "clip_count"):
+        assert np.array_equal(getattr(a, name), getattr(b, name)), name
+    assert a.stats.fragments == b.stats.fragments
