@@ -142,9 +142,20 @@ def _footprint_kernel(cam, SD, footprint, cull, bbox, hull, nh, flag, zmin):
                     continue
             R = r * (1.0 + FOOTPRINT_MARGIN)
             zmin[k] = Sz - R
-            if not ortho and Sz + R <= 0.0:
-                flag[k] = 2
-                continue
+            if not ortho:
+                if Sz + R <= 0.0:
+                    flag[k] = 2
+                    continue
+                # outside a side plane of the view frustum (x = ±tx z, y = ±ty z through the eye): off screen. Without
+                # this, a splat straddling the eye's plane beside the camera took the whole screen (close-ups:
+                # thousands of fragments per pixel)
+                tx, ty = cam[14], cam[15]
+                sx_out = R * math.sqrt(1.0 + tx * tx)
+                sy_out = R * math.sqrt(1.0 + ty * ty)
+                if (Sx - tx * Sz > sx_out or -Sx - tx * Sz > sx_out or Sy - ty * Sz > sy_out
+                        or -Sy - ty * Sz > sy_out):
+                    flag[k] = 2
+                    continue
             use_sphere = footprint == 0 or gn == 0.0
             c_lo, c_hi, r_lo, r_hi = 0.0, 0.0, 0.0, 0.0
             whole = False
