@@ -250,3 +250,45 @@ def test_close_ups_cull_splats_beside_the_camera():
     frame = render(cloud, cam)
     assert frame.stats.overdraw < 150, frame.stats.overdraw
     assert_pixel_perfect(compare(frame, raytrace(shape, cam)))
+
+
+def _bins_reference(bbox, flag, zmin, tile, ntx, nty):
+    """The binning in plain Python: drawn splats by depth bucket (4096 between the nearest and farthest), then
+    index; each tile lists the splats whose rectangle meets it, in that order."""
+    drawn = [k for k in range(len(flag)) if flag[k] == 0]
+    if not drawn:
+        return np.zeros(ntx * nty + 1, dtype=np.int64), np.zeros(0, dtype=np.int32)
+    lo, hi = min(zmin[k] for k in drawn), max(zmin[k] for k in drawn)
+    scale = 4095 / (hi - lo) if hi > lo else 0.0
+    order = sorted(drawn, key=lambda k: (int((zmin[k] - lo) * scale), k))
+    tiles = [[] for _ in range(ntx * nty)]
+    for k in order:
+        for ty in range(bbox[k, 1] // tile, bbox[k, 3] // tile + 1):
+            for tx in range(bbox[k, 0] // tile, bbox[k, 2] // tile + 1):
+                tiles[ty * ntx + tx].append(k)
+    start = np.cumsum([0] + [len(t) for t in tiles]).astype(np.int64)
+    return start, np.array([k for t in tiles for k in t], dtype=np.int32)
+
+
+def test_binning_matches_the_serial_definition_on_random_footprints():
+    """The binning runs in parallel chunks; its tiles must list the same splats in the same order as the serial
+    definition (depth bucket, then splat index), ties and empty frames included."""
+    from csgnb.render.splats import _bin_kernel
+
+    rng = np.random.default_rng(4)
+    for trial in range(25):
+        n = int(rng.integers(0, 3000))
+        W, H, tile = int(rng.integers(16, 300)), int(rng.integers(16, 200)), int(rng.choice([8, 16, 32]))
+        ntx, nty = (W + tile - 1) // tile, (H + tile - 1) // tile
+        j0, i0 = rng.integers(0, W, n), rng.integers(0, H, n)
+        bbox = np.stack([j0, i0, np.minimum(W - 1, j0 + rng.integers(0, 50, n)),
+                         np.minimum(H - 1, i0 + rng.integers(0, 50, n))], axis=1).astype(np.int64)
+        flag = rng.choice(np.array([0, 0, 0, 1, 2], dtype=np.int8), n)
+        zmin = rng.normal(size=n)
+        if trial % 4 == 0:
+            zmin = np.round(zmin, 1)  # many ties within a bucket
+        start, items = np.empty(ntx * nty + 1, dtype=np.int64), np.empty(400_000, dtype=np.int32)
+        total = _bin_kernel(bbox, flag, zmin, tile, ntx, nty, start, items)
+        ref_start, ref_items = _bins_reference(bbox, flag, zmin, tile, ntx, nty)
+        assert total == len(ref_items)
+        assert np.array_equal(start, ref_start) and np.array_equal(items[:total], ref_items), trial

@@ -265,52 +265,85 @@ def _footprint_kernel(cam, SD, footprint, cull, bbox, hull, nh, flag, zmin):
 _BUCKETS = 4096
 
 
-@jit(error_model="numpy")
+#: Chunks of the binning's parallel passes (fixed: the result is the serial order whatever the thread count).
+_BIN_CHUNKS = 16
+
+
+@jit(parallel=True, error_model="numpy")
 def _bin_kernel(bbox, flag, zmin, tile, ntx, nty, start, items):
     """Counting sort of the drawn splats into tiles, front to back within a tile (by nearest depth,
     in 4096 buckets): tile t holds items[start[t]:start[t + 1]]. Returns the pair count (if it
-    exceeds ``items``, nothing is written: grow it and call again)."""
+    exceeds ``items``, nothing is written: grow it and call again).
+
+    Both sorts run over ``_BIN_CHUNKS`` chunks in parallel with per-chunk counts; offsets are laid out key-major,
+    chunk-minor, so every key's entries keep the serial (increasing splat, then increasing order) sequence: the
+    output is the one-thread output, bit for bit."""
     n = bbox.shape[0]
-    lo, hi = math.inf, -math.inf
-    drawn = 0
-    for k in range(n):
-        if flag[k] == 0:
-            lo = min(lo, zmin[k])
-            hi = max(hi, zmin[k])
-            drawn += 1
+    nch = _BIN_CHUNKS
+    size = (n + nch - 1) // nch
+    los = np.full(nch, math.inf)
+    his = np.full(nch, -math.inf)
+    drawn_c = np.zeros(nch, dtype=np.int64)
+    for c in prange(nch):
+        lo, hi, d = math.inf, -math.inf, 0
+        for k in range(c * size, min(n, (c + 1) * size)):
+            if flag[k] == 0:
+                lo = min(lo, zmin[k])
+                hi = max(hi, zmin[k])
+                d += 1
+        los[c], his[c], drawn_c[c] = lo, hi, d
+    lo, hi, drawn = math.inf, -math.inf, 0
+    for c in range(nch):
+        lo = min(lo, los[c])
+        hi = max(hi, his[c])
+        drawn += drawn_c[c]
     scale = (_BUCKETS - 1) / (hi - lo) if hi > lo else 0.0
-    bucket = np.zeros(_BUCKETS + 1, dtype=np.int64)
-    for k in range(n):
-        if flag[k] == 0:
-            bucket[int((zmin[k] - lo) * scale) + 1] += 1
-    for b in range(_BUCKETS):
-        bucket[b + 1] += bucket[b]
+    hist = np.zeros((nch, _BUCKETS), dtype=np.int64)
+    for c in prange(nch):
+        for k in range(c * size, min(n, (c + 1) * size)):
+            if flag[k] == 0:
+                hist[c, int((zmin[k] - lo) * scale)] += 1
+    at = 0
+    for b in range(_BUCKETS):  # bucket-major, chunk-minor: within a bucket, increasing splat index
+        for c in range(nch):
+            h = hist[c, b]
+            hist[c, b] = at
+            at += h
     order = np.empty(drawn, dtype=np.int32)
-    for k in range(n):
-        if flag[k] == 0:
-            b = int((zmin[k] - lo) * scale)
-            order[bucket[b]] = k
-            bucket[b] += 1
-    count = np.zeros(ntx * nty + 1, dtype=np.int64)
-    for o in range(drawn):
-        k = order[o]
-        for ty in range(bbox[k, 1] // tile, bbox[k, 3] // tile + 1):
-            for tx in range(bbox[k, 0] // tile, bbox[k, 2] // tile + 1):
-                count[ty * ntx + tx + 1] += 1
+    for c in prange(nch):
+        for k in range(c * size, min(n, (c + 1) * size)):
+            if flag[k] == 0:
+                b = int((zmin[k] - lo) * scale)
+                order[hist[c, b]] = k
+                hist[c, b] += 1
+    ntiles = ntx * nty
+    osize = (drawn + nch - 1) // nch
+    count = np.zeros((nch, ntiles), dtype=np.int64)
+    for c in prange(nch):
+        for o in range(c * osize, min(drawn, (c + 1) * osize)):
+            k = order[o]
+            for ty in range(bbox[k, 1] // tile, bbox[k, 3] // tile + 1):
+                for tx in range(bbox[k, 0] // tile, bbox[k, 2] // tile + 1):
+                    count[c, ty * ntx + tx] += 1
     start[0] = 0
-    for t in range(ntx * nty):
-        start[t + 1] = start[t] + count[t + 1]
-    total = start[ntx * nty]
+    for t in range(ntiles):  # tile-major, chunk-minor: within a tile, increasing order
+        at = start[t]
+        for c in range(nch):
+            h = count[c, t]
+            count[c, t] = at
+            at += h
+        start[t + 1] = at
+    total = start[ntiles]
     if total > items.shape[0]:
         return total
-    fill = start[:-1].copy()
-    for o in range(drawn):
-        k = order[o]
-        for ty in range(bbox[k, 1] // tile, bbox[k, 3] // tile + 1):
-            for tx in range(bbox[k, 0] // tile, bbox[k, 2] // tile + 1):
-                t = ty * ntx + tx
-                items[fill[t]] = k
-                fill[t] += 1
+    for c in prange(nch):
+        for o in range(c * osize, min(drawn, (c + 1) * osize)):
+            k = order[o]
+            for ty in range(bbox[k, 1] // tile, bbox[k, 3] // tile + 1):
+                for tx in range(bbox[k, 0] // tile, bbox[k, 2] // tile + 1):
+                    t = ty * ntx + tx
+                    items[count[c, t]] = k
+                    count[c, t] += 1
     return total
 
 
