@@ -232,9 +232,11 @@ def show(plotter, path: str | Path | None = None, *, backend: str | None = None)
             plotter.close()
 
 
-# vtkCornerAnnotation slots 0-3 (lower left, lower right, upper left, upper right) as (x, y) in the viewport (a
-# fraction of its size), and the justification that anchors the text there.
-_CORNER_ANCHORS = {0: ((0.0, 0.0), 0, 0), 1: ((1.0, 0.0), 2, 0), 2: ((0.0, 1.0), 0, 2), 3: ((1.0, 1.0), 2, 2)}
+# vtkCornerAnnotation slots (0 lower left, 1 lower right, 2 upper left, 3 upper right; 4 lower, 5 right, 6 left and
+# 7 upper edge: pyvista's positions) as (x, y) in the viewport (a fraction of its size), and the horizontal and
+# vertical justification (0 left/bottom, 1 centre, 2 right/top) that anchors the text there.
+_CORNER_ANCHORS = {0: ((0.0, 0.0), 0, 0), 1: ((1.0, 0.0), 2, 0), 2: ((0.0, 1.0), 0, 2), 3: ((1.0, 1.0), 2, 2),
+                   4: ((0.5, 0.0), 1, 0), 5: ((1.0, 0.5), 2, 1), 6: ((0.0, 0.5), 0, 1), 7: ((0.5, 1.0), 1, 2)}
 _CORNER_INSET_PX = 6
 
 
@@ -337,14 +339,9 @@ def _props(renderer):
     return [props.GetNextProp() for _ in range(props.GetNumberOfItems())]
 
 
-# vtkCornerAnnotation slots: 0 lower left, 1 lower right, 2 upper left, 3 upper right, 4-7 edges.
-_CORNERS = {0: "left:6px;bottom:4px", 1: "right:6px;bottom:4px", 2: "left:6px;top:4px", 3: "right:6px;top:4px",
-            4: "left:50%;bottom:4px;transform:translateX(-50%)", 5: "right:6px;top:50%",
-            6: "left:6px;top:50%", 7: "left:50%;top:4px;transform:translateX(-50%)"}
-
-
 def _captions(plotter, width: int, height: int) -> list[str]:
-    """The scene's 2D texts as absolutely placed HTML, one per text, in the viewport of its subplot."""
+    """The scene's 2D texts as absolutely placed HTML, one per text, in the viewport of its subplot (corner texts
+    are text actors by now: :func:`show` pins them first)."""
     out = []
     for renderer in plotter.renderers:
         x0, y0, x1, y1 = renderer.GetViewport()
@@ -352,15 +349,7 @@ def _captions(plotter, width: int, height: int) -> list[str]:
                f"height:{100 * (y1 - y0):.3f}%;pointer-events:none")
         texts = []
         for prop in _props(renderer):
-            if not prop.GetVisibility():
-                continue
-            if prop.IsA("vtkCornerAnnotation"):
-                for slot, where in _CORNERS.items():
-                    text = prop.GetText(slot)
-                    if text:
-                        # A corner annotation scales its font with the window: about twice its size in pixels.
-                        texts.append((where, text, prop.GetTextProperty(), 2.1))
-            elif prop.IsA("vtkTextActor"):
+            if prop.GetVisibility() and prop.IsA("vtkTextActor"):
                 x, y = prop.GetPosition()
                 vw, vh = max((x1 - x0) * width, 1), max((y1 - y0) * height, 1)
                 tp = prop.GetTextProperty()
@@ -369,11 +358,11 @@ def _captions(plotter, width: int, height: int) -> list[str]:
                 dy = {0: 0, 1: 50, 2: 100}[tp.GetVerticalJustification()]
                 where = (f"left:{100 * x / vw:.2f}%;bottom:{100 * y / vh:.2f}%;"
                          f"transform:translate({dx}%,{dy}%)")
-                texts.append((where, prop.GetInput(), tp, 0.85))  # font size in pixels (pyvista doubled it)
+                texts.append((where, prop.GetInput(), tp))
         if texts:
             spans = []
-            for where, text, prop, scale in texts:
-                size = max(12, int(round(scale * prop.GetFontSize())))
+            for where, text, prop in texts:
+                size = max(12, int(round(0.85 * prop.GetFontSize())))  # font size in pixels (pyvista doubled it)
                 colour = _css_colour(prop.GetColor())
                 style = f"position:absolute;{where};font:{size}px sans-serif;color:{colour};white-space:pre"
                 if prop.GetBackgroundOpacity() > 0:

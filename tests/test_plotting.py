@@ -119,3 +119,17 @@ def test_colliding_tick_labels_are_found():
     assert ("1024", "2048") in pairs or ("2048", "4096") in pairs, pairs
     ax.tick_params(axis="x", labelrotation=90)
     assert plotting.overlapping_texts(fig) == []
+
+
+def test_every_corner_and_edge_text_is_pinned():
+    """pyvista's eight corner and edge positions all become text actors, none lost (the edges were dropped once)."""
+    import pyvista as pv
+
+    positions = ["lower_left", "lower_right", "upper_left", "upper_right", "lower_edge", "right_edge", "left_edge",
+                 "upper_edge"]
+    plotter = pv.Plotter(off_screen=True, window_size=(400, 300))
+    for name in positions:
+        plotter.add_text(name, position=name, font_size=10)
+    display.pin_corner_texts(plotter)
+    assert sorted(text for text, _ in display.scene_texts(plotter)) == sorted(positions)
+    plotter.close()
