@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import argparse
 import copy
+import html
 import re
 import sys
 from importlib import resources
@@ -87,8 +88,6 @@ def external_references(page: str) -> list[str]:
     Looks at the page and at the pages inlined in ``<iframe srcdoc>`` (HTML-escaped inside the attribute).
     Anchors, ``data:`` URIs and URLs that only appear in comments or strings are not fetches and are not listed.
     """
-    import html
-
     found = [m.group("url") for m in _LOADS.finditer(page)]
     for srcdoc in re.finditer(r'srcdoc="([^"]*)"', page):
         found += external_references(html.unescape(srcdoc.group(1)))
@@ -111,29 +110,23 @@ def _progress_bar_ids(widget_state: dict) -> set[str]:
     return {model_id for model_id in models if is_bar(model_id)}
 
 
-def _without_widgets(nb: nbformat.NotebookNode) -> tuple[nbformat.NotebookNode, int, int]:
-    """A copy of ``nb`` whose widget outputs show as text (progress bars dropped), and without widget state.
-
-    Returns ``(notebook, widgets shown as text, progress bars dropped)``.
-    """
+def _without_widgets(nb: nbformat.NotebookNode) -> nbformat.NotebookNode:
+    """A copy of ``nb`` whose widget outputs show as text (progress bars dropped), and without widget state."""
     nb = copy.deepcopy(nb)
     state = nb.metadata.pop("widgets", {}).get("application/vnd.jupyter.widget-state+json", {})
     bars = _progress_bar_ids(state)
-    as_text = dropped = 0
     for cell in nb.cells:
         outputs = []
         for out in cell.get("outputs", []):
             data = out.get("data", {})
             if _WIDGET_VIEW in data:
                 if data[_WIDGET_VIEW].get("model_id") in bars or "text/plain" not in data:
-                    dropped += 1
                     continue
                 del data[_WIDGET_VIEW]
-                as_text += 1
             outputs.append(out)
         if "outputs" in cell:
             cell.outputs = outputs
-    return nb, as_text, dropped
+    return nb
 
 
 def _uses_mermaid(nb: nbformat.NotebookNode) -> bool:
@@ -174,7 +167,7 @@ def export_html(notebook: str | Path, output_dir: str | Path, *, execute: bool =
         # the kernel at log level ERROR: its TCP-transport warning is not the reader's business
         ExecutePreprocessor(timeout=timeout, kernel_name="python3", extra_arguments=["--log-level=ERROR"]).preprocess(
             nb, {"metadata": {"path": str(notebook.parent.resolve())}})
-    nb, _, _ = _without_widgets(nb)
+    nb = _without_widgets(nb)
 
     exporter = HTMLExporter(template_name="lab", extra_loaders=[DictLoader({"csgnb_offline.html.j2": _TEMPLATE})],
                             template_file="csgnb_offline.html.j2")

@@ -43,6 +43,7 @@ class ShownText:
 
 _shown: list[list[ShownText]] = []  # one list per figure shown since use_style()
 _collisions: list[tuple[int, str, str]] = []  # (figure, text, text) whose boxes overlap
+_recording = False  # set by use_style()
 
 
 def _drawn_texts(fig, width_px: float):
@@ -77,7 +78,12 @@ def text_sizes(fig, *, width_px: float = READER_WIDTH_PX) -> list[tuple[str, flo
     to it, and its text with it.
     """
     drawn, _, shrink = _drawn_texts(fig, width_px)
-    return [(t.get_text(), t.get_fontsize() * fig.dpi / 72.0 * shrink) for t in drawn]
+    return [(t.get_text(), _on_screen_px(t, fig, shrink)) for t in drawn]
+
+
+def _on_screen_px(text, fig, shrink: float) -> float:
+    """A matplotlib text's font size in pixels as shown: points at the figure's dpi, shrunk with the picture."""
+    return text.get_fontsize() * fig.dpi / 72.0 * shrink
 
 
 def overlapping_texts(fig, *, min_overlap_px: float = 1.0) -> list[tuple[str, str]]:
@@ -107,13 +113,11 @@ def record_scene(texts_px: list[tuple[str, float]], window_width: int) -> None:
         _shown.append([ShownText(len(_shown) + 1, text, px * shrink) for text, px in texts_px])
 
 
-_recording = False
-
 
 def _record_figure(fig) -> None:
     drawn, renderer, shrink = _drawn_texts(fig, READER_WIDTH_PX)
     number = len(_shown) + 1
-    _shown.append([ShownText(number, t.get_text(), t.get_fontsize() * fig.dpi / 72.0 * shrink) for t in drawn])
+    _shown.append([ShownText(number, t.get_text(), _on_screen_px(t, fig, shrink)) for t in drawn])
     _collisions.extend((number, a, b) for a, b in _overlaps(drawn, renderer))
 
 

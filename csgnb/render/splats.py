@@ -115,6 +115,10 @@ def _footprint_kernel(cam, SD, footprint, cull, bbox, hull, nh, flag, zmin):
     # pixel coordinates: col = X · sx + cx, row = -Y · sy + cy (X, Y screen coordinates)
     sx, cx = 0.5 * W / cam[14], 0.5 * W - 0.5
     sy, cy = 0.5 * H / cam[15], 0.5 * H - 0.5
+    # a ball outside a side plane of the frustum (x = ±tx z, y = ±ty z through the eye) is off screen: its distance
+    # (Sx - tx Sz) / √(1 + tx²) beyond R
+    tx, ty = cam[14], cam[15]
+    side_x, side_y = math.sqrt(1.0 + tx * tx), math.sqrt(1.0 + ty * ty)
     n_chunks = (n + _CHUNK - 1) // _CHUNK
     for c in prange(n_chunks):
         px = np.empty(8)
@@ -146,14 +150,11 @@ def _footprint_kernel(cam, SD, footprint, cull, bbox, hull, nh, flag, zmin):
                 if Sz + R <= 0.0:
                     flag[k] = 2
                     continue
-                # outside a side plane of the view frustum (x = ±tx z, y = ±ty z through the eye): off screen. Without
-                # this, a splat straddling the eye's plane beside the camera took the whole screen (close-ups:
-                # thousands of fragments per pixel)
-                tx, ty = cam[14], cam[15]
-                sx_out = R * math.sqrt(1.0 + tx * tx)
-                sy_out = R * math.sqrt(1.0 + ty * ty)
-                if (Sx - tx * Sz > sx_out or -Sx - tx * Sz > sx_out or Sy - ty * Sz > sy_out
-                        or -Sy - ty * Sz > sy_out):
+                # outside the frustum: off screen (without this, a splat straddling the eye's plane beside the
+                # camera took the whole screen: close-ups drew thousands of fragments per pixel)
+                reach_x, reach_y = R * side_x, R * side_y
+                if (Sx - tx * Sz > reach_x or -Sx - tx * Sz > reach_x or Sy - ty * Sz > reach_y
+                        or -Sy - ty * Sz > reach_y):
                     flag[k] = 2
                     continue
             use_sphere = footprint == 0 or gn == 0.0
