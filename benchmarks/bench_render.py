@@ -11,9 +11,13 @@ frame (render and JPEG encoding, as the notebook viewer does) of the 80-quadric 
 
     python benchmarks/bench_render.py --json /tmp/bench_render.json
 
+The splat renderer ray traces the tiles where its cost model (``csgnb.render.tile_costs``) expects splats to cost
+more; "only splats" times every tile splatted. ``--calibrate`` fits that model's constants on one thread instead.
+
 ``--json PATH`` writes ``{"models": [{"name", "quadrics", "splat", "samples", "splat_ms",
-"raytrace_ms", "speedup", "fragments", "overdraw", "covered", "disagree_fraction", "disagree",
-"holes", "off_edge", "stages_ms"}], "viewer_640x480_ms": ..., "viewer_640x480": [...], "threads": ...}``.
+"raytrace_ms", "speedup", "splats_only_ms", "raytraced_tiles", "tiles", "fragments", "overdraw", "covered",
+"disagree_fraction", "disagree", "holes", "off_edge", "stages_ms"}], "viewer_640x480_ms": ...,
+"viewer_640x480": [...], "threads": ...}``.
 """
 
 from __future__ import annotations
@@ -35,7 +39,75 @@ def _args(argv):
                         help="every splat the radius asked for (the sampler's default reduces radii, §6.1, Figure 13e)")
     parser.add_argument("--only", nargs="*", help="model names to run (default: all)")
     parser.add_argument("--json", metavar="PATH", help="write the figures here")
+    parser.add_argument("--calibrate", action="store_true",
+                        help="fit the splat/ray-trace cost model (csgnb.render.tile_costs.COSTS) on one thread instead")
     return parser.parse_args(argv)
+
+
+def calibrate(args) -> dict:
+    """Fit ``tile_costs.COSTS`` on one thread: splat raster time against (rectangle pixels, binned splats) and ray
+    tracing time against (pixels, roots), least squares without negative coefficients, over every Table 2 model and
+    splat size at two image sizes (so that the per-pixel and per-root costs separate)."""
+    import numba
+    import numpy as np
+    from scipy.optimize import nnls
+
+    from csgnb.csg.gallery import TABLE2
+    from csgnb.render import Camera, SplatRenderer
+    from csgnb.render.rays import quadric_rows, ray_polynomials
+    from csgnb.render.raytracer import raytrace_tiles, tile_count
+    from csgnb.sampling import sample_csg
+
+    numba.set_num_threads(1)
+    splat_rows, rt_rows = [], []
+    for name, (build, radii) in TABLE2.items():
+        if args.only and name not in args.only:
+            continue
+        shape = build()
+        clouds = {s: sample_csg(shape, r) for s, r in radii.items()}
+        nf = next(iter(clouds.values())).normal_form
+        for W, H in ((args.width, args.height), (640, 480)):
+            cam = Camera.fit(next(iter(clouds.values())), W, H, azimuth=-60.0, elevation=35.0)
+            cp, (X, Y) = cam.params(), cam.screen_axes()
+            P = ray_polynomials(cp, quadric_rows(nf.quadrics))
+            ts = np.ascontiguousarray(nf.term_start, dtype=np.int64)
+            ntx, nty = tile_count((H, W), 16)
+            tiles = np.arange(ntx * nty, dtype=np.int64)
+            work = np.empty(len(tiles), dtype=np.int64)
+            bufs = (np.empty((H, W)), np.empty((H, W), dtype=np.int32), np.empty((H, W), dtype=np.int32))
+            grid = np.array([16, 1, 1], dtype=np.int64)
+            max_term = max(int(np.max(np.diff(ts))), 1)
+            best = float("inf")
+            for _ in range(1 + max(1, args.rt_repeat)):
+                t0 = time.perf_counter()
+                raytrace_tiles(cp, X, Y, P, ts, max_term, grid, tiles, *bufs, work)
+                best = min(best, time.perf_counter() - t0)
+            rt_rows.append((W * H, int(work.sum()), best * 1e9))
+            for splat, cloud in clouds.items():
+                r = SplatRenderer(cloud)
+                r.render(cam, fallback="never")
+                frames = [r.render(cam, fallback="never") for _ in range(max(1, args.repeat))]
+                raster = min(f.stats.timings["raster"] for f in frames)
+                plan = r.last_plan
+                splat_rows.append((int(plan.fragments.sum()), int(plan.items.sum()), raster * 1e6))
+                print(f"{name:18s} {splat:6s} {W}x{H}: raster {raster:7.1f} ms, {splat_rows[-1][0]:11d} rectangle px, "
+                      f"{splat_rows[-1][1]:8d} binned splats; ray tracing {best * 1e3:7.1f} ms, "
+                      f"{rt_rows[-1][1]:11d} roots", flush=True)
+    s = np.array(splat_rows, dtype=float)
+    (fragment, item), _ = nnls(s[:, :2], s[:, 2])
+    r = np.array(rt_rows, dtype=float)
+    (ray, root), _ = nnls(r[:, :2], r[:, 2])
+    fit = {"fragment": fragment, "item": item, "ray": ray, "root": root}
+    print("COSTS = TileCosts(" + ", ".join(f"{k}={v:.3g}" for k, v in fit.items()) + ")  # ns, one thread")
+    for name, rows_, cols in (("splats", s, (fragment, item)), ("ray tracing", r, (ray, root))):
+        pred = rows_[:, :2] @ np.array(cols)
+        print(f"  {name}: predicted / measured per frame {np.min(pred / rows_[:, 2]):.2f} … "
+              f"{np.max(pred / rows_[:, 2]):.2f}")
+    if args.json:
+        with open(args.json, "w") as fh:
+            json.dump({"costs_ns": fit, "splat_rows": splat_rows, "raytrace_rows": rt_rows}, fh, indent=2)
+        print(f"wrote {args.json}")
+    return fit
 
 
 #: Table 2's render columns (ms, RTX 2080 Ti): (quadrics, splat) → (ours, ray tracing).
@@ -50,6 +122,9 @@ PAPER_RENDER = {
 
 def main(argv=None) -> None:
     args = _args(argv)
+    if args.calibrate:
+        calibrate(args)
+        return
     import numba
 
     if args.threads:
@@ -64,8 +139,12 @@ def main(argv=None) -> None:
     rows, viewer = [], []
     print(f"Table 2, render columns: {W}x{H}, {threads} thread(s); splats vs the reference ray tracer "
           "(figures under load are provisional)")
-    print(f"{'model':18s} {'q':>3s} {'splat':6s} {'samples':>8s} {'splats ms':>9s} {'rt ms':>8s} {'ratio':>6s} "
-          f"{'fragments':>10s} {'overdraw':>8s} {'disagree':>8s} {'holes':>5s} {'paper ms':>9s} {'paper rt':>8s}")
+    print("splats ms: the default (tiles where splats would cost more are ray traced, 'rt tiles' of 'tiles'); "
+          "only splats: every tile splatted")
+    print(f"{'model':18s} {'q':>3s} {'splat':6s} {'samples':>8s} {'splats ms':>9s} {'only spl':>8s} {'rt tiles':>8s} "
+          f"{'rt ms':>8s} {'ratio':>6s} "
+          f"{'fragments':>10s} {'overdraw':>8s} {'disagree':>8s} {'holes':>5s} {'paper ms':>9s} "
+          f"{'paper rt':>8s}")
     for name, (build, radii) in TABLE2.items():
         if args.only and name not in args.only:
             continue
@@ -83,21 +162,26 @@ def main(argv=None) -> None:
             renderer = SplatRenderer(cloud)
             renderer.render(cam.with_size(32, 18))
             best, stages, frame = float("inf"), {}, None
+            only_splats = float("inf")
             for _ in range(max(1, args.repeat)):
                 frame = renderer.render(cam)
                 if frame.stats.ms < best:
                     best, stages = frame.stats.ms, dict(frame.stats.timings)
+                only_splats = min(only_splats, renderer.render(cam, fallback="never").stats.ms)
             a = compare(frame, ref)
             paper = PAPER_RENDER.get((n_quadrics, splat), (float("nan"), float("nan")))
             row = {
                 "name": name, "quadrics": n_quadrics, "splat": splat, "samples": len(cloud), "splat_ms": best,
-                "raytrace_ms": rt_ms, "speedup": rt_ms / best, "fragments": frame.stats.fragments,
+                "raytrace_ms": rt_ms, "speedup": rt_ms / best, "splats_only_ms": only_splats,
+                "raytraced_tiles": frame.stats.raytraced_tiles, "tiles": frame.stats.tiles,
+                "fragments": frame.stats.fragments,
                 "overdraw": frame.stats.overdraw, "covered": a.covered, "disagree_fraction": a.disagree_fraction,
                 "disagree": a.disagree, "holes": a.holes, "off_edge": a.off_edge,
                 "stages_ms": {k: round(v, 2) for k, v in stages.items()},
             }
             rows.append(row)
-            print(f"{name:18s} {n_quadrics:3d} {splat:6s} {len(cloud):8d} {best:9.1f} {rt_ms:8.0f} {rt_ms / best:6.1f} "
+            print(f"{name:18s} {n_quadrics:3d} {splat:6s} {len(cloud):8d} {best:9.1f} {only_splats:8.1f} "
+                  f"{frame.stats.raytraced_tiles:4d}/{frame.stats.tiles:<3d} {rt_ms:8.0f} {rt_ms / best:6.1f} "
                   f"{frame.stats.fragments:10d} {frame.stats.overdraw:8.2f} {a.disagree:8d} {a.holes:5d} "
                   f"{paper[0]:9.2f} {paper[1]:8.2f}")
             if n_quadrics == max(q for q, _ in PAPER_RENDER):

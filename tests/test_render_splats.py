@@ -85,12 +85,12 @@ def test_each_overdraw_reduction_keeps_the_image_and_lowers_overdraw(name):
     # the reduced radii may refine where the bound was loose, so the clouds need not share positions
     assert reduced.radii.max() <= bounds.radii.max() and np.mean(reduced.radii) <= np.mean(bounds.radii)
     cam = Camera.fit(bounds, *SIZE, azimuth=-50, elevation=35)
-    steps = [
-        render(worst, cam, footprint="sphere", backface_culling=False),
-        render(worst, cam, footprint="box", backface_culling=False),
-        render(worst, cam, footprint="box", backface_culling=True),
-        render(bounds, cam),
-        render(reduced, cam),
+    steps = [  # splats on every tile: the test is about them, not about the ray-traced fallback
+        render(worst, cam, footprint="sphere", backface_culling=False, fallback="never"),
+        render(worst, cam, footprint="box", backface_culling=False, fallback="never"),
+        render(worst, cam, footprint="box", backface_culling=True, fallback="never"),
+        render(bounds, cam, fallback="never"),
+        render(reduced, cam, fallback="never"),
     ]
     ref = raytrace(shape, cam)
     for k, frame in enumerate(steps):
@@ -292,3 +292,77 @@ def test_binning_matches_the_serial_definition_on_random_footprints():
         ref_start, ref_items = _bins_reference(bbox, flag, zmin, tile, ntx, nty)
         assert total == len(ref_items)
         assert np.array_equal(start, ref_start) and np.array_equal(items[:total], ref_items), trial
+
+
+def test_fallback_tiles_show_the_ray_tracer_and_the_rest_the_splats():
+    """Where splats cost more than ray tracing (large, overlapping splats), the cost model ray traces the tile:
+    those tiles are the reference ray tracer's pixels bit for bit, the others the splats' own, and the frame stays
+    pixel-perfect."""
+    from csgnb.csg.gallery import TABLE2
+
+    build, radii = TABLE2["perforated plate"]
+    shape = build()
+    cloud = sample_csg(shape, radii["large"])
+    cam = Camera.fit(cloud, 480, 270, azimuth=-60, elevation=35)
+    renderer = SplatRenderer(cloud)
+    auto = renderer.render(cam)
+    plan = renderer.last_plan
+    splats = renderer.render(cam, fallback="never")
+    everywhere = renderer.render(cam, fallback="always")
+    ref = raytrace(cloud, cam)  # the cloud's own normal form: the same quadric rows, so bit-identical depths
+    assert 0 < auto.stats.raytraced_tiles < auto.stats.tiles == len(plan.splat_ns)
+    assert np.array_equal(everywhere.quadric, ref.quadric) and np.array_equal(everywhere.depth, ref.depth)
+    assert everywhere.stats.fragments == 0 and everywhere.stats.raytraced_tiles == everywhere.stats.tiles
+    ntx = -(-480 // 64)
+    traced = np.zeros(auto.quadric.shape, dtype=bool)
+    for t in plan.raytraced:
+        traced[(t // ntx) * 64 : (t // ntx) * 64 + 64, (t % ntx) * 64 : (t % ntx) * 64 + 64] = True
+    for name in ("quadric", "depth", "term"):
+        a, s, r = getattr(auto, name), getattr(splats, name), getattr(ref, name)
+        assert np.array_equal(a[traced], r[traced]), name
+        assert np.array_equal(a[~traced], s[~traced]), name
+    assert np.all(auto.sample[traced] == -1) and np.all(auto.overdraw[traced] == 0)
+    assert auto.stats.fragments < splats.stats.fragments
+    # the choice: probed tiles whose estimated ray tracing is cheaper, and only those
+    probed = ~np.isnan(plan.raytrace_ns)
+    cheaper = np.flatnonzero(probed & (plan.raytrace_ns < plan.splat_ns))
+    assert np.array_equal(np.sort(plan.raytraced), cheaper)
+    assert_pixel_perfect(compare(auto, raytrace(shape, cam)))
+
+
+def test_fallback_is_off_where_the_picture_is_about_the_splats():
+    shape, cloud = cloud_of("figure 15", 0.06)
+    cam = Camera.fit(cloud, *SIZE)
+    renderer = SplatRenderer(cloud)
+    for options in ({"color_by": "overdraw"}, {"color_by": "clip_count"}, {"local": "disc"}, {"clip": False}):
+        frame = renderer.render(cam, fallback="always", **options)
+        assert frame.stats.raytraced_tiles == 0, options
+    with pytest.raises(ValueError, match="fallback"):
+        renderer.render(cam, fallback="sometimes")
+
+
+def test_the_probe_counts_the_ray_tracers_work():
+    """The cost model's probe counts the roots the ray tracer computes: at step 1 over every tile it is the
+    whole frame's work, and a probe at step 8 extrapolates it within a factor 2 on a real model."""
+    from csgnb.render.rays import quadric_rows, ray_polynomials
+    from csgnb.render.raytracer import raytrace_tiles, tile_count
+
+    shape, cloud = cloud_of("block", 0.06)
+    nf = cloud.normal_form
+    cam = Camera.fit(cloud, 256, 192, azimuth=-60, elevation=35)
+    X, Y = cam.screen_axes()
+    P = ray_polynomials(cam.params(), quadric_rows(nf.quadrics))
+    ts = np.asarray(nf.term_start, dtype=np.int64)
+    ntx, nty = tile_count((192, 256), 64)
+    tiles = np.arange(ntx * nty, dtype=np.int64)
+    out = (np.full((192, 256), np.inf), np.full((192, 256), -7, dtype=np.int32), np.full((192, 256), -7, np.int32))
+    full = np.empty(len(tiles), dtype=np.int64)
+    probe = np.empty(len(tiles), dtype=np.int64)
+    max_term = int(np.max(np.diff(ts)))
+    raytrace_tiles(cam.params(), X, Y, P, ts, max_term, np.array([64, 8, 0]), tiles, *out, probe)
+    assert np.all(out[1] == -7)  # a probe writes nothing
+    raytrace_tiles(cam.params(), X, Y, P, ts, max_term, np.array([64, 1, 1]), tiles, *out, full)
+    ref = raytrace(cloud, cam)
+    assert np.array_equal(out[1], ref.quadric) and np.array_equal(out[0], ref.depth)
+    assert full.sum() >= 192 * 256 * nf.n_terms  # at least one root per term and pixel
+    assert 0.5 < probe.sum() * 64 / full.sum() < 2.0

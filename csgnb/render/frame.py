@@ -30,11 +30,13 @@ class RenderStats:
     method : "splats" or "raytrace".
     covered : int — pixels showing a surface.
     fragments : int — fragment invocations (pixels inside a splat footprint; splats only).
-    overdraw : float — fragments / covered (the paper's overdraw factor).
+    overdraw : float — fragments / covered pixels of the splatted tiles (the paper's overdraw factor).
     splats_drawn, splats_culled, splats_offscreen : int — splats rasterized, back-face culled,
         outside the view (splats only).
     ms : float — wall time of the whole call (setup, raster / trace, normals, shading).
     timings : dict — milliseconds per stage.
+    raytraced_tiles, tiles : int — screen tiles the splat renderer ray traced (its cost model chose
+        them, :mod:`csgnb.render.tile_costs`), of all tiles (splats only).
     """
 
     method: str
@@ -46,6 +48,8 @@ class RenderStats:
     splats_offscreen: int = 0
     ms: float = 0.0
     timings: dict = field(default_factory=dict)
+    raytraced_tiles: int = 0
+    tiles: int = 0
 
 
 @dataclass(frozen=True, eq=False)

@@ -22,92 +22,123 @@ from csgnb._jit import jit
 from csgnb.quadric.arguments import as_flag
 from csgnb.render.camera import Camera
 from csgnb.render.frame import Frame, RenderStats
-from csgnb.render.rays import quadric_rows, ray_polynomials, ray_roots
+from csgnb.render.rays import inline_jit, quadric_rows, ray_polynomials, ray_roots
 from csgnb.render.scene import as_normal_form, check_camera, check_choice, check_precision, scene_box
 from csgnb.render.shading import COLOR_MODES, quadric_colors, shade, surface_normals
 
-__all__ = ["raytrace", "RAYTRACE_TILE"]
+__all__ = ["raytrace", "raytrace_tiles", "trace_pixel", "tile_count", "RAYTRACE_TILE"]
 
 #: Tile edge (pixels) of the parallel loop.
 RAYTRACE_TILE = 16
 
 
-@jit(parallel=True, error_model="numpy")
-def _raytrace_kernel(cam, X, Y, P, term_start, max_term, tile, depth, qid, tid):
-    """Fill depth (view z), qid and tid (H, W) per pixel with the nearest entry into a term."""
-    H, W = depth.shape
-    nty = (H + tile - 1) // tile
-    ntx = (W + tile - 1) // tile
+@inline_jit
+def trace_pixel(P, term_start, x, y, dd, hit_t, hit_k, inside):
+    """Return ``(depth, quadric, term, roots)`` of the pixel ray (x, y): the nearest entry into a term.
+
+    ``depth`` is +inf and ``quadric``, ``term`` are -1 where the ray meets nothing; ``roots`` counts the
+    quadric intersections computed (the work, for the splat renderer's cost model). ``hit_t``, ``hit_k``
+    (2·max term,) and ``inside`` (max term,) are scratch.
+    """
     n_terms = term_start.shape[0] - 1
+    best = math.inf
+    bq = -1
+    bt = -1
+    roots = 0
+    for a in range(n_terms):
+        s0 = term_start[a]
+        m = term_start[a + 1] - s0
+        count = 0
+        nh = 0
+        possible = True
+        for k in range(s0, s0 + m):
+            t1, t2, gamma = ray_roots(P, k, x, y, dd)
+            roots += 1
+            ins = gamma < 0.0
+            inside[k - s0] = ins
+            if ins:
+                count += 1
+            found = False
+            if t1 > 0.0 and t1 < best:
+                hit_t[nh] = t1
+                hit_k[nh] = k - s0
+                nh += 1
+                found = True
+            if t2 > 0.0 and t2 < best:
+                hit_t[nh] = t2
+                hit_k[nh] = k - s0
+                nh += 1
+                found = True
+            if not found and not ins:
+                possible = False  # outside quadric k all the way to the best point
+                break
+        if not possible or count == m:
+            continue  # count == m: the ray starts inside the term (views are from outside)
+        # insertion sort by t (few hits per term and pixel)
+        for h in range(1, nh):
+            t = hit_t[h]
+            kk = hit_k[h]
+            g = h - 1
+            while g >= 0 and hit_t[g] > t:
+                hit_t[g + 1] = hit_t[g]
+                hit_k[g + 1] = hit_k[g]
+                g -= 1
+            hit_t[g + 1] = t
+            hit_k[g + 1] = kk
+        for h in range(nh):
+            kk = hit_k[h]
+            if inside[kk]:
+                inside[kk] = False
+                count -= 1
+            else:
+                inside[kk] = True
+                count += 1
+                if count == m:
+                    best = hit_t[h]
+                    bq = s0 + kk
+                    bt = a
+                    break
+    return best, bq, bt, roots
+
+
+@jit(parallel=True, error_model="numpy")
+def raytrace_tiles(cam, X, Y, P, term_start, max_term, grid, tiles, depth, qid, tid, work):
+    """Trace the pixels of the listed screen tiles, in parallel over the tiles.
+
+    grid : (tile, step, write) int64 — tile edge in pixels (tile t covers rows ``(t // ntx) · tile``
+    on, columns ``(t % ntx) · tile`` on, ntx = ⌈W / tile⌉); every ``step``-th pixel of a tile's rows
+    and columns is traced (1: all of them; more: a probe of the tile's cost); ``write`` 0 leaves
+    the buffers alone. tiles : (n,) int64. depth (view z), qid, tid : (H, W), written at the traced
+    pixels. work : (n,) int64, set to the roots computed in ``tiles[n]``.
+    """
+    H, W = depth.shape
+    tile, step, write = grid[0], grid[1], grid[2] != 0
+    ntx = (W + tile - 1) // tile
     persp = cam[18] == 0.0
-    for tt in prange(nty * ntx):
+    for n in prange(tiles.shape[0]):
         hit_t = np.empty(2 * max_term)
         hit_k = np.empty(2 * max_term, dtype=np.int64)
         inside = np.empty(max_term, dtype=np.bool_)
-        i0 = (tt // ntx) * tile
-        j0 = (tt % ntx) * tile
-        for i in range(i0, min(i0 + tile, H)):
-            for j in range(j0, min(j0 + tile, W)):
+        i0 = (tiles[n] // ntx) * tile
+        j0 = (tiles[n] % ntx) * tile
+        roots = 0
+        for i in range(i0 + step // 2, min(i0 + tile, H), step):
+            for j in range(j0 + step // 2, min(j0 + tile, W), step):
                 x, y = X[j], Y[i]
                 dd = 1.0 + (x * x + y * y) if persp else 1.0
-                best = math.inf
-                bq = -1
-                bt = -1
-                for a in range(n_terms):
-                    s0 = term_start[a]
-                    m = term_start[a + 1] - s0
-                    count = 0
-                    nh = 0
-                    possible = True
-                    for k in range(s0, s0 + m):
-                        t1, t2, gamma = ray_roots(P, k, x, y, dd)
-                        ins = gamma < 0.0
-                        inside[k - s0] = ins
-                        if ins:
-                            count += 1
-                        found = False
-                        if t1 > 0.0 and t1 < best:
-                            hit_t[nh] = t1
-                            hit_k[nh] = k - s0
-                            nh += 1
-                            found = True
-                        if t2 > 0.0 and t2 < best:
-                            hit_t[nh] = t2
-                            hit_k[nh] = k - s0
-                            nh += 1
-                            found = True
-                        if not found and not ins:
-                            possible = False  # outside quadric k all the way to the best point
-                            break
-                    if not possible or count == m:
-                        continue  # count == m: the ray starts inside the term (views are from outside)
-                    # insertion sort by t (few hits per term and pixel)
-                    for h in range(1, nh):
-                        t = hit_t[h]
-                        kk = hit_k[h]
-                        g = h - 1
-                        while g >= 0 and hit_t[g] > t:
-                            hit_t[g + 1] = hit_t[g]
-                            hit_k[g + 1] = hit_k[g]
-                            g -= 1
-                        hit_t[g + 1] = t
-                        hit_k[g + 1] = kk
-                    for h in range(nh):
-                        kk = hit_k[h]
-                        if inside[kk]:
-                            inside[kk] = False
-                            count -= 1
-                        else:
-                            inside[kk] = True
-                            count += 1
-                            if count == m:
-                                best = hit_t[h]
-                                bq = s0 + kk
-                                bt = a
-                                break
-                depth[i, j] = best
-                qid[i, j] = bq
-                tid[i, j] = bt
+                best, bq, bt, r = trace_pixel(P, term_start, x, y, dd, hit_t, hit_k, inside)
+                roots += r
+                if write:
+                    depth[i, j] = best
+                    qid[i, j] = bq
+                    tid[i, j] = bt
+        work[n] = roots
+
+
+def tile_count(shape: tuple[int, int], tile: int) -> tuple[int, int]:
+    """Return ``(ntx, nty)``: the tiles of ``tile`` pixels across and down an image of ``shape`` (H, W)."""
+    H, W = shape
+    return (W + tile - 1) // tile, (H + tile - 1) // tile
 
 
 def raytrace(shape, camera: Camera, *, color_by: str = "quadric", lit: bool = True) -> Frame:
@@ -146,7 +177,10 @@ def raytrace(shape, camera: Camera, *, color_by: str = "quadric", lit: bool = Tr
     tid = np.empty((H, W), dtype=np.int32)
     t1 = time.perf_counter()
     P = ray_polynomials(cam, Q)
-    _raytrace_kernel(cam, X, Y, P, ts, max(max_term, 1), RAYTRACE_TILE, depth, qid, tid)
+    ntx, nty = tile_count((H, W), RAYTRACE_TILE)
+    work = np.empty(ntx * nty, dtype=np.int64)
+    raytrace_tiles(cam, X, Y, P, ts, max(max_term, 1), np.array([RAYTRACE_TILE, 1, 1], dtype=np.int64),
+                   np.arange(ntx * nty, dtype=np.int64), depth, qid, tid, work)
     t2 = time.perf_counter()
     normal = surface_normals(cam, X, Y, Q, depth, qid)
     palette = quadric_colors(nf)

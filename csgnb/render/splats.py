@@ -36,8 +36,10 @@ from csgnb.quadric.arguments import as_count, as_flag
 from csgnb.render.camera import Camera
 from csgnb.render.frame import Frame, RenderStats
 from csgnb.render.rays import EPS, ray_direction, ray_point, ray_polynomials, ray_roots, row_gradient, row_value
+from csgnb.render.raytracer import raytrace_tiles
 from csgnb.render.scene import check_camera, check_choice, check_cloud, check_precision, scene_box
 from csgnb.render.shading import COLOR_MODES, quadric_colors, shade, surface_normals
+from csgnb.render.tile_costs import FALLBACKS, plan_tiles
 
 __all__ = [
     "SplatRenderer", "render", "renderer_for", "FOOTPRINTS", "LOCAL_MODES", "TILE", "FOOTPRINT_MARGIN",
@@ -349,7 +351,22 @@ def _bin_kernel(bbox, flag, zmin, tile, ntx, nty, start, items):
 
 
 @jit(parallel=True, error_model="numpy")
-def _raster_kernel(cam, X, Y, P, Q, ctol, SD, SI, cidx, bbox, hull, nh, zmin, start, items, tile, ntx, local,
+def _tile_fragments(bbox, start, items, tile, ntx, H, W, fragments):
+    """Per tile, the pixels of its splats' rectangles inside it (an upper bound on its fragments) : (ntiles,) int64."""
+    for t in prange(start.shape[0] - 1):
+        ti0 = (t // ntx) * tile
+        tj0 = (t % ntx) * tile
+        ti1 = min(ti0 + tile, H) - 1
+        tj1 = min(tj0 + tile, W) - 1
+        f = 0
+        for b in range(start[t], start[t + 1]):
+            k = items[b]
+            f += (min(bbox[k, 3], ti1) - max(bbox[k, 1], ti0) + 1) * (min(bbox[k, 2], tj1) - max(bbox[k, 0], tj0) + 1)
+        fragments[t] = f
+
+
+@jit(parallel=True, error_model="numpy")
+def _raster_kernel(cam, X, Y, P, Q, ctol, SD, SI, cidx, bbox, hull, nh, zmin, start, items, tile, ntx, skip, local,
                    clip, rtol, depth, winner, qwin, qclip, qlast, zr1, zr2, od):
     """Rasterize the binned footprints tile by tile: fragments, local ray-tracing, clipping, depth test.
 
@@ -361,12 +378,14 @@ def _raster_kernel(cam, X, Y, P, Q, ctol, SD, SI, cidx, bbox, hull, nh, zmin, st
     (its earlier root, if any, is clipped — for a hole's far wall, the second root, the near wall
     is); ``qclip[i, j]``: a quadric all of whose roots in (0, depth) are clipped there. And
     ``qlast``, ``zr1``, ``zr2`` keep the roots of the last quadric computed at each pixel: the
-    overlapping splats of one surface reuse them.
+    overlapping splats of one surface reuse them. Tiles with ``skip[t]`` are left alone (ray traced instead).
     """
     H, W = depth.shape
     nty = (H + tile - 1) // tile
     persp = cam[18] == 0.0
     for t in prange(ntx * nty):
+        if skip[t]:
+            continue
         ti0 = (t // ntx) * tile
         tj0 = (t % ntx) * tile
         ti1 = min(ti0 + tile, H) - 1
@@ -522,6 +541,8 @@ class SplatRenderer:
         if len(self.cidx) == 0:
             self.cidx = np.zeros(1, dtype=np.int32)
         self.term_of = np.ascontiguousarray(nf.term_of, dtype=np.int32)
+        self.term_start = np.ascontiguousarray(nf.term_start, dtype=np.int64)
+        self.max_term = max(int(np.max(np.diff(self.term_start))) if nf.n_terms else 1, 1)
         self.normals = np.ascontiguousarray(cloud.normals, dtype=np.float64)
         self.palette = quadric_colors(nf)
         self.extent = float(np.max(np.abs(cloud.positions)) + np.max(cloud.radii))
@@ -534,6 +555,7 @@ class SplatRenderer:
         self._zmin = np.empty(n)
         self._items = np.empty(2 * n + 1024, dtype=np.int32)
         self._memo = None
+        self.last_plan = None
 
     def _scratch(self, H: int, W: int):
         """Per-pixel memo buffers of the raster kernel, kept between frames of one size."""
@@ -554,7 +576,7 @@ class SplatRenderer:
 
     def render(self, camera: Camera, *, footprint: str = "box", backface_culling: bool = True,
                local: str = "quadric", clip: bool = True, color_by: str = "quadric", lit: bool = True,
-               tile: int = TILE) -> Frame:
+               tile: int = TILE, fallback: str = "auto") -> Frame:
         """Return the splat render of the cloud (§6).
 
         Parameters
@@ -572,11 +594,17 @@ class SplatRenderer:
             See ``shading.COLOR_MODES``.
         tile : int
             Tile edge in pixels (binning and the parallel loop).
+        fallback : "auto", "never" or "always"
+            Ray trace the tiles where splats would cost more (:mod:`.tile_costs`: estimated per tile
+            before the raster, ``stats.raytraced_tiles``), never, or everywhere. Only with local
+            quadric ray-tracing and clipping (the exact picture) and a colouring that is not about
+            the splats (``overdraw``, ``clip_count``); otherwise splats draw every tile.
 
         Returns
         -------
         Frame
-            With the overdraw buffer and counts (``stats.fragments``, ``stats.overdraw``).
+            With the overdraw buffer and counts (``stats.fragments``, ``stats.overdraw``); ray-traced
+            tiles have no fragments, clip counts or samples (-1).
         """
         t0 = time.perf_counter()
         check_camera(camera)
@@ -584,6 +612,7 @@ class SplatRenderer:
         check_choice(footprint, FOOTPRINTS, "footprint")
         check_choice(local, LOCAL_MODES, "local")
         check_choice(color_by, COLOR_MODES, "color_by")
+        check_choice(fallback, FALLBACKS, "fallback")
         backface_culling, clip, lit = (as_flag(backface_culling, "backface_culling"), as_flag(clip, "clip"),
                                        as_flag(lit, "lit"))
         tile = as_count(tile, "tile", 4)
@@ -605,14 +634,24 @@ class SplatRenderer:
             self._items = np.empty(int(total * 1.25) + 1024, dtype=np.int32)
             _bin_kernel(self._bbox, self._flag, self._zmin, tile, ntx, nty, start, self._items)
         t2 = time.perf_counter()
+        li = LOCAL_MODES.index(local)
+        exact = li == 1 and clip and color_by not in ("overdraw", "clip_count")
+        fragments_est = np.empty(ntx * nty, dtype=np.int64)
+        _tile_fragments(self._bbox, start, self._items, tile, ntx, H, W, fragments_est)
+        trace_args = (cam, X, Y, P, self.term_start, self.max_term)
+        plan = plan_tiles(fallback if exact else "never", trace_args, fragments_est, start, tile, (H, W),
+                          self.normal_form.n_terms)
+        self.last_plan = plan  # the cost model's inputs and choice (benchmarks calibrate it from these)
+        skip = np.zeros(ntx * nty, dtype=np.uint8)
+        skip[plan.raytraced] = 1
+        t2b = time.perf_counter()
         depth = np.full((H, W), np.inf)
         winner = np.full((H, W), -1, dtype=np.int32)
         qwin, qclip, qlast, zr1, zr2 = self._scratch(H, W)
         od = np.zeros((H, W), dtype=np.int32)
-        li = LOCAL_MODES.index(local)
         _raster_kernel(cam, X, Y, P, self.Q, ctol, self.SD, self.SI, self.cidx, self._bbox, self._hull, self._nh,
-                       self._zmin, start, self._items, tile, ntx, li, bool(clip), rtol, depth, winner, qwin, qclip,
-                       qlast, zr1, zr2, od)
+                       self._zmin, start, self._items, tile, ntx, skip, li, bool(clip), rtol, depth, winner, qwin,
+                       qclip, qlast, zr1, zr2, od)
         t3 = time.perf_counter()
         qid = np.empty((H, W), dtype=np.int32)
         tid = np.empty((H, W), dtype=np.int32)
@@ -623,6 +662,12 @@ class SplatRenderer:
         else:
             _resolve_kernel(winner, self.SI, self.normals, self.term_of, li, qid, tid, ccount,
                             np.empty((1, 1, 3), dtype=np.float32))
+        t3b = time.perf_counter()
+        if len(plan.raytraced):  # after the resolve, which clears the pixels no splat won
+            raytrace_tiles(*trace_args, np.array([tile, 1, 1], dtype=np.int64), plan.raytraced, depth, qid, tid,
+                           np.empty(len(plan.raytraced), dtype=np.int64))
+        t3c = time.perf_counter()
+        if li == 1:
             normal = surface_normals(cam, X, Y, self.Q, depth, qid)
         t4 = time.perf_counter()
         frame = Frame(camera, depth, normal, qid, tid, np.empty((0, 0, 3), np.uint8), od, ccount, winner,
@@ -633,15 +678,27 @@ class SplatRenderer:
             rgb = frame.shaded(color_by, lit=lit)
         t5 = time.perf_counter()
         covered = int(np.count_nonzero(qid >= 0))
+        splatted = covered - _covered_in(qid, plan.raytraced, tile, ntx)
         fragments = int(od.sum(dtype=np.int64))
         flags = np.bincount(self._flag, minlength=3)
         stats = RenderStats(
-            "splats", covered, fragments, fragments / covered if covered else 0.0,
+            "splats", covered, fragments, fragments / splatted if splatted else 0.0,
             int(flags[0]), int(flags[1]), int(flags[2]), 1e3 * (time.perf_counter() - t0),
-            {"footprints": 1e3 * (t1 - t0), "binning": 1e3 * (t2 - t1), "raster": 1e3 * (t3 - t2),
-             "normals": 1e3 * (t4 - t3), "shade": 1e3 * (t5 - t4)},
+            {"footprints": 1e3 * (t1 - t0), "binning": 1e3 * (t2 - t1), "plan": 1e3 * (t2b - t2),
+             "raster": 1e3 * (t3 - t2b), "raytrace": 1e3 * (t3c - t3b), "normals": 1e3 * (t4 - t3c),
+             "shade": 1e3 * (t5 - t4)},
+            raytraced_tiles=len(plan.raytraced), tiles=ntx * nty,
         )
         return Frame(camera, depth, normal, qid, tid, rgb, od, ccount, winner, stats, self.normal_form, self.palette)
+
+
+def _covered_in(qid: np.ndarray, tiles: np.ndarray, tile: int, ntx: int) -> int:
+    """Covered pixels (qid ≥ 0) inside the listed tiles."""
+    n = 0
+    for t in tiles.tolist():
+        i0, j0 = (t // ntx) * tile, (t % ntx) * tile
+        n += int(np.count_nonzero(qid[i0 : i0 + tile, j0 : j0 + tile] >= 0))
+    return n
 
 
 _RENDERERS: dict[int, tuple[weakref.ref, SplatRenderer]] = {}
