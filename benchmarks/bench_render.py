@@ -45,9 +45,10 @@ def _args(argv):
 
 
 def calibrate(args) -> dict:
-    """Fit ``tile_costs.COSTS`` on one thread: splat raster time against (rectangle pixels, binned splats) and ray
-    tracing time against (pixels, roots), least squares without negative coefficients, over every Table 2 model and
-    splat size at two image sizes (so that the per-pixel and per-root costs separate)."""
+    """Fit ``tile_costs.COSTS`` on one thread: splat raster time against (rectangle pixels, binned splats), ray
+    tracing time against (pixels, roots), least squares without negative coefficients, and the footprint and binning
+    passes per splat, over every Table 2 model and splat size at two image sizes (so that the per-pixel and per-root
+    costs separate)."""
     import numba
     import numpy as np
     from scipy.optimize import nnls
@@ -59,7 +60,7 @@ def calibrate(args) -> dict:
     from csgnb.sampling import sample_csg
 
     numba.set_num_threads(1)
-    splat_rows, rt_rows = [], []
+    splat_rows, rt_rows, pass_rows = [], [], []
     for name, (build, radii) in TABLE2.items():
         if args.only and name not in args.only:
             continue
@@ -88,8 +89,10 @@ def calibrate(args) -> dict:
                 r.render(cam, fallback="never")
                 frames = [r.render(cam, fallback="never") for _ in range(max(1, args.repeat))]
                 raster = min(f.stats.timings["raster"] for f in frames)
+                passes = min(f.stats.timings["footprints"] + f.stats.timings["binning"] for f in frames)
                 plan = r.last_plan
                 splat_rows.append((int(plan.fragments.sum()), int(plan.items.sum()), raster * 1e6))
+                pass_rows.append((len(cloud), passes * 1e6))
                 print(f"{name:18s} {splat:6s} {W}x{H}: raster {raster:7.1f} ms, {splat_rows[-1][0]:11d} rectangle px, "
                       f"{splat_rows[-1][1]:8d} binned splats; ray tracing {best * 1e3:7.1f} ms, "
                       f"{rt_rows[-1][1]:11d} roots", flush=True)
@@ -97,7 +100,9 @@ def calibrate(args) -> dict:
     (fragment, item), _ = nnls(s[:, :2], s[:, 2])
     r = np.array(rt_rows, dtype=float)
     (ray, root), _ = nnls(r[:, :2], r[:, 2])
-    fit = {"fragment": fragment, "item": item, "ray": ray, "root": root}
+    p = np.array(pass_rows, dtype=float)
+    splat = float(p[:, 0] @ p[:, 1] / (p[:, 0] @ p[:, 0]))  # footprint + binning ns per splat
+    fit = {"fragment": fragment, "item": item, "ray": ray, "root": root, "splat": splat}
     print("COSTS = TileCosts(" + ", ".join(f"{k}={v:.3g}" for k, v in fit.items()) + ")  # ns, one thread")
     for name, rows_, cols in (("splats", s, (fragment, item)), ("ray tracing", r, (ray, root))):
         pred = rows_[:, :2] @ np.array(cols)
@@ -105,7 +110,8 @@ def calibrate(args) -> dict:
               f"{np.max(pred / rows_[:, 2]):.2f}")
     if args.json:
         with open(args.json, "w") as fh:
-            json.dump({"costs_ns": fit, "splat_rows": splat_rows, "raytrace_rows": rt_rows}, fh, indent=2)
+            json.dump({"costs_ns": fit, "splat_rows": splat_rows, "raytrace_rows": rt_rows, "pass_rows": pass_rows}, fh,
+                  indent=2)
         print(f"wrote {args.json}")
     return fit
 

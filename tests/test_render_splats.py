@@ -330,6 +330,27 @@ def test_fallback_tiles_show_the_ray_tracer_and_the_rest_the_splats():
     assert_pixel_perfect(compare(auto, raytrace(shape, cam)))
 
 
+def test_a_small_view_of_a_dense_cloud_is_ray_traced_whole():
+    """236,000 splats seen at 160x120: their footprint and binning passes alone cost more than ray tracing the frame
+    (the probe says so), so the frame is ray traced, the reference's pixels bit for bit; at 1920x1080 it is not."""
+    from csgnb.csg.gallery import TABLE2
+    from csgnb.render.tile_costs import raytrace_is_cheaper
+
+    build, radii = TABLE2["spheres"]
+    cloud = sample_csg(build(), radii["small"])
+    cam = Camera.fit(cloud, 160, 120, azimuth=-60, elevation=35)
+    frame = render(cloud, cam)
+    ref = raytrace(cloud, cam)
+    assert frame.stats.raytraced_tiles == frame.stats.tiles and frame.stats.splats_drawn == 0
+    assert np.array_equal(frame.quadric, ref.quadric) and np.array_equal(frame.depth, ref.depth)
+    assert np.array_equal(frame.rgb, ref.rgb)
+    big = render(cloud, cam.with_size(1920, 1080))
+    assert big.stats.raytraced_tiles < big.stats.tiles and big.stats.splats_drawn > 0
+    few = SplatRenderer(cloud)
+    args = (cam.params(), *cam.screen_axes(), None, few.term_start, few.max_term)
+    assert not raytrace_is_cheaper(args, (120, 160), 64, 10, 1)  # 10 splats: no probe, splats win
+
+
 def test_fallback_is_off_where_the_picture_is_about_the_splats():
     shape, cloud = cloud_of("figure 15", 0.06)
     cam = Camera.fit(cloud, *SIZE)

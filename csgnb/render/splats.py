@@ -39,7 +39,7 @@ from csgnb.render.rays import EPS, ray_direction, ray_point, ray_polynomials, ra
 from csgnb.render.raytracer import raytrace_tiles
 from csgnb.render.scene import check_camera, check_choice, check_cloud, check_precision, scene_box
 from csgnb.render.shading import COLOR_MODES, quadric_colors, shade, surface_normals
-from csgnb.render.tile_costs import FALLBACKS, plan_tiles
+from csgnb.render.tile_costs import FALLBACKS, plan_tiles, raytrace_is_cheaper
 
 __all__ = [
     "SplatRenderer", "render", "renderer_for", "FOOTPRINTS", "LOCAL_MODES", "TILE", "FOOTPRINT_MARGIN",
@@ -596,7 +596,8 @@ class SplatRenderer:
             Tile edge in pixels (binning and the parallel loop).
         fallback : "auto", "never" or "always"
             Ray trace the tiles where splats would cost more (:mod:`.tile_costs`: estimated per tile
-            before the raster, ``stats.raytraced_tiles``), never, or everywhere. Only with local
+            before the raster, ``stats.raytraced_tiles``; the whole frame when ray tracing it costs
+            less than the splats' footprint and binning passes alone), never, or everywhere. Only with local
             quadric ray-tracing and clipping (the exact picture) and a colouring that is not about
             the splats (``overdraw``, ``clip_count``); otherwise splats draw every tile.
 
@@ -623,24 +624,31 @@ class SplatRenderer:
         H, W = camera.shape
         ctol = self.clip_tolerances(camera)
         rtol = 64.0 * EPS * max(self.extent, float(np.max(np.abs(camera.eye))), 1.0)
-        _footprint_kernel(cam, self.SD, FOOTPRINTS.index(footprint), bool(backface_culling), self._bbox,
-                          self._hull, self._nh, self._flag, self._zmin)
         P = ray_polynomials(cam, self.Q)
-        t1 = time.perf_counter()
-        ntx, nty = (W + tile - 1) // tile, (H + tile - 1) // tile
-        start = np.empty(ntx * nty + 1, dtype=np.int64)
-        total = _bin_kernel(self._bbox, self._flag, self._zmin, tile, ntx, nty, start, self._items)
-        if total > len(self._items):
-            self._items = np.empty(int(total * 1.25) + 1024, dtype=np.int32)
-            _bin_kernel(self._bbox, self._flag, self._zmin, tile, ntx, nty, start, self._items)
-        t2 = time.perf_counter()
         li = LOCAL_MODES.index(local)
         exact = li == 1 and clip and color_by not in ("overdraw", "clip_count")
-        fragments_est = np.empty(ntx * nty, dtype=np.int64)
-        _tile_fragments(self._bbox, start, self._items, tile, ntx, H, W, fragments_est)
         trace_args = (cam, X, Y, P, self.term_start, self.max_term)
-        plan = plan_tiles(fallback if exact else "never", trace_args, fragments_est, start, tile, (H, W),
-                          self.normal_form.n_terms)
+        ntx, nty = (W + tile - 1) // tile, (H + tile - 1) // tile
+        start = np.zeros(ntx * nty + 1, dtype=np.int64)
+        n_terms = self.normal_form.n_terms
+        # the whole frame ray traced when that costs less than the splats' per-splat passes alone
+        whole = exact and (fallback == "always" or (
+            fallback == "auto" and raytrace_is_cheaper(trace_args, (H, W), tile, len(self.SD), n_terms)))
+        if not whole:
+            _footprint_kernel(cam, self.SD, FOOTPRINTS.index(footprint), bool(backface_culling), self._bbox,
+                              self._hull, self._nh, self._flag, self._zmin)
+        t1 = time.perf_counter()
+        if not whole:
+            total = _bin_kernel(self._bbox, self._flag, self._zmin, tile, ntx, nty, start, self._items)
+            if total > len(self._items):
+                self._items = np.empty(int(total * 1.25) + 1024, dtype=np.int32)
+                _bin_kernel(self._bbox, self._flag, self._zmin, tile, ntx, nty, start, self._items)
+        t2 = time.perf_counter()
+        fragments_est = np.zeros(ntx * nty, dtype=np.int64)
+        if not whole:
+            _tile_fragments(self._bbox, start, self._items, tile, ntx, H, W, fragments_est)
+        mode = "always" if whole else (fallback if exact else "never")
+        plan = plan_tiles(mode, trace_args, fragments_est, start, tile, (H, W), n_terms)
         self.last_plan = plan  # the cost model's inputs and choice (benchmarks calibrate it from these)
         skip = np.zeros(ntx * nty, dtype=np.uint8)
         skip[plan.raytraced] = 1
@@ -680,7 +688,7 @@ class SplatRenderer:
         covered = int(np.count_nonzero(qid >= 0))
         splatted = covered - _covered_in(qid, plan.raytraced, tile, ntx)
         fragments = int(od.sum(dtype=np.int64))
-        flags = np.bincount(self._flag, minlength=3)
+        flags = np.zeros(3, dtype=np.int64) if whole else np.bincount(self._flag, minlength=3)
         stats = RenderStats(
             "splats", covered, fragments, fragments / splatted if splatted else 0.0,
             int(flags[0]), int(flags[1]), int(flags[2]), 1e3 * (time.perf_counter() - t0),

@@ -12,6 +12,11 @@ the tile:
   ``PROBE_STEP``-th pixel of the tile's rows and columns. Only tiles whose splat cost exceeds the
   cheapest possible ray tracing (one root per term per pixel) are probed.
 
+Before any of that, the whole frame: a cloud of many small splats seen small costs ``splat`` ns per
+splat in the footprint and binning passes whatever their fragments; when ray tracing the whole
+frame (probed at one pixel in ``FRAME_PROBE_STEP``²) costs less, the frame is ray traced
+(:func:`raytrace_is_cheaper`).
+
 Both paths solve the same per-pixel equation with the same instructions
 (:mod:`csgnb.render.rays`), so a ray-traced tile shows the reference ray tracer's pixels; the
 choice changes the speed, not the picture (up to the one-pixel feature-edge disagreements that
@@ -28,13 +33,19 @@ import numpy as np
 
 from csgnb.render.raytracer import raytrace_tiles
 
-__all__ = ["TileCosts", "TilePlan", "COSTS", "PROBE_STEP", "FALLBACKS", "plan_tiles"]
+__all__ = [
+    "TileCosts", "TilePlan", "COSTS", "PROBE_STEP", "FRAME_PROBE_STEP", "FALLBACKS", "plan_tiles",
+    "raytrace_is_cheaper",
+]
 
 #: ``fallback=`` choices of the splat renderer: decide per tile, splats everywhere, ray tracing everywhere.
 FALLBACKS = ("auto", "never", "always")
 
 #: The probe traces one pixel in PROBE_STEP × PROBE_STEP (64 of a 64-pixel tile's 4,096).
 PROBE_STEP = 8
+
+#: The whole-frame probe traces one pixel in FRAME_PROBE_STEP × FRAME_PROBE_STEP.
+FRAME_PROBE_STEP = 16
 
 
 @dataclass(frozen=True)
@@ -45,10 +56,11 @@ class TileCosts:
     item: float
     ray: float
     root: float
+    splat: float
 
 
 #: Measured on this project's 2-core VM, one thread (``bench_render.py --calibrate``).
-COSTS = TileCosts(fragment=3.1, item=240.0, ray=0.8, root=6.2)
+COSTS = TileCosts(fragment=3.5, item=250.0, ray=0.64, root=6.6, splat=100.0)
 
 
 @dataclass(frozen=True)
@@ -88,12 +100,9 @@ def plan_tiles(mode: str, trace_args: tuple, fragments: np.ndarray, start: np.nd
     n_terms : int
         Intersection terms of the normal form (every ray computes at least one root per term).
     """
-    H, W = shape
     ntiles = len(start) - 1
-    ntx = (W + tile - 1) // tile
     t = np.arange(ntiles)
-    rows = np.minimum((t // ntx) * tile + tile, H) - (t // ntx) * tile
-    cols = np.minimum((t % ntx) * tile + tile, W) - (t % ntx) * tile
+    rows, cols = _tile_sides(shape, tile)
     pixels = (rows * cols).astype(np.float64)
     items = np.diff(start)
     splat_ns = costs.fragment * fragments + costs.item * items
@@ -106,17 +115,47 @@ def plan_tiles(mode: str, trace_args: tuple, fragments: np.ndarray, start: np.nd
     candidates = np.flatnonzero(splat_ns > floor).astype(np.int64)
     if len(candidates) == 0:
         return TilePlan(candidates, fragments, items, splat_ns, raytrace_ns, 0)
-    work = np.empty(len(candidates), dtype=np.int64)
-    dummy_f = np.empty((H, W))
-    dummy_i = np.empty((1, 1), dtype=np.int32)
-    cam, X, Y, P, term_start, max_term = trace_args
-    raytrace_tiles(cam, X, Y, P, term_start, max_term, np.array([tile, PROBE_STEP, 0], dtype=np.int64),
-                   candidates, dummy_f, dummy_i, dummy_i, work)
-    probed_px = np.maximum(_probe_count(rows[candidates], PROBE_STEP) * _probe_count(cols[candidates], PROBE_STEP), 1)
-    per_px = costs.ray + costs.root * work / probed_px
+    per_px = costs.ray + costs.root * _roots_per_pixel(trace_args, shape, tile, candidates, PROBE_STEP)
     raytrace_ns[candidates] = per_px * pixels[candidates]
     chosen = candidates[raytrace_ns[candidates] < splat_ns[candidates]]
     return TilePlan(chosen, fragments, items, splat_ns, raytrace_ns, len(candidates))
+
+
+def raytrace_is_cheaper(trace_args: tuple, shape: tuple[int, int], tile: int, n_splats: int, n_terms: int,
+                        costs: TileCosts = COSTS) -> bool:
+    """Return whether ray tracing the whole frame costs less than the splats' per-splat passes (``splat`` ns each).
+
+    Probes the frame (one pixel in ``FRAME_PROBE_STEP``²) only when even the cheapest ray tracing (one root per
+    term per pixel) could win.
+    """
+    H, W = shape
+    budget = costs.splat * n_splats
+    if (costs.ray + costs.root * max(n_terms, 1)) * H * W >= budget:
+        return False
+    rows, cols = _tile_sides(shape, tile)
+    tiles = np.arange(len(rows), dtype=np.int64)
+    roots = np.sum(_roots_per_pixel(trace_args, shape, tile, tiles, FRAME_PROBE_STEP) * rows * cols)
+    return costs.ray * H * W + costs.root * roots < budget
+
+
+def _roots_per_pixel(trace_args: tuple, shape: tuple[int, int], tile: int, tiles: np.ndarray, step: int) -> np.ndarray:
+    """Trace one pixel in step² of each listed tile (writing nothing); return the mean roots per traced pixel."""
+    work = np.empty(len(tiles), dtype=np.int64)
+    rows, cols = _tile_sides(shape, tile)
+    no_image = np.empty((1, 1), dtype=np.int32)  # write = 0: the buffers are only read for the image size
+    raytrace_tiles(*trace_args, np.array([tile, step, 0], dtype=np.int64), tiles, np.empty(shape), no_image,
+                   no_image, work)
+    return work / np.maximum(_probe_count(rows[tiles], step) * _probe_count(cols[tiles], step), 1)
+
+
+def _tile_sides(shape: tuple[int, int], tile: int) -> tuple[np.ndarray, np.ndarray]:
+    """Return the rows and columns of every tile : two (ntiles,) int64 (the last row and column of tiles are cut)."""
+    H, W = shape
+    ntx, nty = (W + tile - 1) // tile, (H + tile - 1) // tile
+    t = np.arange(ntx * nty)
+    rows = np.minimum((t // ntx) * tile + tile, H) - (t // ntx) * tile
+    cols = np.minimum((t % ntx) * tile + tile, W) - (t % ntx) * tile
+    return rows, cols
 
 
 def _probe_count(n: np.ndarray, step: int) -> np.ndarray:
