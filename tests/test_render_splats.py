@@ -387,3 +387,27 @@ def test_the_probe_counts_the_ray_tracers_work():
     assert np.array_equal(out[1], ref.quadric) and np.array_equal(out[0], ref.depth)
     assert full.sum() >= 192 * 256 * nf.n_terms  # at least one root per term and pixel
     assert 0.5 < probe.sum() * 64 / full.sum() < 2.0
+
+
+def test_box_footprints_stay_inside_the_balls_rectangle():
+    """A fragment must lie within r of its sample, so the ball's screen rectangle bounds every footprint: the box's
+    corners reach beyond the ball and used to widen it (more fragments, same image)."""
+    from csgnb.render.splats import _footprint_kernel
+
+    _, cloud = cloud_of("block", 0.06)
+    renderer = SplatRenderer(cloud)
+    cam = Camera.fit(cloud, 320, 240, azimuth=-60, elevation=35)
+    n = len(cloud)
+    out = {}
+    for mode in (0, 1):
+        bufs = (np.empty((n, 4), np.int32), np.empty((n, 12)), np.empty(n, np.int32), np.empty(n, np.int8), np.empty(n))
+        _footprint_kernel(cam.params(), renderer.SD, mode, True, *bufs)
+        out[mode] = bufs
+    sphere, box = out[0][0], out[1][0]
+    drawn = out[1][3] == 0
+    assert drawn.sum() > 1000 and np.all(out[0][3][drawn] == 0)  # a drawn box is a drawn ball
+    assert np.all(box[drawn, :2] >= sphere[drawn, :2]) and np.all(box[drawn, 2:] <= sphere[drawn, 2:])
+    assert np.mean(np.prod(box[drawn, 2:] - box[drawn, :2] + 1, axis=1)) < np.mean(
+        np.prod(sphere[drawn, 2:] - sphere[drawn, :2] + 1, axis=1))
+    frames = [render(cloud, cam, footprint=f, fallback="never") for f in ("sphere", "box")]
+    assert _identical(*frames) and frames[1].stats.fragments < frames[0].stats.fragments

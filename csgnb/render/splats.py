@@ -159,10 +159,27 @@ def _footprint_kernel(cam, SD, footprint, cull, bbox, hull, nh, flag, zmin):
                         or -Sy - ty * Sz > reach_y):
                     flag[k] = 2
                     continue
-            use_sphere = footprint == 0 or gn == 0.0
-            c_lo, c_hi, r_lo, r_hi = 0.0, 0.0, 0.0, 0.0
-            whole = False
-            if not use_sphere:
+            # the ball's screen rectangle first: it bounds every fragment (the raster keeps points within r of the
+            # sample), so a ball between pixel centres -- most splats of a dense cloud seen small -- is dropped here,
+            # and a box footprint is clipped to it
+            if ortho:
+                c_lo, c_hi = (Sx - R) * sx + cx, (Sx + R) * sx + cx
+                r_lo, r_hi = cy - (Sy + R) * sy, cy - (Sy - R) * sy
+            elif Sz - R <= 1e-9 * R:
+                c_lo, c_hi, r_lo, r_hi = -1.0, W, -1.0, H  # the ball reaches the eye's plane: the whole screen
+            else:
+                m_lo, m_hi = _tangent_range(Sx, Sz, R)
+                c_lo, c_hi = m_lo * sx + cx, m_hi * sx + cx
+                m_lo, m_hi = _tangent_range(Sy, Sz, R)
+                r_lo, r_hi = cy - m_hi * sy, cy - m_lo * sy
+            j0 = max(int(math.ceil(max(c_lo, -1.0))), 0)
+            i0 = max(int(math.ceil(max(r_lo, -1.0))), 0)
+            j1 = min(int(math.floor(min(c_hi, W))), int(W) - 1)
+            i1 = min(int(math.floor(min(r_hi, H))), int(H) - 1)
+            if j1 < j0 or i1 < i0:
+                flag[k] = 2
+                continue
+            if footprint == 1 and gn > 0.0:
                 # surface-aligned box: tangents t1, t2 ⟂ n, heights [h0, h1] along n
                 if abs(nx) < 0.6:
                     ax, ay, az = 0.0, nz, -ny
@@ -194,9 +211,7 @@ def _footprint_kernel(cam, SD, footprint, cull, bbox, hull, nh, flag, zmin):
                             break
                         inv = 1.0 / Cz
                         px[v], py[v] = Cx * inv * sx + cx, cy - Cy * inv * sy
-                if near:
-                    use_sphere = True
-                else:
+                if not near:
                     zmin[k] = zlo
                     # convex hull (Andrew's monotone chain) of the 8 projected corners
                     for v in range(8):
@@ -227,37 +242,21 @@ def _footprint_kernel(cam, SD, footprint, cull, bbox, hull, nh, flag, zmin):
                         hy[m] = py[w]
                         m += 1
                     m -= 1  # the first point closes the chain
-                    c_lo, c_hi, r_lo, r_hi = hx[0], hx[0], hy[0], hy[0]
+                    b_lo, b_hi, q_lo, q_hi = hx[0], hx[0], hy[0], hy[0]  # the hull's columns and rows
                     for v in range(1, m):
-                        c_lo = min(c_lo, hx[v])
-                        c_hi = max(c_hi, hx[v])
-                        r_lo = min(r_lo, hy[v])
-                        r_hi = max(r_hi, hy[v])
+                        b_lo = min(b_lo, hx[v])
+                        b_hi = max(b_hi, hx[v])
+                        q_lo = min(q_lo, hy[v])
+                        q_hi = max(q_hi, hy[v])
                     if 3 <= m <= 6:
                         nh[k] = m
                         for v in range(m):
                             hull[k, 2 * v] = hx[v]
                             hull[k, 2 * v + 1] = hy[v]
-            if use_sphere:
-                if ortho:
-                    c_lo, c_hi = (Sx - R) * sx + cx, (Sx + R) * sx + cx
-                    r_lo, r_hi = cy - (Sy + R) * sy, cy - (Sy - R) * sy
-                elif Sz - R <= 1e-9 * R:
-                    whole = True
-                else:
-                    m_lo, m_hi = _tangent_range(Sx, Sz, R)
-                    c_lo, c_hi = m_lo * sx + cx, m_hi * sx + cx
-                    m_lo, m_hi = _tangent_range(Sy, Sz, R)
-                    r_lo, r_hi = cy - m_hi * sy, cy - m_lo * sy
-            if whole:
-                j0, i0, j1, i1 = 0, 0, int(W) - 1, int(H) - 1
-            else:
-                j0 = int(math.ceil(max(c_lo, -1.0)))
-                i0 = int(math.ceil(max(r_lo, -1.0)))
-                j1 = int(math.floor(min(c_hi, W)))
-                i1 = int(math.floor(min(r_hi, H)))
-                j0, i0 = max(j0, 0), max(i0, 0)
-                j1, i1 = min(j1, int(W) - 1), min(i1, int(H) - 1)
+                    j0 = max(j0, int(math.ceil(max(b_lo, -1.0))))
+                    i0 = max(i0, int(math.ceil(max(q_lo, -1.0))))
+                    j1 = min(j1, int(math.floor(min(b_hi, W))))
+                    i1 = min(i1, int(math.floor(min(q_hi, H))))
             if j1 < j0 or i1 < i0:
                 flag[k] = 2
                 continue
