@@ -5,30 +5,30 @@ Five models of 3, 5, 21, 31 and 80 quadrics, each at three splat radii ("large",
 Each run is the whole pipeline — normal form, term boxes, sampling domains, subdivision,
 emission, clip-set deduplication — from a CSG graph to a ``SampleCloud``; kernels are compiled
 (or loaded from the cache) by an untimed first run, the domain cache is emptied before every
-timed run, and the best of ``--repeat`` runs is kept. One thread, as in the paper.
+timed run, and the best of ``--repeat`` runs is kept. One thread, as in the paper; each row again on all cores
+(``--threads``, default every core numba sees): the two passes run over chunks of jobs and leaves in threads, the
+cloud bit-identical to the one-thread one.
 
     python benchmarks/bench_sampling.py --json /tmp/bench_sampling.json
 
 ``--json PATH`` writes ``{"models": [{"name", "quadrics", "splat", "samples",
-"distance_queries", "clip_indices", "sampling_s", "unresolved", "feature_points", "covered_by_neighbours"},
-...]}``. Rows print the regions left unresolved (0 on all five models), and how many the two rules
-that close tangency curves handled (feature points, the neighbour rule).
+"distance_queries", "clip_indices", "sampling_s", "sampling_threads_s", "threads", "unresolved", "feature_points",
+"covered_by_neighbours"}, ...]}``. Rows print the regions left unresolved (0 on all five models), and how many
+the two rules that close tangency curves handled (feature points, the neighbour rule).
 """
 
 from __future__ import annotations
 
 import argparse
 import json
-import os
 import time
 
-os.environ.setdefault("NUMBA_NUM_THREADS", "1")
+import numba
+import numpy as np
 
-import numpy as np  # noqa: E402
-
-import csgnb.csg as csg  # noqa: E402
-from csgnb.csg.gallery import TABLE2, perforated_plate, spheres  # noqa: E402
-from csgnb.sampling import domain_cache_clear, sample_csg  # noqa: E402
+import csgnb.csg as csg
+from csgnb.csg.gallery import TABLE2, perforated_plate, spheres
+from csgnb.sampling import domain_cache_clear, sample_csg
 
 #: name → (builder, {splat: radius}): the models live in csgnb.csg.gallery (one definition for the
 #: notebooks, the tests and the benchmarks)
@@ -57,7 +57,8 @@ PAPER_TABLE1 = {
 }
 
 
-def _time(shape, radius, repeat, **kwargs):
+def _time(shape, radius, repeat, threads=1, **kwargs):
+    numba.set_num_threads(threads)
     sample_csg(shape, radius, **kwargs)  # compile / load the kernels outside the timing
     best, cloud = np.inf, None
     for _ in range(repeat):
@@ -68,7 +69,7 @@ def _time(shape, radius, repeat, **kwargs):
     return best, cloud
 
 
-def run_table2(repeat: int, only=None) -> list[dict]:
+def run_table2(repeat: int, only=None, threads: int = 1) -> list[dict]:
     rows = []
     for name, (build, radii) in MODELS.items():
         if only and name not in only:
@@ -77,7 +78,13 @@ def run_table2(repeat: int, only=None) -> list[dict]:
         n_quadrics = len(csg.graph_leaves(shape))
         for splat, r in radii.items():
             seconds, cloud = _time(shape, r, repeat)
+            parallel, cloud_n = _time(shape, r, repeat, threads)
+            same = all(np.array_equal(getattr(cloud, f), getattr(cloud_n, f)) for f in (
+                "positions", "normals", "radii", "quadric_ids", "clip_start", "clip_count", "clip_indices"))
+            if not same:
+                raise AssertionError(f"{name} {splat}: {threads} threads changed the samples")
             rows.append({
+                "sampling_threads_s": parallel, "threads": threads,
                 "name": name, "quadrics": n_quadrics, "splat": splat, "samples": len(cloud),
                 "distance_queries": cloud.stats.distance_queries, "clip_indices": cloud.stats.clip_indices,
                 "sampling_s": seconds, "radius": r, "normal_form": len(cloud.normal_form),
@@ -110,12 +117,14 @@ def main(argv=None) -> None:
     parser.add_argument("--json", metavar="PATH", help="write {'models': [...]} here")
     parser.add_argument("--only", nargs="*", help="model names to run (default: all)")
     parser.add_argument("--no-table1", action="store_true", help="skip the Table 1 rows")
+    parser.add_argument("--threads", type=int, default=numba.config.NUMBA_NUM_THREADS,
+                        help="threads of the second timing of each row (default: every core)")
     args = parser.parse_args(argv)
 
-    rows = run_table2(args.repeat, args.only)
+    rows = run_table2(args.repeat, args.only, args.threads)
     head = (f"{'model':18s} {'q':>3s} {'dnf':>4s} {'splat':6s} {'radius':>7s} {'samples':>8s} {'paper':>8s} "
             f"{'queries':>8s} {'paper':>8s} {'clip':>5s} {'paper':>5s} {'time ms':>8s} {'paper':>7s} {'ratio':>6s} "
-            f"{'unres':>5s} {'feat':>5s} {'nbr':>5s}")
+            f"{'unres':>5s} {'feat':>5s} {'nbr':>5s} {f'{args.threads}t ms':>8s} {'x':>5s}")
     print("Table 2 (sampling; ours on this machine vs. the paper's 4.8 GHz core)")
     print(head)
     for row in rows:
@@ -124,10 +133,12 @@ def main(argv=None) -> None:
         print(f"{row['name']:18s} {row['quadrics']:3d} {row['normal_form']:4d} {row['splat']:6s} {row['radius']:7.4f} "
               f"{row['samples']:8d} {p[0]:8d} {row['distance_queries']:8d} {p[1]:8d} {row['clip_indices']:5d} "
               f"{p[2]:5d} {ms:8.2f} {p[3]:7.2f} {ms / p[3]:6.2f} {row['unresolved']:5d} {row['feature_points']:5d} "
-              f"{row['covered_by_neighbours']:5d}")
+              f"{row['covered_by_neighbours']:5d} {1e3 * row['sampling_threads_s']:8.2f} "
+              f"{row['sampling_s'] / row['sampling_threads_s']:5.2f}")
     within = sum(1e3 * row["sampling_s"] <= 2.0 * PAPER_TABLE2[(row["quadrics"], row["splat"])][3] for row in rows)
     print(f"rows within 2x of the paper's time: {within} of {len(rows)}; regions left unresolved: "
           f"{sum(row['unresolved'] for row in rows)}")
+    numba.set_num_threads(1)
     if not args.no_table1:
         print("\nTable 1, sampling rows (samples per second)")
         print(f"{'case':34s} {'ours (M/s)':>10s} {'paper (M/s)':>12s}")
@@ -136,8 +147,8 @@ def main(argv=None) -> None:
             paper = f"{lo / 1e6:g}" if lo == hi else f"{lo / 1e6:g}–{hi / 1e6:g}"
             print(f"{label:34s} {rate / 1e6:10.2f} {paper:>12s}")
     if args.json:
-        keys = ("name", "quadrics", "splat", "samples", "distance_queries", "clip_indices", "sampling_s", "unresolved",
-                "feature_points", "covered_by_neighbours")
+        keys = ("name", "quadrics", "splat", "samples", "distance_queries", "clip_indices", "sampling_s",
+                "sampling_threads_s", "threads", "unresolved", "feature_points", "covered_by_neighbours")
         with open(args.json, "w") as fh:
             json.dump({"models": [{k: row[k] for k in keys} for row in rows]}, fh, indent=2)
         print(f"wrote {args.json}")

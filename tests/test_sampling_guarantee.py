@@ -432,3 +432,74 @@ def test_models_far_from_the_origin_are_sampled_on_their_surface_or_refused(dist
         # coverage at the requested radius, checked on the model built at the origin
         back = _mapped_back(cloud, near[name], 1.0, o)
         _check_coverage(near[name], back, (0.2, 0.2, 0.2), 1.8, np.random.default_rng(1), n_rays=800)
+
+
+def _cloud_arrays(cloud):
+    arrays = {f: getattr(cloud, f) for f in ("positions", "normals", "radii", "quadric_ids", "clip_start",
+                                             "clip_count", "clip_indices")}
+    if cloud.trace is not None:
+        for f in ("leaf_quadric", "leaf_triangle", "leaf_status", "leaf_depth", "point_xy", "point_distance"):
+            arrays["trace." + f] = getattr(cloud.trace, f)
+    return arrays
+
+
+@pytest.mark.parametrize(("name", "splat", "trace"), [
+    ("perforated plate", "medium", False), ("block", "small", False), ("spheres", "small", True),
+    ("slotted cylinder", "small", True)])
+def test_two_threads_give_the_one_thread_samples_bit_for_bit(name, splat, trace, monkeypatch):
+    """Both passes run over chunks of jobs / leaves on all threads and join their buffers in order: every array
+    of the cloud (and of its trace) must be the one-thread result, bit for bit."""
+    import dataclasses
+
+    import numba
+
+    import csgnb.sampling.sampler as sampler
+    from csgnb.csg.gallery import TABLE2
+    from csgnb.sampling import domain_cache_clear
+
+    joins = []
+    join = sampler._joined
+    monkeypatch.setattr(sampler, "_joined", lambda *a: joins.append(1) or join(*a))
+
+    build, radii = TABLE2[name]
+    shape = build()
+    before = numba.get_num_threads()
+    clouds = []
+    try:
+        for threads in (1, min(2, numba.config.NUMBA_NUM_THREADS)):
+            numba.set_num_threads(threads)
+            domain_cache_clear()
+            clouds.append(sample_csg(shape, radii[splat], trace=trace))
+    finally:
+        numba.set_num_threads(before)
+    one, two = clouds
+    assert len(one) > sampler._PARALLEL_MIN_EMIT and joins  # both passes ran on threads
+    a, b = _cloud_arrays(one), _cloud_arrays(two)
+    for key in a:
+        assert np.array_equal(a[key], b[key]), key
+    assert dataclasses.replace(one.stats, seconds=0.0) == dataclasses.replace(two.stats, seconds=0.0)
+
+
+def test_joining_chunk_buffers_shifts_clip_list_offsets_and_trace_rows():
+    """Two workers' buffers, three chunks: worker 0 filled chunks 0 and 2, worker 1 chunk 1."""
+    from csgnb.sampling.sampler import _joined, _new_buffers
+
+    workers = [_new_buffers(4, True), _new_buffers(4, True)]
+    spans = []
+    for k, (w, nl, nla, nt, nur) in enumerate([(0, 2, 3, 4, 1), (1, 3, 5, 2, 2), (0, 1, 1, 1, 1)]):
+        b = workers[w]
+        before = list(b[9])
+        b[1][before[0] : before[0] + nl, 4] = before[1] + np.arange(nl)  # LA offsets within the worker's buffer
+        b[2][before[1] : before[1] + nla] = 100 * k + np.arange(nla)
+        b[3][before[2] : before[2] + nt] = k
+        b[7][before[4] : before[4] + nur, 13] = [before[2] + 1, -1][:nur]
+        b[8][:] += 1
+        b[9] = [before[0] + nl, before[1] + nla, before[2] + nt, 0, before[4] + nur]
+        spans.append((w, before, list(b[9])))
+    LF, LI, LA, TT, TI, TP, TJ, UR, counters, fill = _joined(workers, spans)
+    assert fill == [6, 9, 7, 0, 4] and len(LF) == len(LI) == 6 and len(LA) == 9 and len(TT) == len(TI) == 7
+    assert LI[:, 4].tolist() == [0, 1, 3, 4, 5, 8]  # each chunk's lists start after the previous chunks' indices
+    assert LA.tolist() == [0, 1, 2, 100, 101, 102, 103, 104, 200]
+    assert TT[:, 0].tolist() == [0, 0, 0, 0, 1, 1, 2]
+    assert UR[:, 13].tolist() == [1, 5, -1, 7]  # trace rows shifted to the joined rows; -1 stays
+    assert counters.tolist() == [3] * 7

@@ -8,7 +8,9 @@ a task (:mod:`.tasks`: regions, plane frames, pruned eq. 22 data) → the adapti
 from __future__ import annotations
 
 import math
+import threading
 import time
+from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
@@ -43,6 +45,10 @@ BYTES_PER_SAMPLE = 100
 #: features (the memory that matters), and a few per job when it is not (up to 7 × area/r²).
 _SAMPLES_PER_AREA = 2.0
 _SAMPLES_PER_JOB = 4.0
+#: Pass 1 runs on one thread below this many estimated samples, pass 2 below _PARALLEL_MIN_EMIT samples: two
+#: threads cost more than they gain there (``bench_sampling.py``: 0.7-0.9x on the 5-7 ms rows at 20,000).
+_PARALLEL_MIN_SAMPLES = 150_000
+_PARALLEL_MIN_EMIT = 50_000
 
 
 def _as_shape(shape):
@@ -199,10 +205,7 @@ def _estimate_from_tasks(ts: TaskSet, radius: float) -> float:
     """
     if not len(ts.job_tri):
         return 0.0
-    t = ts.job_tri
-    area2 = np.abs((t[:, 1, 0] - t[:, 0, 0]) * (t[:, 2, 1] - t[:, 0, 1]) - (t[:, 1, 1] - t[:, 0, 1]) *
-                   (t[:, 2, 0] - t[:, 0, 0]))
-    return float(_SAMPLES_PER_AREA * 3.0 * 0.5 * area2.sum() / (radius * radius) + _SAMPLES_PER_JOB * len(t))
+    return float(_job_weights(ts, radius).sum())
 
 
 def estimate_samples(shape, radius: float, *, bounds=None, max_terms: int = 4096) -> float:
@@ -363,7 +366,7 @@ class _Leaves:
 
 
 def _grown(a: np.ndarray, used: int, limit: int | None = None) -> np.ndarray:
-    size = 4 * a.shape[0] if limit is None else max(min(4 * a.shape[0], limit), used + 1)
+    size = max(4 * a.shape[0], 64) if limit is None else max(min(4 * a.shape[0], limit), used + 1)
     b = np.empty((size,) + a.shape[1:], dtype=a.dtype)
     b[:used] = a[:used]
     return b
@@ -401,14 +404,112 @@ def _pass(C, ts: TaskSet, radius, min_size, sqrt3, refine, trace, defer, job_ran
             bar.update(1)
 
 
+def _new_buffers(jobs: int, trace: bool, expected: float = 0.0) -> list:
+    """Pass-1 buffers for ``jobs`` jobs expected to make about ``expected`` leaves: LF, LI, LA, TT, TI, TP, TJ, UR,
+    counters and their fill levels."""
+    cap = 64 * jobs + 1024 + int(expected)
+    tcap = 16 * jobs + 64 if trace else 1
+    return [np.empty((cap, 16)), np.empty((cap, 6), dtype=np.int64), np.empty(4 * cap, dtype=np.int64),
+            np.empty((tcap, 6)), np.empty((tcap, 5), dtype=np.int64), np.empty((tcap, 3)),
+            np.empty(tcap, dtype=np.int64), np.empty((256, 14)), np.zeros(7, dtype=np.int64), [0, 0, 0, 0, 0]]
+
+
+def _threads() -> int:
+    """Threads for the sampler's passes: numba's setting (``NUMBA_NUM_THREADS``, ``numba.set_num_threads``)."""
+    import numba
+
+    return max(1, numba.get_num_threads())
+
+
+def _job_chunks(weights: np.ndarray, parts: int) -> list[tuple[int, int]]:
+    """Split jobs ``0:len(weights)`` into consecutive ranges of about ``sum / parts`` estimated work each (a job
+    heavier than that alone): enough pieces for two threads to balance, given the heaviest first."""
+    n = len(weights)
+    if parts <= 1 or n == 0:
+        return [(0, n)]
+    target = float(weights.sum()) / parts
+    chunks, start, acc = [], 0, 0.0
+    for j, w in enumerate(weights.tolist()):
+        if j > start and acc + w > target:
+            chunks.append((start, j))
+            start, acc = j, 0.0
+        acc += w
+    chunks.append((start, n))
+    return chunks
+
+
+def _parallel_pass(C, ts: TaskSet, radius, min_size, sqrt3, refine, trace, ranges, bar, max_samples) -> list:
+    """Pass 1 over the job ranges, on ``_threads()`` threads when the model is large enough to gain from it.
+
+    Consecutive chunks of jobs of about equal estimated work (their domain area over r², as the sample estimate;
+    ``16 × threads`` of them, so that a misestimate evens out) are taken in turn by the threads (the kernel
+    releases the GIL); each thread appends to buffers of its own, sized like the one-thread ones and reused
+    across its chunks (fresh small buffers per chunk cost four times the page faults), and records the span
+    each chunk filled. The spans are joined in job order: the one-thread output bit for bit, since a job's
+    output does not depend on the jobs before it (only the LA offsets in LI, the trace rows in UR and the
+    counters are adjusted).
+    """
+    threads = _threads()
+    jobs = len(ts.job_task)
+    weights = _job_weights(ts, radius)
+    if threads == 1 or weights.sum() < _PARALLEL_MIN_SAMPLES:
+        bufs = _new_buffers(jobs, trace)
+        _pass(C, ts, radius, min_size, sqrt3, refine, trace, True, ranges, bar, bufs, max_samples)
+        return bufs
+    chunks = _job_chunks(weights, 16 * threads)
+    if bar is not None:
+        bar.reset(total=len(chunks) + 1)
+    workers = [_new_buffers(jobs // threads, trace, 0.5 * float(weights.sum()) / threads) for _ in range(threads)]
+    spans: list = [None] * len(chunks)
+    taken = iter(range(len(chunks)))
+    lock = threading.Lock()
+
+    def work(w):
+        bufs = workers[w]
+        while True:
+            with lock:
+                k = next(taken, None)
+            if k is None:
+                return
+            before = list(bufs[9])
+            _pass(C, ts, radius, min_size, sqrt3, refine, trace, True, [chunks[k]], bar, bufs, max_samples)
+            spans[k] = (w, before, list(bufs[9]))
+
+    with ThreadPoolExecutor(threads) as pool:
+        list(pool.map(work, range(threads)))
+    return _joined(workers, spans)
+
+
+def _job_weights(ts: TaskSet, radius: float) -> np.ndarray:
+    """Estimated samples per job (see ``_estimate_from_tasks``) : (jobs,) float64."""
+    t = ts.job_tri
+    area2 = np.abs((t[:, 1, 0] - t[:, 0, 0]) * (t[:, 2, 1] - t[:, 0, 1]) - (t[:, 1, 1] - t[:, 0, 1]) *
+                   (t[:, 2, 0] - t[:, 0, 0]))
+    return _SAMPLES_PER_AREA * 3.0 * 0.5 * area2 / (radius * radius) + _SAMPLES_PER_JOB
+
+
+def _joined(workers: list, spans: list) -> list:
+    """Join the spans ``(worker, fill before, fill after)`` of the workers' pass-1 buffers in order (see
+    ``_parallel_pass``): fill levels are (leaves, clip-list indices, trace leaves, trace points, regions)."""
+    at = np.zeros(5, dtype=np.int64)
+    pieces: list[list] = [[] for _ in range(8)]
+    field_fill = (0, 0, 1, 2, 2, 3, 3, 4)  # the fill level counting each array's rows
+    for w, before, after in spans:
+        bufs = workers[w]
+        for i, f in enumerate(field_fill):
+            pieces[i].append(bufs[i][before[f] : after[f]])
+        li = pieces[1][-1] = pieces[1][-1].copy()
+        li[:, 4] += at[1] - before[1]
+        ur = pieces[7][-1] = pieces[7][-1].copy()
+        ur[:, 13] = np.where(ur[:, 13] >= 0, ur[:, 13] + (at[2] - before[2]), ur[:, 13])
+        at += np.array(after) - np.array(before)
+    counters = np.sum([b[8] for b in workers], axis=0).astype(np.int64)
+    return [np.concatenate(p) for p in pieces] + [counters, [int(x) for x in at]]
+
+
 def _subdivide(C, ts: TaskSet, radius, min_size, sqrt3, refine, trace, progress, reduce_radius, max_samples=None):
     """Pass 1 (with deferral of failed feature searches), the neighbour rule, pass 1b on the rest."""
     jobs = len(ts.job_task)
-    cap = 64 * jobs + 1024
-    tcap = 16 * jobs + 64 if trace else 1
-    bufs = [np.empty((cap, 16)), np.empty((cap, 6), dtype=np.int64), np.empty(4 * cap, dtype=np.int64),
-            np.empty((tcap, 6)), np.empty((tcap, 5), dtype=np.int64), np.empty((tcap, 3)),
-            np.empty(tcap, dtype=np.int64), np.empty((256, 14)), np.zeros(7, dtype=np.int64), [0, 0, 0, 0, 0]]
     bar = None
     ranges = [(0, jobs)]
     if progress:
@@ -417,7 +518,7 @@ def _subdivide(C, ts: TaskSet, radius, min_size, sqrt3, refine, trace, progress,
         ends = ts.job_ptr[1:]
         ranges = list(zip(ts.job_ptr[:-1], ends, strict=True))
         bar = tqdm(total=len(ranges) + 1, desc="subdividing", unit="quadric")
-    _pass(C, ts, radius, min_size, sqrt3, refine, trace, True, ranges, bar, bufs, max_samples)
+    bufs = _parallel_pass(C, ts, radius, min_size, sqrt3, refine, trace, ranges, bar, max_samples)
     fill = bufs[9]
     nl, nur = fill[0], fill[4]
     UR = bufs[7][:nur].copy()
@@ -487,17 +588,7 @@ def _emit(nf: NormalForm, C, ts: TaskSet, lv: _Leaves, radius: float, reduce_rad
     ptr = np.empty(n + 1, dtype=np.int64)
     ptr[0] = 0
     ids = np.empty(n, dtype=np.int32)
-    cidx = np.empty(1 << 16, dtype=np.int64)
-    leaf = at = nc = 0
-    while True:  # samples straight into world coordinates
-        leaf, at, nc = emit_all(C, ts, lv.LF, lv.LI, lv.LA, radius, reduce_radius, frame.center, frame.scale,
-                                positions, normals, radii, ptr, ids, cidx, leaf, at, nc)
-        if leaf >= len(lv.LI):
-            break
-        need = nc + int(lv.LI[leaf, 3] * lv.LI[leaf, 5])
-        grown = np.empty(max(4 * len(cidx), need), dtype=np.int64)
-        grown[:nc] = cidx[:nc]
-        cidx = grown
+    cidx, nc = _emit_parallel(C, ts, lv, radius, reduce_radius, frame, (positions, normals, radii, ptr, ids))
     start, count, buf = _deduplicate(ptr, cidx[:nc])
     world = nf.mapped(frame.inverse)
     counters = lv.counters
@@ -516,6 +607,55 @@ def _emit(nf: NormalForm, C, ts: TaskSet, lv: _Leaves, radius: float, reduce_rad
         covered_by_neighbours=lv.by_neighbours,
     )
     return SampleCloud(positions, normals, ids, radii, start, count, buf, world_radius, world, stats, tr, frame)
+
+
+def _emit_leaves(C, ts: TaskSet, LF, LI, LA, radius, reduce_radius, frame: ModelFrame, out) -> tuple[np.ndarray, int]:
+    """Run ``kernel.emit_all`` over the leaves ``LF``, ``LI`` into ``out`` = (positions, normals, radii, ptr, ids)
+    from sample 0 on (``ptr[0]`` is left to the caller), growing the clip indices; return them and their count."""
+    positions, normals, radii, ptr, ids = out
+    cidx = np.empty(1 << 16, dtype=np.int64)
+    leaf = at = nc = 0
+    while True:  # samples straight into world coordinates
+        leaf, at, nc = emit_all(C, ts, LF, LI, LA, radius, reduce_radius, frame.center, frame.scale,
+                                positions, normals, radii, ptr, ids, cidx, leaf, at, nc)
+        if leaf >= len(LI):
+            return cidx, nc
+        need = nc + int(LI[leaf, 3] * LI[leaf, 5])
+        grown = np.empty(max(4 * len(cidx), need), dtype=np.int64)
+        grown[:nc] = cidx[:nc]
+        cidx = grown
+
+
+def _emit_parallel(C, ts: TaskSet, lv: _Leaves, radius, reduce_radius, frame: ModelFrame, out):
+    """Pass 2 on ``_threads()`` threads: consecutive chunks of leaves write their samples into their slice of the
+    outputs (a leaf's first sample is the running sum of the counts before it) and their clip indices into a
+    buffer of their own; the buffers are joined in order and each chunk's ``ptr`` shifted by the indices before
+    it -- the one-thread output bit for bit."""
+    threads = _threads()
+    counts = lv.LI[:, 3]
+    n_leaves = len(counts)
+    if threads == 1 or lv.samples < _PARALLEL_MIN_EMIT:
+        return _emit_leaves(C, ts, lv.LF, lv.LI, lv.LA, radius, reduce_radius, frame, out)
+    first = np.concatenate([[0], np.cumsum(counts)])
+    parts = 4 * threads
+    cuts = np.searchsorted(first, np.linspace(0, first[-1], parts + 1)[1:-1])
+    bounds = [0, *sorted(set(int(c) for c in cuts if 0 < c < n_leaves)), n_leaves]
+    positions, normals, radii, ptr, ids = out
+
+    def run(k):
+        l0, l1 = bounds[k], bounds[k + 1]
+        s0, s1 = first[l0], first[l1]
+        view = (positions[s0:s1], normals[s0:s1], radii[s0:s1], ptr[s0 : s1 + 1], ids[s0:s1])
+        return _emit_leaves(C, ts, lv.LF[l0:l1], lv.LI[l0:l1], lv.LA, radius, reduce_radius, frame, view)
+
+    with ThreadPoolExecutor(threads) as pool:
+        results = list(pool.map(run, range(len(bounds) - 1)))
+    at = 0
+    for k, (_, nc) in enumerate(results):
+        s0, s1 = first[bounds[k]], first[bounds[k + 1]]
+        ptr[s0 + 1 : s1 + 1] += at
+        at += nc
+    return np.concatenate([c[:nc] for c, nc in results]), at
 
 
 def _world_plane(ts: TaskSet, t: int, k: int, frame: ModelFrame):
