@@ -351,6 +351,27 @@ def test_a_small_view_of_a_dense_cloud_is_ray_traced_whole():
     assert not raytrace_is_cheaper(args, (120, 160), 64, 10, 1)  # 10 splats: no probe, splats win
 
 
+def test_verification_splats_every_tile():
+    """verify() and a viewer with a reference check the splats: a ray-traced tile would compare the reference with
+    itself and hide a hole (the thinned cloud of test_a_thinned_cloud_fails_the_check is caught either way)."""
+    from csgnb.csg.gallery import TABLE2
+
+    build, radii = TABLE2["perforated plate"]
+    shape = build()
+    cloud = sample_csg(shape, radii["large"])
+    cam = Camera.fit(cloud, 480, 270, azimuth=-60, elevation=35)
+    assert render(cloud, cam).stats.raytraced_tiles > 0
+    _, splats, _ = verify(cloud, cam, shape)
+    assert splats.stats.raytraced_tiles == 0
+    assert verify(cloud, cam, shape, fallback="auto")[1].stats.raytraced_tiles > 0
+    v = Viewer(cloud, cam, shape=shape, size=(480, 270))
+    v.update(reference=True)
+    assert v.frame.stats.raytraced_tiles == 0
+    plain = Viewer(cloud, cam, size=(480, 270))
+    plain.update()
+    assert plain.frame.stats.raytraced_tiles > 0 and "ray traced" in plain.label.value
+
+
 def test_fallback_is_off_where_the_picture_is_about_the_splats():
     shape, cloud = cloud_of("figure 15", 0.06)
     cam = Camera.fit(cloud, *SIZE)

@@ -146,7 +146,9 @@ def verify(cloud, camera, shape=None, **options):
     """Render ``cloud`` as splats and its shape with the reference; return (Agreement, splats, reference).
 
     shape : the CSG object the cloud should have been sampled from (default: the cloud's own
-    normal form); GeometryError if the cloud belongs to another shape. ``options`` go to ``render``.
+    normal form); GeometryError if the cloud belongs to another shape. ``options`` go to ``render``;
+    every tile is splatted (``fallback="never"``) unless they say otherwise: a ray-traced tile
+    would check the reference against itself and hide a hole in the cloud.
     """
     from csgnb.render.raytracer import raytrace
     from csgnb.render.scene import check_cloud, check_same_shape
@@ -154,6 +156,6 @@ def verify(cloud, camera, shape=None, **options):
 
     check_cloud(cloud)
     nf = cloud.normal_form if shape is None else check_same_shape(cloud, shape)
-    splats = render(cloud, camera, **options)
+    splats = render(cloud, camera, **{"fallback": "never", **options})
     reference = raytrace(nf, camera, color_by=options.get("color_by", "quadric"))
     return compare(splats, reference), splats, reference

@@ -37,7 +37,9 @@ class Viewer:
         (GeometryError if the cloud was sampled from another shape); ``reference=True`` uses the
         cloud's own normal form.
     size : (width, height) of each image.
-    render options (``footprint``, ``backface_culling``, ``color_by``, ...) go to ``render``.
+    render options (``footprint``, ``backface_culling``, ``color_by``, ``fallback``, ...) go to ``render``; with a
+    reference every tile is splatted (``fallback="never"``) unless they say otherwise, so that the difference
+    checks the splats, not the ray tracer against itself.
 
     ``viewer.widget`` is the ipywidgets box; displaying the viewer shows it. ``viewer.frame`` is
     the last splat frame, ``viewer.frame_ms`` its render time.
@@ -56,7 +58,7 @@ class Viewer:
             self.reference_shape = cloud.normal_form
         w, h = size
         self.camera = camera.with_size(w, h) if camera is not None else Camera.fit(cloud, w, h)
-        self.options = options
+        self.options = options if self.reference_shape is None else {"fallback": "never", **options}
         self.frame = None
         self.frame_ms = 0.0
         layout = widgets.Layout(width=f"{w}px", height=f"{h}px")
@@ -113,8 +115,11 @@ class Viewer:
         self.frame = self.renderer.render(self.camera, **self.options)
         self.frame_ms = 1e3 * (time.perf_counter() - t0)
         self.image.value = self.frame.png_bytes(fmt="jpeg")
-        text = (f"splats: {self.frame_ms:.1f} ms per frame ({self.frame.stats.covered} pixels, "
-                f"overdraw {self.frame.stats.overdraw:.1f})")
+        stats = self.frame.stats
+        text = f"splats: {self.frame_ms:.1f} ms per frame ({stats.covered} pixels, overdraw {stats.overdraw:.1f}"
+        if stats.raytraced_tiles:
+            text += f", {stats.raytraced_tiles} of {stats.tiles} tiles ray traced: cheaper there"
+        text += ")"
         if self.reference_shape is not None and reference:
             ref = raytrace(self.reference_shape, self.camera, color_by=self.options.get("color_by", "quadric"))
             self.reference_image.value = ref.png_bytes(fmt="jpeg")
