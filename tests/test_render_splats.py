@@ -432,3 +432,26 @@ def test_box_footprints_stay_inside_the_balls_rectangle():
         np.prod(sphere[drawn, 2:] - sphere[drawn, :2] + 1, axis=1))
     frames = [render(cloud, cam, footprint=f, fallback="never") for f in ("sphere", "box")]
     assert _identical(*frames) and frames[1].stats.fragments < frames[0].stats.fragments
+
+
+def test_splat_boxes_hold_the_surface_within_the_radius():
+    """Every point of a splat's quadric within r of its sample lies in its surface-aligned box (eq. 23 from the
+    quadric's eigenvalues): checked with the other samples of the same quadric, which are points on it."""
+    from scipy.spatial import cKDTree
+
+    for name in ("figure 2", "tour", "block"):
+        shape, cloud = cloud_of(name, 0.06)
+        centres, normals, radii, heights = SplatRenderer(cloud).splat_boxes()
+        assert np.allclose(np.linalg.norm(normals, axis=1), 1.0) and np.all(heights[:, 0] <= heights[:, 1])
+        tree = cKDTree(centres)
+        checked = 0
+        for k in range(0, len(centres), 7):
+            for j in tree.query_ball_point(centres[k], radii[k]):
+                if cloud.quadric_ids[j] != cloud.quadric_ids[k]:
+                    continue
+                d = centres[j] - centres[k]
+                h = d @ normals[k]
+                tol = 1e-9 * (1.0 + np.abs(centres[k]).max())
+                assert heights[k, 0] - tol <= h <= heights[k, 1] + tol, (name, k, j, h, heights[k])
+                checked += 1
+        assert checked > 1000, (name, checked)

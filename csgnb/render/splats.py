@@ -556,6 +556,14 @@ class SplatRenderer:
         self._memo = None
         self.last_plan = None
 
+    def splat_boxes(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Return each splat's surface-aligned box (§6.1, eq. 23): centres (n, 3), unit normals (n, 3), radii (n,)
+        and heights (n, 2) float64, the range of ``n · (p - s)`` over the points p of the splat's quadric within r
+        of its sample s (``[-max(λ_max, 0), -min(λ_min, 0)] · r² / |∇Q(s)|``, clamped to ±r). The box is
+        ``s + a t₁ + b t₂ + h n`` with |a|, |b| ≤ r and h in that range, t₁, t₂ any tangent frame."""
+        sd = self.SD
+        return sd[:, 0:3].copy(), sd[:, 4:7].copy(), sd[:, 3].copy(), sd[:, 8:10].copy()
+
     def _scratch(self, H: int, W: int):
         """Per-pixel memo buffers of the raster kernel, kept between frames of one size."""
         if self._memo is None or self._memo[0].shape != (H, W):
