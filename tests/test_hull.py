@@ -396,3 +396,20 @@ def test_face_rings_at_the_edges_of_their_paths(extent):
         assert np.array_equal(ring, on[H._polygon_order(L[on], N[j])])
     assert H._faces_close(L, N, h._d_local, S) and H._faces_close_py(L, N, S)
     assert h.volume() == (2 * V) ** 3
+
+
+def test_sorted_unique_planes_int64_path_is_the_python_order():
+    """The int64 fast path (np.unique over rows) gives the planes the Python-int path gives: the same set in the
+    same lexicographic order, duplicates dropped (the hull's facet order depends on it)."""
+    import numpy as np
+
+    from csgnb.mesh.hull import _sorted_unique_planes
+
+    rng = np.random.default_rng(3)
+    for trial in range(100):
+        n = int(rng.integers(1, 80))
+        N = rng.integers(-4, 5, (n, 3))
+        d = rng.integers(-3, 4, n) if trial % 2 else rng.integers(-(1 << 50), 1 << 50, n)
+        fast = _sorted_unique_planes(N, d)
+        slow = _sorted_unique_planes(N.astype(object), d.astype(object))
+        assert np.array_equal(fast[0], slow[0].astype(np.int64)) and np.array_equal(fast[1], slow[1].astype(np.int64))

@@ -572,6 +572,10 @@ def convex_hull(points, *, width: int | None = None, grid=None, name: str = "poi
 
 
 def _sorted_unique_planes(N: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The distinct planes (N, d) in lexicographic order of (a, b, c, d)."""
+    if N.dtype != object and d.dtype != object:  # np.unique sorts int64 rows lexicographically, as tuples sort
+        M = np.unique(np.column_stack([N.astype(np.int64), d.astype(np.int64)]), axis=0)
+        return M[:, :3], M[:, 3]
     rows = sorted({tuple(int(x) for x in r) + (int(e),) for r, e in zip(N, d, strict=True)})
     M = _maybe_int64(np.array(rows, dtype=object))
     return M[:, :3], M[:, 3]

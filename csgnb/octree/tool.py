@@ -63,6 +63,15 @@ def spread_order(normals):
     return order
 
 
+def _as_int64(values: np.ndarray, bound: int) -> np.ndarray | None:
+    """``values`` (Python ints) as int64 when every one is within ±``bound`` (< 2⁶³), else None."""
+    try:
+        small = values.astype(np.int64)
+    except OverflowError:
+        return None
+    return small if small.size == 0 or int(np.abs(small).max()) < bound else None
+
+
 def _object_planes(planes) -> np.ndarray:
     """(k, 4) object array of Python ints from int64 / object / wide planes."""
     if is_wide(planes):
@@ -134,9 +143,11 @@ class Tool:
         palette, vx, edge, poly = pieces_tuple(ex.store.planes.copy(), ex.out)
         sizes = poly[:, 1]
         offsets = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int32)
-        # import convention: edge j runs from vertex j - 1 to vertex j
-        edges = np.concatenate([np.roll(edge[s:s + k], 1) for s, k in zip(poly[:, 0], sizes, strict=True)]) \
-            if len(sizes) else np.zeros(0, np.int64)
+        # import convention: edge j runs from vertex j - 1 to vertex j: each polygon's edges rolled by one
+        first = np.repeat(poly[:, 0].astype(np.int64), sizes)
+        count = np.repeat(sizes.astype(np.int64), sizes)
+        local = np.arange(offsets[-1]) - np.repeat(offsets[:-1].astype(np.int64), sizes)
+        edges = edge[first + (local - 1) % count] if len(sizes) else np.zeros(0, np.int64)
         polygons = PolygonSet(poly[:, 2].astype(np.int32), offsets, edges.astype(np.int32))
         if not len(sizes):  # no boundary in its box (walls included): no material at all
             return cls("empty", np.zeros((0, 4), object), np.zeros(3, np.int64), np.zeros(3, np.int64), grid=grid)
@@ -175,8 +186,10 @@ class Tool:
         """The planes as a ``(k, 4)`` wide array (cached per width)."""
         if width not in self._wide:
             planes = self.planes
-            if planes.dtype == object and all(-(1 << 62) < v < (1 << 62) for v in planes.reshape(-1).tolist()):
-                planes = planes.astype(np.int64)  # the common case: to_wide's vectorised path, no Python ints
+            if planes.dtype == object:
+                small = _as_int64(planes, 1 << 62)
+                if small is not None:
+                    planes = small  # the common case: to_wide's vectorised path, no Python ints
             self._wide[width] = to_wide(planes, width)
         return self._wide[width]
 

@@ -79,7 +79,7 @@ from csgnb.octree.layout import (
     new_pool,
     new_tree_arrays,
 )
-from csgnb.octree.tool import Tool
+from csgnb.octree.tool import Tool, _as_int64
 from csgnb.octree.volume import CellVolumes, LocalChange, convex_change
 from csgnb.octree.workspace import ToolArrays, grow, new_workspace, with_palette
 
@@ -270,8 +270,13 @@ class Workpiece:
         """Append the tool's planes to the palette (checked against the width's budget); return their rows."""
         planes = tool.planes
         if planes.shape[0]:
-            N = max(self._max_normal, max(abs(int(x)) for x in planes[:, :3].reshape(-1)))
-            D = max(self._max_offset, max(abs(int(x)) for x in planes[:, 3]))
+            small = _as_int64(planes, 1 << 62)
+            if small is not None:  # the common case: no loop over Python ints
+                N = max(self._max_normal, int(np.abs(small[:, :3]).max()))
+                D = max(self._max_offset, int(np.abs(small[:, 3]).max()))
+            else:
+                N = max(self._max_normal, max(abs(int(x)) for x in planes[:, :3].reshape(-1)))
+                D = max(self._max_offset, max(abs(int(x)) for x in planes[:, 3]))
             problems = budget(self.width).plane_violations(N, D)
             if problems:
                 raise PrecisionError(f"the tool's planes break the {self.width}-bit budget together with the "
