@@ -210,3 +210,24 @@ def test_poses_and_rotations_are_checked():
         sweep.Pose((0, 0, 0), np.diag([1, 1, -1]))
     with pytest.raises(GeometryError):
         sweep.path_sweep(tools.flat_end_mill(2).on(GRID), [sweep.Pose((0, 0, 0))])
+
+
+def test_drill_step_tools_are_the_union_of_their_prisms_on_any_thread_count():
+    """DrillSweeps.tools builds step k's tool as the union of its prisms (exact volume against the single-BSP union),
+    the same tool on one thread and on two (the steps run in parallel)."""
+    from csgnb.octree import Workpiece
+
+    grid = Grid.from_resolution(1 / 32)
+    t = tools.twist_drill(profile_points=8, layers=4).on(grid)
+    ds = sweep.drill_sweeps(t, (0, 0, 0), steps=4, step_degrees=90, feed_per_turn=1.0)
+    one = ds.tools(grid, threads=1)
+    two = ds.tools(grid, threads=2, progress=True)
+    assert len(one) == len(two) == 4
+    for k, (a, b) in enumerate(zip(one, two, strict=True)):
+        assert a.kind == b.kind == "mesh"
+        assert np.array_equal(a.planes, b.planes) and np.array_equal(a.polygons.edges, b.polygons.edges)
+        w = Workpiece.empty(grid)
+        w |= a
+        assert w.volume() == sweep.union_hulls(ds.steps[k], width=grid.width).volume()
+    with pytest.raises(TypeError, match="threads"):
+        ds.tools(grid, threads=0)

@@ -21,13 +21,16 @@ what a workpiece subtracts (milling) or adds (the gear sweep of Figure 12):
 
 from __future__ import annotations
 
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 
+import numba
 import numpy as np
 
 from csgnb.apps.tools import GridTool
 from csgnb.errors import GeometryError
 from csgnb.mesh.hull import ConvexHull, small_hulls
+from csgnb.octree import Tool, Workpiece
 
 __all__ = [
     "DrillSweeps",
@@ -264,6 +267,61 @@ class DrillSweeps:
 
     def __len__(self) -> int:
         return len(self.steps)
+
+    def tools(self, grid, *, threshold: int | None = None, threads: int | None = None, progress: bool = False) -> list:
+        """Prepare each step's sweep as one :class:`csgnb.octree.Tool` (the union of its prisms), once.
+
+        Step k's tool is what ``work -= tool.translated(turn * feed)`` subtracts at global step
+        ``turn * len(self) + k`` (Figure 13's drill: 90 tools replayed turn after turn). The steps are
+        independent: they are built on ``threads`` threads (default: every core numba uses; the
+        Boolean kernels release the GIL), each tool the one a single thread builds.
+
+        Parameters
+        ----------
+        grid : csgnb.exact.Grid
+            The workpiece's grid (the prisms lie on it).
+        threshold : int, optional
+            Octree split threshold of the scratch workpiece each union runs in (default: the workpiece's).
+        threads : int, optional
+        progress : bool
+            A tqdm bar over the steps.
+
+        Returns
+        -------
+        list of csgnb.octree.Tool, one per step
+        """
+        if threads is None:
+            threads = numba.get_num_threads()
+        if not isinstance(threads, int | np.integer) or isinstance(threads, bool) or threads < 1:
+            raise TypeError(f"threads must be a positive integer, got {threads!r}")
+        options = {} if threshold is None else {"threshold": threshold}
+
+        def build(k: int):
+            swept = Workpiece.empty(grid, **options)
+            for hull in self.steps[k]:
+                swept |= hull
+            return Tool.from_bsp(swept.to_bsp(), grid=grid)
+
+        bar = None
+        if progress:
+            from tqdm.auto import tqdm
+
+            bar = tqdm(total=len(self.steps), desc="drill sweeps", unit="step")
+
+        def counted(k: int):
+            tool = build(k)
+            if bar is not None:
+                bar.update(1)
+            return tool
+
+        try:
+            if threads == 1:
+                return [counted(k) for k in range(len(self.steps))]
+            with ThreadPoolExecutor(int(threads)) as pool:
+                return list(pool.map(counted, range(len(self.steps))))
+        finally:
+            if bar is not None:
+                bar.close()
 
     def step(self, i: int) -> list[ConvexHull]:
         """The prisms of global step ``i`` (turn ``i // len(self)``): step ``i % len`` moved by turn x feed."""
