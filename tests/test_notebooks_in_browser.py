@@ -269,10 +269,19 @@ def _slider(page, cell, slider, describe):
     readout = slider.locator(".widget-readout").first
 
     def act():
-        old = readout.inner_text()
+        # one key press, towards the side with room: read from the handle's ARIA values (noUiSlider), not from a
+        # readout that may update late on a busy machine -- pressing right, then left after a slow readout, put the
+        # slider back where it was ("its output did not change", once in CI)
+        now, top = handle.get_attribute("aria-valuenow"), handle.get_attribute("aria-valuemax")
         handle.focus()
+        if now is not None and top is not None:
+            page.keyboard.press("ArrowLeft" if float(now) >= float(top) else "ArrowRight")
+            return
+        old = readout.inner_text()
         page.keyboard.press("ArrowRight")
-        page.wait_for_timeout(200)
+        deadline = time.monotonic() + 10
+        while readout.inner_text() == old and time.monotonic() < deadline:
+            page.wait_for_timeout(200)
         if readout.inner_text() == old:  # at the maximum: go the other way
             page.keyboard.press("ArrowLeft")
 
