@@ -108,12 +108,31 @@ def _sampling() -> None:
     sample_csg(solid, 0.2, distortion="sqrt3", refine=False)
 
 
+def _render() -> None:
+    import csgnb.csg as csg
+    from csgnb.render import Camera, SplatRenderer, compare, raytrace, render
+    from csgnb.sampling import sample_csg
+
+    solid = csg.sphere((0, 0, 0), 1.0, "A") - csg.box((0.2, -2, -2), (2, 2, 2), "B")
+    cloud = sample_csg(solid, 0.3)
+    for projection in ("perspective", "orthographic"):
+        cam = Camera.fit(cloud, 48, 32, projection=projection)
+        reference = raytrace(solid, cam)
+        for footprint in ("box", "sphere"):
+            compare(render(cloud, cam, footprint=footprint, fallback="never"), reference)
+        render(cloud, cam, local="disc", clip=False, color_by="overdraw")
+        render(cloud, cam, fallback="always")
+        # the per-tile plan probes tiles whose splats would cost more: large splats on a small screen
+        SplatRenderer(sample_csg(solid, 1.0)).render(cam.with_size(256, 192), color_by="normal")
+
+
 #: The parts :func:`warm_up` knows, in the order of the two pipelines.
-PARTS = {"exact": _exact, "mesh": _mesh, "bsp": _bsp, "octree": _octree, "quadric": _quadric, "sampling": _sampling}
+PARTS = {"exact": _exact, "mesh": _mesh, "bsp": _bsp, "octree": _octree, "quadric": _quadric, "sampling": _sampling,
+         "render": _render}
 
 
 #: The two pipelines share no kernel: their parts compile in parallel processes.
-TRACKS = (("exact", "mesh", "bsp", "octree"), ("quadric", "sampling"))
+TRACKS = (("exact", "mesh", "bsp", "octree"), ("quadric", "sampling", "render"))
 
 
 def _warm_parts(names: list[str]) -> dict[str, float]:

@@ -11,8 +11,8 @@ def test_warm_up_returns_the_seconds_per_part():
 
 
 def test_unknown_parts_are_named_in_the_error():
-    with pytest.raises(ValueError, match=r"\['render'\].*exact"):
-        warmup.warm_up("exact", "render")
+    with pytest.raises(ValueError, match=r"\['rendering'\].*exact"):
+        warmup.warm_up("exact", "rendering")
 
 
 def test_command_line_rejects_unknown_parts(capsys):
