@@ -61,6 +61,7 @@ __all__ = [
     "trailing_zeros",
     "fma",
     "half_ulp",
+    "cross_sign",
 ]
 
 
@@ -554,6 +555,25 @@ def trailing_zeros(typingctx, x):
         return builder.call(f, [args[0], ir.Constant(ir.IntType(1), 0)])
 
     return types.int64(x), codegen
+
+
+@intrinsic
+def cross_sign(typingctx, a, b, c, d):
+    """Sign (-1, 0, 1) of ``a·b - c·d`` for int64 operands, computed in ``i128``: exact for every int64 input
+    (each product is below 2**126 in magnitude, their difference below 2**127)."""
+    if not (a == b == c == d == types.int64):
+        raise TypingError(f"cross_sign: expected four int64, got {a}, {b}, {c}, {d}")
+
+    def codegen(context, builder, sig, args):
+        T = _T(128)
+        x, y, z, w = (builder.sext(v, T) for v in args)
+        value = builder.sub(builder.mul(x, y), builder.mul(z, w))
+        zero = ir.Constant(T, 0)
+        pos = builder.zext(builder.icmp_signed(">", value, zero), I64)
+        neg = builder.zext(builder.icmp_signed("<", value, zero), I64)
+        return builder.sub(pos, neg)
+
+    return types.int64(a, b, c, d), codegen
 
 
 @intrinsic

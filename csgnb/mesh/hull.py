@@ -36,6 +36,7 @@ import numpy as np
 from csgnb._jit import jit
 from csgnb.errors import GeometryError, InternalError
 from csgnb.exact.budgets import check_mesh_points
+from csgnb.exact.intrinsics import cross_sign
 from csgnb.exact.wide import DEFAULT_WIDTH, to_wide
 
 __all__ = ["BRUTE_FORCE_POINTS", "ConvexHull", "convex_hull", "small_hulls"]
@@ -115,49 +116,64 @@ def _polygon_order(L: np.ndarray, normal) -> np.ndarray:
     return np.array(ring, np.int64)
 
 
-_RING_SAFE = 1 << 28
-"""Local coordinates below this keep the face kernels' 2-D keys and cross products (~2·E²) exact in int64."""
+_RING_SAFE = 1 << 62
+"""Local coordinates below this keep the face kernels' coordinate differences in int64 (their 2-D cross products
+are taken in i128: :func:`csgnb.exact.intrinsics.cross_sign`)."""
+
+
+def _ring_inputs(N: np.ndarray, S: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """What :func:`_face_rings` needs from facet normals ``N`` (k, 3) and signed values ``S`` (n, k), int64 or
+    Python ints: ``on`` (n, k) bool (the point lies on the facet), ``ax`` (k,) int64 (the normal's dominant
+    axis, the first of equals, as Python's ``max``) and ``flip`` (k,) bool (that component is negative)."""
+    on = np.asarray(S == 0, dtype=np.bool_)
+    absN = np.abs(N)
+    ax = np.zeros(N.shape[0], np.int64)
+    for c in (1, 2):  # strictly greater: the first of equals wins
+        ax = np.where(np.asarray(absN[:, c] > absN[np.arange(N.shape[0]), ax], dtype=np.bool_), c, ax)
+    flip = np.asarray(N[np.arange(N.shape[0]), ax] < 0, dtype=np.bool_)
+    return np.ascontiguousarray(on), ax, flip
 
 
 @jit
-def _face_rings(L, N, S):
+def _face_rings(L, on, ax, flip):
     """Every facet's polygon, as :func:`_polygon_order` orders it, for int64 points in one compiled pass.
 
-    ``L`` (n, 3) int64 local points, ``N`` (k, 3) int64 facet normals, ``S`` (n, k) int64 signed values
-    (0 = on the facet), with every ``|L| < _RING_SAFE``. Returns ``offsets`` (k + 1,) int64 and ``ring``
-    int64: facet j's vertices are ``ring[offsets[j]:offsets[j + 1]]`` (fewer than three when its points
-    are collinear).
+    ``L`` (n, 3) int64 local points (every ``|L| < _RING_SAFE``); ``on``, ``ax``, ``flip`` from
+    :func:`_ring_inputs`. Returns ``offsets`` (k + 1,) int64 and ``ring`` int64: facet j's vertices are
+    ``ring[offsets[j]:offsets[j + 1]]`` (fewer than three when its points are collinear). Points are sorted
+    by their projected (u, v) coordinates (two stable sorts) and Andrew's monotone chain decides with exact
+    i128 cross products.
     """
-    n, k = S.shape
+    n, k = on.shape
     total = 0
     for j in range(k):
         for i in range(n):
-            if S[i, j] == 0:
+            if on[i, j]:
                 total += 1
     ring = np.empty(total, np.int64)
     offsets = np.zeros(k + 1, np.int64)
-    on = np.empty(n, np.int64)
+    pts = np.empty(n, np.int64)
     key = np.empty(n, np.int64)
     chain = np.empty(2 * n + 2, np.int64)
     pos = 0
     for j in range(k):
-        ax = 0  # the dominant axis, the first of equals (as Python's max)
-        if abs(N[j, 1]) > abs(N[j, ax]):
-            ax = 1
-        if abs(N[j, 2]) > abs(N[j, ax]):
-            ax = 2
-        u, v = (ax + 1) % 3, (ax + 2) % 3
+        u, v = (ax[j] + 1) % 3, (ax[j] + 2) % 3
         m = 0
         for i in range(n):
-            if S[i, j] == 0:
-                on[m] = i
-                key[m] = (L[i, u] + _RING_SAFE) * (2 * _RING_SAFE + 1) + (L[i, v] + _RING_SAFE)
+            if on[i, j]:
+                pts[m] = i
                 m += 1
+        for t in range(m):  # lexicographic (u, v): by v, then stably by u
+            key[t] = L[pts[t], v]
         order = np.argsort(key[:m], kind="mergesort")
-        pts = on[:m][order]
+        by_v = pts[:m][order]
+        for t in range(m):
+            key[t] = L[by_v[t], u]
+        order = np.argsort(key[:m], kind="mergesort")
+        sorted_pts = by_v[order]
         if m < 3:
             for t in range(m):
-                ring[pos + t] = pts[t]
+                ring[pos + t] = sorted_pts[t]
             pos += m
             offsets[j + 1] = pos
             continue
@@ -165,17 +181,16 @@ def _face_rings(L, N, S):
         for sweep in range(2):  # the lower chain over sorted points, then the upper one over them reversed
             base = c
             for t in range(m):
-                p = pts[t] if sweep == 0 else pts[m - 1 - t]
+                p = sorted_pts[t] if sweep == 0 else sorted_pts[m - 1 - t]
                 while c - base >= 2:
                     a, b = chain[c - 2], chain[c - 1]
-                    cross = (L[b, u] - L[a, u]) * (L[p, v] - L[a, v]) - (L[b, v] - L[a, v]) * (L[p, u] - L[a, u])
-                    if cross > 0:
+                    if cross_sign(L[b, u] - L[a, u], L[p, v] - L[a, v], L[b, v] - L[a, v], L[p, u] - L[a, u]) > 0:
                         break
                     c -= 1
                 chain[c] = p
                 c += 1
             c -= 1  # each chain's last point starts the other
-        if N[j, ax] < 0:
+        if flip[j]:
             for t in range(c):
                 ring[pos + t] = chain[c - 1 - t]
         else:
@@ -210,9 +225,9 @@ def _rings_close(offsets, ring, n):
     return True
 
 
-def _rings_fit_int64(L: np.ndarray, N: np.ndarray, S: np.ndarray) -> bool:
-    return L.dtype != object and N.dtype != object and S.dtype != object and \
-        int(np.abs(L).max(initial=0)) < _RING_SAFE
+def _rings_fit_int64(L: np.ndarray) -> bool:
+    """Whether the compiled face kernels take these local points (int64, every coordinate below _RING_SAFE)."""
+    return L.dtype != object and int(np.abs(L).max(initial=0)) < _RING_SAFE
 
 
 class ConvexHull:
@@ -295,8 +310,8 @@ class ConvexHull:
     @cached_property
     def _faces_local(self) -> list[np.ndarray]:
         S = self._side(self._candidates)
-        if _rings_fit_int64(self._candidates, self._normals, S):
-            offsets, ring = _face_rings(self._candidates, self._normals, S)
+        if _rings_fit_int64(self._candidates):
+            offsets, ring = _face_rings(self._candidates, *_ring_inputs(self._normals, S))
             return [ring[offsets[j]:offsets[j + 1]] for j in range(self.n_planes)]
         faces = []
         for j in range(self.n_planes):
@@ -603,8 +618,8 @@ def _enumerate_facets(L: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 def _faces_close(L: np.ndarray, N: np.ndarray, d: np.ndarray, S: np.ndarray) -> bool:
     """Whether the faces of these supporting planes form a closed surface (every edge once each way)."""
-    if _rings_fit_int64(L, N, S):
-        offsets, ring = _face_rings(L, N, S)
+    if _rings_fit_int64(L):
+        offsets, ring = _face_rings(L, *_ring_inputs(N, S))
         return bool(_rings_close(offsets, ring, L.shape[0]))
     return _faces_close_py(L, N, S)
 
