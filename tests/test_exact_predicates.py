@@ -4,11 +4,13 @@ from fractions import Fraction
 
 import numpy as np
 import pytest
-from hypothesis import assume, given
+from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
 from csgnb import GeometryError, PrecisionError, exact
+from csgnb._jit import jit
 from csgnb.exact import budget, integer_root
+from csgnb.exact.intrinsics import cross_sign
 from tests.exact_reference import cross, det3, side, solve_3_planes
 
 WIDTHS = exact.WIDTHS
@@ -326,3 +328,19 @@ def test_broadcasting_and_shapes():
     assert exact.classify_vertex(x[None], planes_).tolist() == [0, 0, 0, 0]
     with pytest.raises(ValueError, match="cannot broadcast"):
         exact.classify_vertex(np.stack([x, x, x]), planes_[:2])
+
+
+@jit
+def _cross_sign_of(a, b, c, d):
+    return cross_sign(a, b, c, d)
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.lists(st.integers(-(2**63), 2**63 - 1), min_size=4, max_size=4), st.booleans())
+def test_cross_sign_is_exact_over_all_int64(values, tie):
+    """sign(a·b - c·d) in i128 against Python integers, extremes and exact ties included."""
+    a, b, c, d = values
+    if tie:
+        c, d = b, a  # a·b - b·a = 0
+    exact = a * b - c * d
+    assert _cross_sign_of(a, b, c, d) == (exact > 0) - (exact < 0)

@@ -11,6 +11,7 @@
 
 from __future__ import annotations
 
+import numba
 import numpy as np
 import pytest
 from scipy.spatial import cKDTree
@@ -443,6 +444,8 @@ def _cloud_arrays(cloud):
     return arrays
 
 
+@pytest.mark.skipif(numba.config.DISABLE_JIT, reason="pure-Python sampling of 100,000+ samples takes minutes; "
+                    "the joins are the same code in the jitted run")
 @pytest.mark.parametrize(("name", "splat", "trace"), [
     ("perforated plate", "medium", False), ("block", "small", False), ("spheres", "small", True),
     ("slotted cylinder", "small", True)])
@@ -450,8 +453,6 @@ def test_two_threads_give_the_one_thread_samples_bit_for_bit(name, splat, trace,
     """Both passes run over chunks of jobs / leaves on all threads and join their buffers in order: every array
     of the cloud (and of its trace) must be the one-thread result, bit for bit."""
     import dataclasses
-
-    import numba
 
     import csgnb.sampling.sampler as sampler
     from csgnb.csg.gallery import TABLE2
