@@ -413,3 +413,31 @@ def test_sorted_unique_planes_int64_path_is_the_python_order():
         fast = _sorted_unique_planes(N, d)
         slow = _sorted_unique_planes(N.astype(object), d.astype(object))
         assert np.array_equal(fast[0], slow[0].astype(np.int64)) and np.array_equal(fast[1], slow[1].astype(np.int64))
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.sampled_from([2 * 10**5, 10**7, 8 * 10**7]), st.integers(8, 80))
+def test_wide_qhull_path_equals_the_python_int_path(seed, extent, n):
+    """On wide grids the facets' offsets are Python ints and every sign of a point against a facet is taken in i128
+    (_side_signs) instead of from an (n, k) matrix of Python ints: the same planes, in the same order, and the
+    same signs as the Python-integer computation."""
+    from csgnb.mesh import hull as H
+
+    rng = np.random.default_rng(seed)
+    P = np.unique(rng.integers(-extent, extent + 1, (n, 3)), axis=0)
+    L = P - P[0]
+    basis = H._independent(L)
+    if basis is None:
+        return
+    wide = H._qhull_facets(L, basis)
+    slow = H._qhull_facets(L.astype(object), basis)  # object points: the Python-integer path throughout
+    assert (wide is None) == (slow is None)
+    if wide is None:
+        return
+    assert [list(map(int, r)) for r in wide[0]] == [list(map(int, r)) for r in slow[0]]
+    assert [int(v) for v in wide[1]] == [int(v) for v in slow[1]]
+    N, d = wide
+    exact = H._object(L) @ H._object(N).T + H._object(d)[None, :]
+    if H._signs_fit(int(np.abs(L).max()), np.asarray(N, np.int64), d):
+        signs = H._side_signs(L.astype(np.int64), np.asarray(N, np.int64), *H._split_offsets(d))
+        assert np.array_equal(signs, np.sign(exact).astype(np.int8))

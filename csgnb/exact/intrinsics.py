@@ -62,6 +62,7 @@ __all__ = [
     "fma",
     "half_ulp",
     "cross_sign",
+    "plane_side_sign",
 ]
 
 
@@ -574,6 +575,27 @@ def cross_sign(typingctx, a, b, c, d):
         return builder.sub(pos, neg)
 
     return types.int64(a, b, c, d), codegen
+
+
+@intrinsic
+def plane_side_sign(typingctx, n0, n1, n2, x0, x1, x2, dh, dl):
+    """Sign (-1, 0, 1) of ``n·x + dh·2**62 + dl`` for int64 operands, computed in ``i128``: exact when
+    ``|n·x| < 2**125`` and ``|dh·2**62 + dl| < 2**125`` (a plane offset split into a high and a low part)."""
+    if not all(t == types.int64 for t in (n0, n1, n2, x0, x1, x2, dh, dl)):
+        raise TypingError("plane_side_sign: expected eight int64")
+
+    def codegen(context, builder, sig, args):
+        T = _T(128)
+        a0, a1, a2, b0, b1, b2, h, lo = (builder.sext(v, T) for v in args)
+        value = builder.add(builder.mul(a0, b0), builder.mul(a1, b1))
+        value = builder.add(value, builder.mul(a2, b2))
+        value = builder.add(value, builder.add(builder.shl(h, ir.Constant(T, 62)), lo))
+        zero = ir.Constant(T, 0)
+        pos = builder.zext(builder.icmp_signed(">", value, zero), I64)
+        neg = builder.zext(builder.icmp_signed("<", value, zero), I64)
+        return builder.sub(pos, neg)
+
+    return types.int64(n0, n1, n2, x0, x1, x2, dh, dl), codegen
 
 
 @intrinsic

@@ -36,7 +36,7 @@ import numpy as np
 from csgnb._jit import jit
 from csgnb.errors import GeometryError, InternalError
 from csgnb.exact.budgets import check_mesh_points
-from csgnb.exact.intrinsics import cross_sign
+from csgnb.exact.intrinsics import cross_sign, plane_side_sign
 from csgnb.exact.wide import DEFAULT_WIDTH, to_wide
 
 __all__ = ["BRUTE_FORCE_POINTS", "ConvexHull", "convex_hull", "small_hulls"]
@@ -201,6 +201,40 @@ def _face_rings(L, on, ax, flip):
     return offsets, ring[:pos]
 
 
+_SIDE_SAFE = 1 << 123
+"""Bound on |n·x| and |d| under which :func:`_side_signs` sums them exactly in i128."""
+
+
+def _split_offsets(d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Plane offsets (int64 or Python ints) as ``(high, low)`` int64 with ``d = high·2**62 + low``, 0 ≤ low < 2**62."""
+    if d.dtype != object:
+        d = d.astype(np.int64)
+        return d >> 62, d & ((1 << 62) - 1)
+    return (np.array([int(v) >> 62 for v in d], np.int64),
+            np.array([int(v) & ((1 << 62) - 1) for v in d], np.int64))
+
+
+def _signs_fit(E: int, N: np.ndarray, d: np.ndarray) -> bool:
+    """Whether :func:`_side_signs` takes local points of extent E against planes (N, d): int64 normals, and the
+    terms n·x and d below _SIDE_SAFE."""
+    if N.dtype == object or E >= (1 << 62):
+        return False
+    n = int(np.abs(N).max(initial=0))
+    D = max((abs(int(v)) for v in d), default=0) if d.dtype == object else int(np.abs(d).max(initial=0))
+    return 3 * n * E < _SIDE_SAFE and D < _SIDE_SAFE
+
+
+@jit
+def _side_signs(L, N, dh, dl):
+    """(n, k) int8 signs of ``N[j]·L[i] + d[j]`` (d split by :func:`_split_offsets`), exact in i128."""
+    n, k = L.shape[0], N.shape[0]
+    out = np.empty((n, k), np.int8)
+    for i in range(n):
+        for j in range(k):
+            out[i, j] = plane_side_sign(N[j, 0], N[j, 1], N[j, 2], L[i, 0], L[i, 1], L[i, 2], dh[j], dl[j])
+    return out
+
+
 @jit
 def _rings_close(offsets, ring, n):
     """Whether the polygons ``ring[offsets[j]:offsets[j + 1]]`` over ``n`` points form a closed surface:
@@ -309,7 +343,11 @@ class ConvexHull:
 
     @cached_property
     def _faces_local(self) -> list[np.ndarray]:
-        S = self._side(self._candidates)
+        L = self._candidates
+        if L.dtype != object and _signs_fit(int(np.abs(L).max(initial=0)), self._normals, self._d_local):
+            S = _side_signs(L.astype(np.int64), self._normals.astype(np.int64), *_split_offsets(self._d_local))
+        else:
+            S = self._side(L)
         if _rings_fit_int64(self._candidates):
             offsets, ring = _face_rings(self._candidates, *_ring_inputs(self._normals, S))
             return [ring[offsets[j]:offsets[j + 1]] for j in range(self.n_planes)]
@@ -650,6 +688,8 @@ def _qhull_facets(L: np.ndarray, basis: np.ndarray) -> tuple[np.ndarray, np.ndar
     except (QhullError, ValueError):
         return None
     E = int(np.abs(L).max(initial=0))
+    if L.dtype != object and _arith(E, 48) is not np.int64 and 8 * E * E < _INT64_SAFE:
+        return _qhull_facets_wide(L.astype(np.int64), simplices, basis, E)
     A = L.astype(_arith(E, 48))
     N = _cross(A[simplices[:, 1]] - A[simplices[:, 0]], A[simplices[:, 2]] - A[simplices[:, 0]])
     d = -np.sum(N * A[simplices[:, 0]], axis=1)
@@ -663,6 +703,29 @@ def _qhull_facets(L: np.ndarray, basis: np.ndarray) -> tuple[np.ndarray, np.ndar
     N, d = _sorted_unique_planes(N, d)
     S = (A @ N.T + d[None, :]) if N.dtype != object and A.dtype != object else \
         _object(L) @ _object(N).T + _object(d)[None, :]
+    if np.any(S > 0) or not _faces_close(L, N, d, S):
+        return None
+    return N, d
+
+
+def _qhull_facets_wide(L: np.ndarray, simplices: np.ndarray, basis: np.ndarray, E: int):
+    """:func:`_qhull_facets` for points whose normals fit int64 but whose signed values do not (wide grids): the
+    offsets in Python ints (one per facet), every sign of a point against a facet in i128 (:func:`_side_signs`)
+    instead of an (n, k) matrix of Python ints."""
+    N = _cross(L[simplices[:, 1]] - L[simplices[:, 0]], L[simplices[:, 2]] - L[simplices[:, 0]])
+    anchor = _object(L[simplices[:, 0]])
+    d = -np.sum(_object(N) * anchor, axis=1)
+    c4 = L[basis].sum(axis=0)[None, :]  # 4x the centroid of four independent points (strictly inside)
+    if not _signs_fit(4 * E, N, 4 * d):
+        return None
+    s = _side_signs(c4, N, *_split_offsets(4 * d))[0]
+    if np.any(s == 0):
+        return None
+    flip = np.where(s > 0, -1, 1)
+    N, d = _reduce_planes(N * flip[:, None], d * _object(flip))
+    N, d = _sorted_unique_planes(N, d)
+    N = N.astype(np.int64)
+    S = _side_signs(L, N, *_split_offsets(d))
     if np.any(S > 0) or not _faces_close(L, N, d, S):
         return None
     return N, d
