@@ -10,7 +10,7 @@ from hypothesis import strategies as st
 from csgnb import GeometryError, PrecisionError, exact
 from csgnb._jit import jit
 from csgnb.exact import budget, integer_root
-from csgnb.exact.intrinsics import cross_sign
+from csgnb.exact.intrinsics import cross_sign, plane_side_sign
 from tests.exact_reference import cross, det3, side, solve_3_planes
 
 WIDTHS = exact.WIDTHS
@@ -335,6 +335,11 @@ def _cross_sign_of(a, b, c, d):
     return cross_sign(a, b, c, d)
 
 
+@jit
+def _plane_side_sign_of(n0, n1, n2, x0, x1, x2, dh, dl):
+    return plane_side_sign(n0, n1, n2, x0, x1, x2, dh, dl)
+
+
 @settings(max_examples=300, deadline=None)
 @given(st.lists(st.integers(-(2**63), 2**63 - 1), min_size=4, max_size=4), st.booleans())
 def test_cross_sign_is_exact_over_all_int64(values, tie):
@@ -344,3 +349,16 @@ def test_cross_sign_is_exact_over_all_int64(values, tie):
         c, d = b, a  # a·b - b·a = 0
     exact = a * b - c * d
     assert _cross_sign_of(a, b, c, d) == (exact > 0) - (exact < 0)
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.lists(st.integers(-(2**60), 2**60), min_size=6, max_size=6), st.integers(-(2**122), 2**122),
+       st.booleans())
+def test_plane_side_sign_is_exact_within_its_bounds(nx, offset, on_plane):
+    """sign(n·x + d) in i128, the offset split as the hull splits it (high·2**62 + low, 0 <= low < 2**62), against
+    Python integers; points exactly on the plane give 0."""
+    n, x = nx[:3], nx[3:]
+    if on_plane:
+        offset = -sum(a * b for a, b in zip(n, x, strict=True))
+    value = sum(a * b for a, b in zip(n, x, strict=True)) + offset
+    assert _plane_side_sign_of(*n, *x, offset >> 62, offset & ((1 << 62) - 1)) == (value > 0) - (value < 0)
