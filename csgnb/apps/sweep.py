@@ -296,29 +296,25 @@ class DrillSweeps:
             raise TypeError(f"threads must be a positive integer, got {threads!r}")
         options = {} if threshold is None else {"threshold": threshold}
 
-        def build(k: int):
-            swept = Workpiece.empty(grid, **options)
-            for hull in self.steps[k]:
-                swept |= hull
-            return Tool.from_bsp(swept.to_bsp(), grid=grid)
-
         bar = None
         if progress:
             from tqdm.auto import tqdm
 
             bar = tqdm(total=len(self.steps), desc="drill sweeps", unit="step")
 
-        def counted(k: int):
-            tool = build(k)
+        def build(k: int):
+            swept = Workpiece.empty(grid, **options)
+            for hull in self.steps[k]:
+                swept |= hull
             if bar is not None:
                 bar.update(1)
-            return tool
+            return Tool.from_bsp(swept.to_bsp(), grid=grid)
 
         try:
             if threads == 1:
-                return [counted(k) for k in range(len(self.steps))]
+                return [build(k) for k in range(len(self.steps))]
             with ThreadPoolExecutor(int(threads)) as pool:
-                return list(pool.map(counted, range(len(self.steps))))
+                return list(pool.map(build, range(len(self.steps))))
         finally:
             if bar is not None:
                 bar.close()

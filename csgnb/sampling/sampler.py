@@ -12,6 +12,7 @@ import threading
 import time
 from concurrent.futures import ThreadPoolExecutor
 
+import numba
 import numpy as np
 
 from csgnb.csg.bounds import box_is_empty, surface_boxes, term_boxes
@@ -416,14 +417,12 @@ def _new_buffers(jobs: int, trace: bool, expected: float = 0.0) -> list:
 
 def _threads() -> int:
     """Threads for the sampler's passes: numba's setting (``NUMBA_NUM_THREADS``, ``numba.set_num_threads``)."""
-    import numba
-
     return max(1, numba.get_num_threads())
 
 
 def _job_chunks(weights: np.ndarray, parts: int) -> list[tuple[int, int]]:
     """Split jobs ``0:len(weights)`` into consecutive ranges of about ``sum / parts`` estimated work each (a job
-    heavier than that alone): enough pieces for two threads to balance, given the heaviest first."""
+    heavier than that alone): enough pieces for the threads to balance a misestimate."""
     n = len(weights)
     if parts <= 1 or n == 0:
         return [(0, n)]
@@ -457,7 +456,8 @@ def _parallel_pass(C, ts: TaskSet, radius, min_size, sqrt3, refine, trace, range
         _pass(C, ts, radius, min_size, sqrt3, refine, trace, True, ranges, bar, bufs, max_samples)
         return bufs
     chunks = _job_chunks(weights, 16 * threads)
-    if bar is not None:
+    if bar is not None:  # the bar counts chunks of jobs now, not quadrics
+        bar.unit = "chunk"
         bar.reset(total=len(chunks) + 1)
     workers = [_new_buffers(jobs // threads, trace, 0.5 * float(weights.sum()) / threads) for _ in range(threads)]
     spans: list = [None] * len(chunks)
