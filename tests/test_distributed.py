@@ -390,6 +390,93 @@ def test_sharded_workpiece_fuzz(client, seed, shards, batch):
         assert s.calls < s.messages  # Booleans travelled several to a message
 
 
+@pytest.mark.parametrize("shards", [2, 8])
+def test_shards_on_threads_equal_one_workpiece(single, shards, tmp_path):
+    """``client=None``: the shards on threads of this process give the single workpiece's volumes after every
+    Boolean, its labels (points on the shards' walls included) and its surface; a checkpoint loads back."""
+    from csgnb.distributed.sharded import ShardedWorkpiece
+    from csgnb.octree import Workpiece
+
+    w, volumes = single
+    with ShardedWorkpiece(Workpiece.box([-16, -16, -16], [16, 16, 16]), None, shards) as s:
+        assert "threads" in repr(s)
+        assert s.volume() == volumes[0]
+        for (tool, fn), v in zip(_sequence(), volumes[1:], strict=True):
+            s.boolean(tool, fn)
+            assert s.volume() == v
+        pts = _points()
+        assert s.classify(pts).tolist() == w.classify(pts).tolist()
+        _same_surface(s, w)
+        assert sum(st["applied"] for st in s.stats()) == s.messages
+        back = ShardedWorkpiece.load(s.save(tmp_path / "saved", step=5))
+    with back:
+        assert back.step == 5 and back.client is None
+        assert back.volume() == volumes[-1]
+        assert back.classify(pts).tolist() == w.classify(pts).tolist()
+
+
+@pytest.mark.parametrize("seed, shards", [(4, 2), (5, (2, 2, 1)), (6, 8)])
+def test_shards_on_threads_fuzz(seed, shards):
+    """Random sequences handed to the shards' threads without waiting: volume, labels of random points and of
+    points on every wall, and the surface equal one workpiece's."""
+    import numpy as np
+
+    from csgnb.distributed.sharded import ShardedWorkpiece
+    from csgnb.octree import Workpiece
+
+    seq = _random_sequence(seed, 30)
+    w = Workpiece.box([-12, -12, -12], [12, 12, 12], threshold=12)
+    with ShardedWorkpiece(Workpiece.box([-12, -12, -12], [12, 12, 12], threshold=12), None, shards) as s:
+        for tool, fn in seq:
+            w.boolean(tool, fn)
+            s.boolean(tool, fn)
+        assert s.volume() == w.volume()
+        rng = np.random.default_rng(seed)
+        pts = rng.integers(-20, 21, (400, 3))
+        walls = rng.integers(-20, 21, (300, 3))
+        walls[:100, 0] = 0
+        walls[100:200, 1] = 0
+        walls[200:, :2] = 0  # on two walls at once
+        for p in (pts, walls):
+            assert s.classify(p).tolist() == w.classify(p).tolist()
+        _same_surface(s, w)
+
+
+def test_a_shard_reads_points_on_its_walls_from_its_own_side():
+    """A workpiece changed only inside a box (``within=``) is stale beyond it: points on the box's faces read with
+    ``box_face_sides`` get the labels of the workpiece that saw every change; read both ways, some do not."""
+    import numpy as np
+
+    from csgnb.bsp.solid import DIFFERENCE
+    from csgnb.bsp.tree import box_face_sides
+    from csgnb.errors import GeometryError
+    from csgnb.exact import homogeneous_points
+    from csgnb.mesh.hull import convex_hull
+    from csgnb.octree import Workpiece
+
+    lo, hi = np.array([-16, -16, -16]), np.array([0, 16, 16])
+    slab = convex_hull(np.array([[x, y, z] for x in (-4, 6) for y in (-6, 6) for z in (-6, 20)]))
+    tet = np.array([[0, 0, 0], [3, 0, 0], [0, 3, 0], [0, 0, 3]])
+    dents = [convex_hull(tet + [x, y, z]) for x in (-9, -5, 2, 6) for y in (-9, 7) for z in (-9, 7)]
+    whole = Workpiece.box([-12, -12, -12], [12, 12, 12], threshold=8)
+    part = Workpiece.box([-12, -12, -12], [12, 12, 12], threshold=8)
+    for dent in dents:  # fine cells on both sides of x = 0
+        whole.boolean(dent, DIFFERENCE)
+        part.boolean(dent, DIFFERENCE)
+    whole.boolean(slab, DIFFERENCE)
+    part.boolean(slab, DIFFERENCE, within=(lo, hi))  # the x > 0 half of the slot is left behind
+    pts = np.array([[0, y, z] for y in range(-12, 13, 3) for z in range(-12, 13, 3)])
+    tree = part.global_tree()
+    p = homogeneous_points(pts, part.width)
+    own_side = tree.classify(p, forced_sides=box_face_sides(tree.palette, lo, hi))
+    both_ways = tree.classify(p)
+    assert own_side.tolist() == whole.classify(pts - [1, 0, 0]).tolist()  # on the wall as just inside it
+    assert set(own_side.tolist()) == {-2, 0, 1}
+    assert both_ways.tolist() != own_side.tolist()  # read both ways, the stale half shows through
+    with pytest.raises(GeometryError, match="forced_sides"):
+        tree.classify(p, forced_sides=np.zeros(3, np.int8))
+
+
 async def _die():
     os.kill(os.getpid(), signal.SIGKILL)  # the worker's process, as the OOM killer would
 

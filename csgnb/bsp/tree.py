@@ -28,7 +28,7 @@ from csgnb.exact.integral import integer_array
 from csgnb.exact.intrinsics import classify_at
 from csgnb.exact.wide import is_wide, width_of
 
-__all__ = ["OUT", "ON_BOUNDARY", "BSPTree", "check_index_array"]
+__all__ = ["OUT", "ON_BOUNDARY", "BSPTree", "box_face_sides", "check_index_array"]
 
 OUT = 0
 """Label of an empty leaf."""
@@ -63,9 +63,10 @@ def check_index_array(values, name: str) -> np.ndarray:
 
 
 @jit
-def _classify_points_kernel(plane, neg, pos, label, palette, points, out):
-    # Points exactly on a splitting plane descend both ways; if the two sides give
-    # different labels the point is on the boundary between them.
+def _classify_points_kernel(plane, neg, pos, label, palette, points, forced, out):
+    # Points exactly on a splitting plane descend both ways (or only the side forced[row]
+    # names, when non-zero); if the sides give different labels the point is on the
+    # boundary between them.
     stack = np.empty(2 * plane.shape[0] + 2, np.int32)
     for t in range(points.shape[0]):
         result = -3  # nothing seen yet
@@ -77,6 +78,8 @@ def _classify_points_kernel(plane, neg, pos, label, palette, points, out):
             node = stack[top]
             while plane[node] >= 0:
                 side = classify_at(points, t, palette, plane[node])
+                if side == 0:
+                    side = forced[plane[node]]
                 if side < 0:
                     node = neg[node]
                 elif side > 0:
@@ -208,7 +211,7 @@ class BSPTree:
         _depths_kernel(self.neg, self.pos, self.plane, depth)
         return int(depth.max())
 
-    def classify(self, points: np.ndarray) -> np.ndarray:
+    def classify(self, points: np.ndarray, *, forced_sides: np.ndarray | None = None) -> np.ndarray:
         """Return the label of the cell containing each homogeneous point.
 
         Parameters
@@ -216,6 +219,10 @@ class BSPTree:
         points : (n, 4) wide, same width as the palette
             Homogeneous points (x1, x2, x3, x4), x4 != 0 (see
             :func:`csgnb.exact.homogeneous_points` for integer points).
+        forced_sides : (m,) int8, optional
+            Per palette row: 0, or the only side (-1 / +1) a point *on* that plane looks at --
+            the tree is right only on that side of it (a shard's tree at its box's faces,
+            :func:`box_face_sides`).
 
         Returns
         -------
@@ -228,10 +235,48 @@ class BSPTree:
             raise GeometryError(f"points are {width_of(points)}-bit but the BSP is {self.width}-bit")
         if self.palette.shape[0]:
             check_points_against_planes(points, self.palette)
+        if forced_sides is None:
+            forced = np.zeros(self.palette.shape[0], np.int8)
+        else:
+            forced = np.ascontiguousarray(forced_sides, np.int8)
+            if forced.shape != (self.palette.shape[0],) or np.any(np.abs(forced) > 1):
+                raise GeometryError(f"forced_sides must be ({self.palette.shape[0]},) values in -1, 0, 1 (one per "
+                                    f"palette row), got shape {forced.shape}")
         out = np.empty(points.shape[0], np.int32)
         _classify_points_kernel(self.plane, self.neg, self.pos, self.label, self.palette,
-                                np.ascontiguousarray(points), out)
+                                np.ascontiguousarray(points), forced, out)
         return out
 
     def __repr__(self) -> str:
         return f"BSPTree({self.n_nodes} nodes, {self.n_inner} inner, {self.palette.shape[0]} planes, {self.width}-bit)"
+
+
+def box_face_sides(palette: np.ndarray, lo, hi) -> np.ndarray:
+    """``(m,) int8``: for each palette row that is an axis plane on a face of the box ``[lo, hi]``
+    (integer corners, ``lo < hi``), the side of it the box's interior lies on; 0 for every other row.
+
+    With these as ``forced_sides``, :meth:`BSPTree.classify` reads a point on the box's faces
+    from the box's side only (a tree that is right inside the box and stale beyond it).
+    """
+    from csgnb.exact.wide import from_wide
+
+    lo = [int(v) for v in np.asarray(lo).reshape(3)]
+    hi = [int(v) for v in np.asarray(hi).reshape(3)]
+    out = np.zeros(palette.shape[0], np.int8)
+    if palette.shape[0] == 0:
+        return out
+    limbs = palette["limbs"]  # (m, 4, k) two's complement limbs
+    zero = ~np.any(limbs != 0, axis=2)  # (m, 4): value == 0
+    axis_rows = np.flatnonzero(zero[:, :3].sum(axis=1) == 2)
+    if axis_rows.shape[0] == 0:
+        return out
+    rows = from_wide(palette[axis_rows])
+    for r, row in zip(axis_rows.tolist(), rows.tolist(), strict=True):
+        a = next(i for i in range(3) if int(row[i]) != 0)
+        n, d = int(row[a]), int(row[3])
+        sign = 1 if n > 0 else -1
+        if n * lo[a] + d == 0:
+            out[r] = sign  # the interior, x_a > lo_a, is where n x_a + d has n's sign
+        elif n * hi[a] + d == 0:
+            out[r] = -sign
+    return out

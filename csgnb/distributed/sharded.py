@@ -1,30 +1,33 @@
-"""A workpiece split into spatial shards, each an ordinary :class:`csgnb.octree.Workpiece` held by a Dask actor.
+"""A workpiece split into spatial shards, each an ordinary :class:`csgnb.octree.Workpiece`, held by Dask actors
+or by threads of this process (one workpiece's Booleans on every core).
 
 >>> from csgnb.distributed.sharded import shard_boxes
 >>> [(lo.tolist(), hi.tolist()) for lo, hi in shard_boxes([-8, -8, -8], 16, (2, 1, 1))]
 [([-8, -8, -8], [0, 8, 8]), ([0, -8, -8], [8, 8, 8])]
 
 The octree's root cube is cut into ``nx x ny x nz`` equal boxes (each count a power of two, so
-the cuts lie on octree cell boundaries). Shard ``k`` holds the whole solid as seen from its
-closed box ``S_k``: the same start (a box workpiece, or any workpiece given) and every Boolean
+the cuts lie on octree cell boundaries). Shard ``k`` holds the whole solid as seen from inside
+its box ``S_k``: the same start (a box workpiece, or any workpiece given) and every Boolean
 whose tool's closed box meets ``S_k`` -- a tool that misses ``S_k`` changes nothing in a
 neighbourhood of it (for a label function with ``fn(a, 0) == a``: difference, union; an
-intersection goes to every shard) -- applied to the octree cells that meet ``S_k`` only
-(``Workpiece.boolean(..., within=)`` with ``S_k`` grown by one grid unit, so the cells touching
-``S_k`` from outside are right too, and with them the labels around points on its walls; further
-out the shard's solid is left behind, and nothing is asked of it there). So on ``S_k`` the
-shard's solid *is* the solid of one workpiece run through the same sequence, and
+intersection goes to every shard) -- applied to the octree cells whose interior meets the
+interior of ``S_k`` only (``Workpiece.boolean(..., within=S_k)``; beyond ``S_k`` the shard's
+solid is left behind, and nothing is asked of it there). So in the open box ``S_k`` the shard's
+solid *is* the solid of one workpiece run through the same sequence, its cells the same cells,
+no cell done twice but the few larger than a shard, and
 
-* ``classify(points)`` asks, for each point, a shard whose closed box holds it: the labels are
-  the single workpiece's, on shard boundaries too;
+* ``classify(points)`` asks, for each point, every shard whose closed box holds it, each reading
+  a point on its walls from its own side (:func:`csgnb.bsp.tree.box_face_sides`); the answers
+  agree, or the point is on the boundary: the labels are the single workpiece's, on shard walls too;
 * ``volume()`` adds the shards' exact volumes inside their own boxes (``Fraction`` sums; the
   boxes tile the root cube, their common faces have no volume): equal with ``==``;
 * a Boolean is sent only to the shards its tool's box meets, and they work in parallel;
 * ``surface()`` extracts the boundary of one BSP made of axis planes at the shards' walls over
   each shard's tree (:func:`combine_shard_trees`): walls where solid continues leave no face,
   as cell walls inside one workpiece leave none;
-* Booleans are queued and sent ``batch`` at a time per shard (one message, one round trip), one
-  batch in flight per shard, so the shards work while the caller prepares the next tools;
+* on Dask, Booleans are queued and sent ``batch`` at a time per shard (one message, one round
+  trip), one batch in flight per shard, so the shards work while the caller prepares the next
+  tools; in this process (``client=None``) each is handed to its shards' threads at once;
 * ``save(folder, step=)`` is a checkpoint: each shard's workpiece (``Workpiece.save``, files
   named by content) and then a manifest, each written atomically; :meth:`ShardedWorkpiece.load`
   starts the actors again from them and gives back ``step``, where the caller's sequence resumes.
@@ -32,6 +35,9 @@ shard's solid *is* the solid of one workpiece run through the same sequence, and
 Tools are :class:`~csgnb.mesh.hull.ConvexHull`\\ s, :class:`~csgnb.octree.Tool`\\ s or integer
 meshes ``(vertices, faces)`` in grid coordinates, as for a workpiece. ``track_volume`` is not
 offered: a shard measures nothing outside its box; measure ``volume()`` before and after.
+
+On two cores, ``ShardedWorkpiece(work, None, 2)`` ran the paper's drill (Figures 13-14) 1.9-2.1x faster than
+one workpiece (``benchmarks/bench_iterated.py``), the same exact volume.
 
 Known limits: a shard lives on one worker (Dask actors are not moved or retried): a lost worker loses its
 shards; the next call raises Dask's error and every later one :class:`ShardFailure` -- ``save``
@@ -68,6 +74,18 @@ def _counts(shards) -> tuple[int, int, int]:
     if len(c) != 3 or any(n < 1 or n & (n - 1) for n in c):
         raise ValueError(f"shards={shards!r}: counts per axis must be three powers of two, e.g. (2, 2, 1)")
     return c
+
+
+_THREAD_QUEUE = 64  # batches queued per shard thread before the caller waits (bounds the tools held)
+
+
+def _default_shards(client) -> int:
+    """8 shards on a Dask client; in this process, one per core numba uses (a power of two)."""
+    if client is not None:
+        return 8
+    import numba
+
+    return 1 << (max(1, int(numba.get_num_threads())).bit_length() - 1)
 
 
 def shard_boxes(root_lo, root_size: int, counts) -> list[tuple[np.ndarray, np.ndarray]]:
@@ -136,9 +154,9 @@ class Shard:
     def _apply(self, steps: list, cells: list) -> None:
         for i, (tool, fn) in enumerate(steps):
             try:
-                # Only the cells meeting this shard's box grown by one grid unit: every cell that touches
-                # the closed box is right, so are the labels around a point on its walls.
-                cells.append(self.w.boolean(tool, fn, within=(self.lo - 1, self.hi + 1)).cells)
+                # Only the cells whose interior meets this shard's box's interior: the solid is right in the
+                # open box; a point on its walls is read from the box's side (classify).
+                cells.append(self.w.boolean(tool, fn, within=(self.lo, self.hi)).cells)
             except Exception as exc:
                 raise ShardFailure(f"Boolean {self.applied + i} of this shard (box {self.lo.tolist()}.."
                                    f"{self.hi.tolist()}) failed after {i} of the {len(steps)} sent with it: "
@@ -166,8 +184,17 @@ class Shard:
         return fraction_text(clipped.volume())
 
     def classify(self, points: np.ndarray) -> np.ndarray:
-        """The workpiece's labels of integer grid points ``(n, 3)``."""
-        return np.asarray(self.w.classify(points))
+        """Labels of integer grid points ``(n, 3)`` in this shard's closed box, a point on its walls read from
+        the box's side only (beyond them the shard's solid is stale)."""
+        from csgnb.bsp.tree import box_face_sides
+        from csgnb.exact import homogeneous_points
+
+        q = np.asarray(points, np.int64).reshape(-1, 3)
+        if q.shape[0] == 0:
+            return np.zeros(0, np.int32)
+        tree = self.w.global_tree()
+        return np.asarray(tree.classify(homogeneous_points(q, self.w.width),
+                                        forced_sides=box_face_sides(tree.palette, self.lo, self.hi)))
 
     def tree(self) -> tuple[np.ndarray, ...]:
         """The shard's whole solid as one BSP: ``(palette, plane, neg, pos, label)`` arrays."""
@@ -187,6 +214,43 @@ class Shard:
 
         return {"busy_s": self.busy_s, "applied": self.applied, "cells": self.w.n_cells,
                 "bsp_nodes": self.w.n_bsp_nodes, "worker": _worker_address()}
+
+
+class _ThreadShard(Shard):
+    """A shard of this process on its own thread: its own scratch workspace, no lock (the kernels release the
+    GIL, so the shards' Booleans run on every core)."""
+
+    def apply(self, steps: list) -> list[int]:
+        t0 = time.perf_counter()
+        cells: list = []
+        try:
+            self._apply(steps, cells)
+        finally:
+            self.applied += len(cells)
+            self.busy_s += time.perf_counter() - t0
+        return cells
+
+    def stats(self) -> dict:
+        return {"busy_s": self.busy_s, "applied": self.applied, "cells": self.w.n_cells,
+                "bsp_nodes": self.w.n_bsp_nodes, "worker": f"thread {threading.current_thread().name}"}
+
+
+class _ThreadActor:
+    """What a Dask actor handle offers, for a shard on a thread of this process: each method call is queued
+    on the shard's one thread (so its calls run in order) and returns a future."""
+
+    def __init__(self, shard: Shard, name: str) -> None:
+        from concurrent.futures import ThreadPoolExecutor
+
+        self._shard = shard
+        self._pool = ThreadPoolExecutor(1, thread_name_prefix=name)
+
+    def __getattr__(self, name: str):
+        method = getattr(self._shard, name)
+        return lambda *args, **kw: self._pool.submit(method, *args, **kw)
+
+    def shutdown(self) -> None:
+        self._pool.shutdown(wait=True, cancel_futures=True)
 
 
 class ShardFailure(CsgnbError):
@@ -233,36 +297,46 @@ def _tool(tool, w):
 
 
 class ShardedWorkpiece:
-    """A :class:`csgnb.octree.Workpiece` cut into ``shards`` spatial shards held by Dask actors (module docstring).
+    """A :class:`csgnb.octree.Workpiece` cut into ``shards`` spatial shards (module docstring), held by Dask
+    actors or by threads of this process.
 
     Parameters
     ----------
     workpiece : Workpiece
         The start (e.g. ``Workpiece.box(...)``); every shard gets a copy.
-    client : distributed.Client
-        The actors are placed round-robin on its workers.
-    shards : int or (3,) int
-        1, 2, 4, 8, ... shards, or counts per axis (powers of two).
-    batch : int
-        Booleans queued per shard before they are sent in one message (default 32): a shard works on
-        one batch while the next is queued, and a message's round trip is paid once per batch, not
-        per Boolean. ``batch=1`` sends every Boolean at once and waits for it. Queued Booleans are
-        sent by :meth:`flush`, which every query (``volume``, ``classify``, ``surface``, ``save``) calls.
+    client : distributed.Client or None
+        The actors are placed round-robin on its workers. ``None``: the shards live in this process,
+        each on its own thread -- the octree kernels release the GIL, so one workpiece's Booleans
+        run on every core (the cells a Boolean touches are split by the shards' boxes).
+    shards : int or (3,) int, optional
+        1, 2, 4, 8, ... shards, or counts per axis (powers of two). Default: 8 on a client; in this
+        process one per core numba uses (a power of two, split along x first).
+    batch : int, optional
+        On a client: Booleans queued per shard before they are sent in one message (default 32): a
+        shard works on one batch while the next is queued, and a message's round trip is paid once
+        per batch, not per Boolean. ``batch=1`` sends every Boolean at once and waits for it. Queued
+        Booleans are sent by :meth:`flush`, which every query (``volume``, ``classify``, ``surface``,
+        ``save``) calls. In this process (default 1): Booleans handed to a shard's thread at once, the
+        caller going on while they run; at most 64 batches wait per shard.
     """
 
-    def __init__(self, workpiece, client, shards=8, *, batch: int = 32) -> None:
+    def __init__(self, workpiece, client=None, shards=None, *, batch: int | None = None) -> None:
         from csgnb.octree import Workpiece
 
         if not isinstance(workpiece, Workpiece):
             raise TypeError(f"workpiece must be a csgnb.octree.Workpiece, got {type(workpiece).__name__}")
-        counts = _counts(shards)
+        counts = _counts(_default_shards(client) if shards is None else shards)
         self._start(client, workpiece, counts, [_to_bytes(workpiece)] * int(np.prod(counts)), batch)
 
-    def _start(self, client, template, counts, blobs: list[bytes], batch: int) -> None:
-        from distributed import Client
+    def _start(self, client, template, counts, blobs: list[bytes], batch: int | None) -> None:
+        if client is not None:
+            from distributed import Client
 
-        if not isinstance(client, Client):
-            raise TypeError(f"client must be a distributed.Client, got {type(client).__name__}")
+            if not isinstance(client, Client):
+                raise TypeError(f"client must be a distributed.Client or None (threads of this process), "
+                                f"got {type(client).__name__}")
+        if batch is None:
+            batch = 32 if client is not None else 1
         if int(batch) != batch or batch < 1:
             raise ValueError(f"batch must be a positive integer (Booleans per message), got {batch!r}")
         self.client = client
@@ -272,16 +346,20 @@ class ShardedWorkpiece:
         self.root_lo, self.root_size = np.asarray(template.root_lo, np.int64), int(template.root_size)
         self.counts = counts
         self.boxes = shard_boxes(template.root_lo, template.root_size, counts)
-        workers = sorted(client.scheduler_info(n_workers=-1)["workers"])
-        futures = [client.submit(Shard, lo, hi, blob, actor=True, workers=[workers[k % len(workers)]],
-                                 allow_other_workers=False)
-                   for k, ((lo, hi), blob) in enumerate(zip(self.boxes, blobs, strict=True))]
-        self.actors = [f.result() for f in futures]
+        if client is None:
+            self.actors = [_ThreadActor(_ThreadShard(lo, hi, blob), f"csgnb-shard-{k}")
+                           for k, ((lo, hi), blob) in enumerate(zip(self.boxes, blobs, strict=True))]
+        else:
+            workers = sorted(client.scheduler_info(n_workers=-1)["workers"])
+            futures = [client.submit(Shard, lo, hi, blob, actor=True, workers=[workers[k % len(workers)]],
+                                     allow_other_workers=False)
+                       for k, ((lo, hi), blob) in enumerate(zip(self.boxes, blobs, strict=True))]
+            self.actors = [f.result() for f in futures]
         self.messages = 0  # Booleans routed (one per shard reached)
         self.calls = 0  # messages sent to the shards' actors with Booleans
         self.step: int | None = None  # the caller's step count stored by the checkpoint this was loaded from
         self._pending: list[list] = [[] for _ in self.actors]
-        self._inflight: list = [None] * len(self.actors)
+        self._inflight: list[list] = [[] for _ in self.actors]
         self._broken: str | None = None
 
     @property
@@ -318,21 +396,26 @@ class ShardedWorkpiece:
             if len(self._pending[k]) >= self.batch:
                 self._send(k)
         self.messages += len(targets)
-        if self.batch == 1:
+        if self.batch == 1 and self.client is not None:
             self.flush()
         return targets
 
     def _send(self, k: int) -> None:
-        # One batch in flight per shard: an actor's calls are not ordered among themselves, its batches must be.
-        self._wait(k)
+        # On Dask, one batch in flight per shard: an actor's calls are not ordered among themselves, its batches
+        # must be. A shard's thread runs its calls in order: up to _THREAD_QUEUE batches wait for it.
+        limit = 1 if self.client is not None else _THREAD_QUEUE
+        while len(self._inflight[k]) >= limit:
+            self._wait_oldest(k)
         steps, self._pending[k] = self._pending[k], []
-        self._inflight[k] = self.actors[k].apply(steps)
+        self._inflight[k].append(self.actors[k].apply(steps))
         self.calls += 1
 
     def _wait(self, k: int) -> None:
-        future, self._inflight[k] = self._inflight[k], None
-        if future is None:
-            return
+        while self._inflight[k]:
+            self._wait_oldest(k)
+
+    def _wait_oldest(self, k: int) -> None:
+        future = self._inflight[k].pop(0)
         try:
             future.result()
         except ShardFailure as exc:
@@ -388,15 +471,21 @@ class ShardedWorkpiece:
         q = integer_array(points, "points")
         if q.ndim != 2 or q.shape[1] != 3:
             raise GeometryError(f"points must be integer grid points (n, 3), got shape {q.shape}")
-        lo0 = self.boxes[0][0]
-        step = self.boxes[0][1] - lo0
-        # A point on a common face belongs to both shards; either answers for it (the lower one is asked).
-        cell = np.clip((q - lo0 - 1) // step, 0, np.asarray(self.counts) - 1) if len(q) else np.zeros((0, 3), int)
-        index = cell[:, 0] + self.counts[0] * (cell[:, 1] + self.counts[1] * cell[:, 2])
-        out = np.empty(len(q), np.int64)
-        calls = {k: self.actors[k].classify(q[index == k]) for k in np.unique(index).tolist()}
-        for k, c in calls.items():
-            out[index == k] = c.result()
+        # Each point is read by every shard whose closed box holds it, from that box's side (a shard's solid is
+        # right in its open box only); on a wall the answers of both sides agree, or the point is on the boundary.
+        out = np.full(len(q), -3, np.int64)  # -3: no shard asked yet
+        calls = {}
+        for k, (lo, hi) in enumerate(self.boxes):
+            mine = np.flatnonzero(np.all((q >= lo) & (q <= hi), axis=1))
+            if mine.shape[0]:
+                calls[k] = (mine, self.actors[k].classify(q[mine]))
+        for mine, c in calls.values():
+            got = np.asarray(c.result(), np.int64)
+            seen = out[mine]
+            out[mine] = np.where(seen == -3, got, np.where(seen == got, got, -2))
+        if np.any(out == -3):
+            raise GeometryError("points outside the octree's root box: "
+                                f"{q[out == -3][:3].tolist()} (the grid's budget box holds every solid)")
         return out
 
     def global_tree(self):
@@ -453,9 +542,9 @@ class ShardedWorkpiece:
         return folder
 
     @classmethod
-    def load(cls, folder, client, *, batch: int = 32) -> ShardedWorkpiece:
+    def load(cls, folder, client=None, *, batch: int | None = None) -> ShardedWorkpiece:
         """The sharded workpiece checkpointed in ``folder`` (its :attr:`step` as saved), actors on ``client``'s
-        workers."""
+        workers (``None``: threads of this process)."""
         folder = Path(folder)
         path = folder / MANIFEST
         if not path.is_file():
@@ -476,11 +565,22 @@ class ShardedWorkpiece:
         return self
 
     def close(self) -> None:
-        """Release the actors (their workpieces are dropped on the workers); queued Booleans are dropped."""
+        """Release the actors (their workpieces are dropped on the workers, or the threads end); queued Booleans
+        are dropped."""
+        for a in self.actors:
+            if isinstance(a, _ThreadActor):
+                a.shutdown()
         self.actors, self._pending, self._inflight = [], [], []
 
+    def __enter__(self) -> ShardedWorkpiece:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
     def __repr__(self) -> str:
-        return f"ShardedWorkpiece({self.n_shards} shards {self.counts}, {self.width}-bit)"
+        where = "threads of this process" if self.client is None else "Dask actors"
+        return f"ShardedWorkpiece({self.n_shards} shards {self.counts} on {where}, {self.width}-bit)"
 
 
 def combine_shard_trees(trees, boxes, counts):

@@ -63,6 +63,9 @@ def spread_order(normals):
     return order
 
 
+_SMALL = 1 << 62  # int64 planes stay below this, so a sum of two never overflows
+
+
 def _as_int64(values: np.ndarray, bound: int) -> np.ndarray | None:
     """``values`` (Python ints) as int64 when every one is within ±``bound`` (< 2⁶³), else None."""
     try:
@@ -84,6 +87,20 @@ def _object_planes(planes) -> np.ndarray:
     return p.astype(object).reshape(-1, 4)
 
 
+def _exact_planes(planes, *, python_ints: bool = False) -> np.ndarray:
+    """(k, 4) exact planes: int64 when every value is within ±2⁶² (the common case: no Python ints
+    on the per-Boolean path), else an object array of Python ints. ``python_ints``: an object
+    array already holds Python ints (not numpy scalars), so it is not rebuilt."""
+    p = planes if isinstance(planes, np.ndarray) else np.asarray(planes)
+    if p.dtype == np.int64:
+        if p.size == 0 or int(np.abs(p).max()) < _SMALL:
+            return p.reshape(-1, 4)
+        return p.astype(object).reshape(-1, 4)
+    obj = p.reshape(-1, 4) if python_ints and p.dtype == object else _object_planes(p)
+    small = _as_int64(obj, _SMALL)
+    return obj if small is None else small
+
+
 class Tool:
     """A solid to combine with a workpiece, in grid coordinates (see the module docstring).
 
@@ -94,7 +111,7 @@ class Tool:
     def __init__(self, kind: str, planes: np.ndarray, lo, hi, *, polygons: PolygonSet | None = None,
                  tree=None, grid=None) -> None:
         self.kind = kind
-        self.planes = planes  # (k, 4) object: exact Python ints
+        self.planes = _exact_planes(planes)  # (k, 4) exact: int64 below 2**62, else Python ints (object)
         self.lo = np.asarray(lo, np.int64).reshape(3)
         self.hi = np.asarray(hi, np.int64).reshape(3)
         self.polygons = polygons
@@ -113,7 +130,7 @@ class Tool:
 
         if not isinstance(hull, ConvexHull):
             raise TypeError(f"Tool.from_hull takes a csgnb.mesh.hull.ConvexHull, got {type(hull).__name__}")
-        planes = _object_planes(hull.planes)
+        planes = _exact_planes(hull.planes)
         if planes.shape[0] > 4:
             planes = planes[spread_order(planes[:, :3].astype(np.float64))]
         return cls("convex", planes, hull.lo, hull.hi, grid=getattr(hull, "grid", None))
@@ -172,25 +189,28 @@ class Tool:
             raise TypeError(f"a translation must be a (3,) integer vector, got {t.dtype} {t.shape}")
         moved = Tool.__new__(Tool)
         moved.__dict__.update(self.__dict__)
-        tt = t.astype(object)
-        planes = self.planes.copy()
-        planes[:, 3] = planes[:, 3] - planes[:, :3] @ tt
-        moved.planes = planes
+        planes = self.planes
+        shift = int(np.abs(t).max(initial=0))
+        if planes.dtype == np.int64 and planes.size and \
+                3 * int(np.abs(planes[:, :3]).max()) * shift + int(np.abs(planes[:, 3]).max()) < _SMALL:
+            planes = planes.copy()  # no value can overflow: exact in int64
+            planes[:, 3] -= planes[:, :3] @ t.astype(np.int64)
+        else:
+            planes = planes.astype(object)
+            planes[:, 3] = planes[:, 3] - planes[:, :3] @ t.astype(object)
+        moved.planes = _exact_planes(planes, python_ints=True)
         moved.lo = self.lo + t.astype(np.int64)
         moved.hi = self.hi + t.astype(np.int64)
         moved.offset = self.offset + t.astype(np.int64)
         moved._wide = {}
+        moved._geometry = {}  # polygon vertices and boxes (csgnb.octree.workpiece): moved with the planes
         return moved
 
     def planes_wide(self, width: int) -> np.ndarray:
         """The planes as a ``(k, 4)`` wide array (cached per width)."""
         if width not in self._wide:
-            planes = self.planes
-            if planes.dtype == object:
-                small = _as_int64(planes, 1 << 62)
-                if small is not None:
-                    planes = small  # the common case: to_wide's vectorised path, no Python ints
-            self._wide[width] = to_wide(planes, width)
+            # int64 planes (the common case) take to_wide's vectorised path, no Python ints
+            self._wide[width] = to_wide(self.planes, width)
         return self._wide[width]
 
     @property

@@ -140,7 +140,10 @@ def _boxes_against_planes(planes, lo, size) -> tuple[np.ndarray, np.ndarray]:
     m = lo.shape[0]
     if m == 0:
         return np.zeros(0, bool), np.zeros(0, bool)
-    P = np.array([[float(x) for x in row] for row in planes], np.float64).reshape(-1, 4)
+    if planes.dtype == object:
+        P = np.array([[float(x) for x in row] for row in planes], np.float64).reshape(-1, 4)
+    else:
+        P = planes.astype(np.float64).reshape(-1, 4)
     n, d = P[:, :3], P[:, 3]
     L = lo.astype(np.float64)
     s = size.astype(np.float64)[:, None]

@@ -125,6 +125,28 @@ class OpReport:
         return None if self.volume_change is None else -self.volume_change
 
 
+def _polygon_geometry(tool: Tool, width: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A mesh tool's polygon vertices ``(m, 4)`` wide and each polygon's integer box grown by one ``(n, 3)``
+    int64 (lo, hi), from the tool's own planes; computed once per tool and width (a translated tool is a new
+    tool) and shared by every workpiece it is applied to -- the shards of a sharded workpiece too."""
+    cache = tool.__dict__.setdefault("_geometry", {})
+    found = cache.get(width)
+    if found is not None:
+        return found
+    polys = tool.polygons
+    verts = np.empty((polys.edges.shape[0], 4), wide_dtype(width))
+    set_vertices_kernel(tool.planes_wide(width), polys.support, polys.offsets, polys.edges, verts)
+    pos = to_double_position(verts) if verts.shape[0] else np.zeros((0, 3))
+    owner = np.repeat(np.arange(len(polys)), polys.sizes)
+    plo = np.full((len(polys), 3), np.inf)
+    phi = np.full((len(polys), 3), -np.inf)
+    np.minimum.at(plo, owner, pos)
+    np.maximum.at(phi, owner, pos)
+    found = (verts, (np.floor(plo) - 1).astype(np.int64), (np.ceil(phi) + 1).astype(np.int64))
+    cache[width] = found
+    return found
+
+
 @dataclass
 class WorkpieceStats:
     """Counters over the workpiece's life and the per-operation times."""
@@ -190,6 +212,7 @@ class Workpiece:
         self._volumes = CellVolumes()
         self._meta: dict = {}
         self._tables: dict = {}
+        self._prepared_fns: dict = {}  # fn -> (table, constant labels, keeps labels outside the tool)
         self.stats = WorkpieceStats()
 
     # -- construction ---------------------------------------------------------------
@@ -258,7 +281,7 @@ class Workpiece:
         else:
             raise TypeError(f"a tool must be a ConvexHull, a csgnb.bsp.BSP, a Tool or (vertices, faces), "
                             f"got {type(tool).__name__}")
-        if t.grid is not None and not t.grid.same_as(self.grid):
+        if t.grid is not None and t.grid is not self.grid and not t.grid.same_as(self.grid):
             raise GeometryError(f"the tool lies on {t.grid}, the workpiece on {self.grid}: quantize both on one grid")
         limit = self.grid.max_coordinate
         if t.kind != "empty" and np.abs(np.stack([t.lo, t.hi])).max() > limit:
@@ -270,7 +293,7 @@ class Workpiece:
         """Append the tool's planes to the palette (checked against the width's budget); return their rows."""
         planes = tool.planes
         if planes.shape[0]:
-            small = _as_int64(planes, 1 << 62)
+            small = planes if planes.dtype == np.int64 else _as_int64(planes, 1 << 62)
             if small is not None:  # the common case: no loop over Python ints
                 N = max(self._max_normal, int(np.abs(small[:, :3]).max()))
                 D = max(self._max_offset, int(np.abs(small[:, 3]).max()))
@@ -317,16 +340,7 @@ class Workpiece:
         support = np.where(polys.support >= 0, rows[np.maximum(polys.support, 0)],
                            ~rows[np.maximum(~polys.support, 0)]).astype(np.int32)
         edges = rows[polys.edges].astype(np.int32)
-        verts = np.empty((edges.shape[0], 4), dtype)
-        set_vertices_kernel(self.palette, support, polys.offsets, edges, verts)
-        pos = to_double_position(verts) if verts.shape[0] else np.zeros((0, 3))
-        owner = np.repeat(np.arange(len(polys)), polys.sizes)
-        plo = np.full((len(polys), 3), np.inf)
-        phi = np.full((len(polys), 3), -np.inf)
-        np.minimum.at(plo, owner, pos)
-        np.maximum.at(phi, owner, pos)
-        plo = (np.floor(plo) - 1).astype(np.int64)
-        phi = (np.ceil(phi) + 1).astype(np.int64)
+        verts, plo, phi = _polygon_geometry(tool, self.width)
         tp, tn, tq, tl = tool.tree
         plane = np.where(tp >= 0, rows[np.maximum(tp, 0)], -1).astype(np.int32)
         return K.MESH_TOOL, ToolArrays(np.zeros(0, np.int64), support, polys.offsets, edges, verts, plo, phi,
@@ -343,8 +357,9 @@ class Workpiece:
         the tool, as an intersection does). Returns an :class:`OpReport`; with ``track_volume`` it
         carries the exact volume change.
 
-        ``within=(lo, hi)`` (integer grid corners) touches only the cells that also meet that closed box:
-        the solid stays right inside the box and is left behind outside it. That is what a shard of
+        ``within=(lo, hi)`` (integer grid corners) touches only the cells whose interior meets the box's
+        interior: the solid stays right inside the open box and is left behind outside it (on its faces
+        too: read a point there from the box's side, :func:`csgnb.bsp.tree.box_face_sides`). That is what a shard of
         :class:`csgnb.distributed.sharded.ShardedWorkpiece` wants (it answers for its box only); a
         workpiece used so answers for that box only. It cannot be combined with ``track_volume``.
         """
@@ -358,15 +373,19 @@ class Workpiece:
                 raise GeometryError(f"within must be two integer corners (lo, hi) with lo <= hi, got {within!r}")
         tool = self._tool(tool)
         labels_a = [0, 1]  # one material: boolean() refuses label functions that make others
-        table = self._tables.get(fn)
-        if table is None:
-            table = merge_table(fn, labels_a, [0, 1])
-            self._tables[fn] = table
-        if int(table.max()) > 1:
-            raise GeometryError("the octree workpiece holds one material (labels 0 and 1); the label function "
-                                f"returned {int(table.max())}")
-        constant = constant_labels(table, np.array([0, 1]))
-        outside_identity = all(int(table[la, 0]) == la for la in labels_a)
+        prepared = self._prepared_fns.get(fn)
+        if prepared is None:
+            table = self._tables.get(fn)
+            if table is None:
+                table = merge_table(fn, labels_a, [0, 1])
+                self._tables[fn] = table
+            if int(table.max()) > 1:
+                raise GeometryError("the octree workpiece holds one material (labels 0 and 1); the label function "
+                                    f"returned {int(table.max())}")
+            prepared = (table, constant_labels(table, np.array([0, 1])),
+                        all(int(table[la, 0]) == la for la in labels_a))
+            self._prepared_fns[fn] = prepared
+        table, constant, outside_identity = prepared
         if outside_identity:
             lo, hi = tool.lo, tool.hi  # cells outside the tool's box keep their labels
         else:
