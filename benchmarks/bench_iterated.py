@@ -14,6 +14,8 @@ Two set-ups from the paper, built with csgnb's own tools and sweeps (``csgnb.app
   one by one into an empty workpiece (S = 20: ~9,100 unions). manifold3d unions the same
   prisms one by one (``--mf-gear-ops`` of them, to keep its run short).
 
+  The same 270 steps also run on every core: the workpiece in spatial shards on threads of
+  this process (``ShardedWorkpiece(work, None)``, ``--shards``), exact volume compared with ``==``.
 * **drill_mesh** (issue 22): the same drill with the 90 sweep volumes given as float
   triangle meshes (made by manifold3d before anything is timed: the input a user brings),
   end to end -- csgnb prepares a tool from each mesh once (quantize, validate, repair flat
@@ -400,7 +402,8 @@ def main() -> None:
     if args.perf_map:
         import _perf_map  # noqa: F401 -- before the first kernel is loaded
 
-    print(f"csgnb iterated CSG, {args.width}-bit, threshold {args.threshold}, one core (the drill also on every core), clock {nominal_clock_label()}")
+    print(f"csgnb iterated CSG, {args.width}-bit, threshold {args.threshold}, one core (the drill also on every "
+          f"core), clock {nominal_clock_label()}")
     result = {"clock": nominal_clock_label(), "width": args.width, "threshold": args.threshold, "workloads": {}}
     if "drill" in args.workloads:
         d = drill_workload(args)

@@ -580,7 +580,7 @@ class ShardedWorkpiece:
 
     def __repr__(self) -> str:
         where = "threads of this process" if self.client is None else "Dask actors"
-        return f"ShardedWorkpiece({self.n_shards} shards {self.counts} on {where}, {self.width}-bit)"
+        return f"ShardedWorkpiece({int(np.prod(self.counts))} shards {self.counts} on {where}, {self.width}-bit)"
 
 
 def combine_shard_trees(trees, boxes, counts):
