@@ -141,7 +141,8 @@ class NormalForm:
 
         Terms, names and surface ids are kept (a map keeps surfaces distinct).
         """
-        Minv = transform_inverse(as_matrix(matrix, "matrix"))
+        matrix = as_matrix(matrix, "matrix")
+        Minv = transform_inverse(matrix)
         if not self.quadrics:
             return self
         M = np.array([q.matrix for q in self.quadrics])
@@ -160,7 +161,7 @@ class NormalForm:
         out = 0.5 * (out + out.transpose(0, 2, 1))
         affine = Minv[3, 0] == 0.0 and Minv[3, 1] == 0.0 and Minv[3, 2] == 0.0 and Minv[3, 3] == 1.0
         # placed quadrics (``Quadric.placement``) are mapped through their placement: exact far away
-        qs = tuple(q0.transformed(matrix) if affine and q0.placement is not None else
+        qs = tuple(q0._transformed(matrix, Minv) if affine and q0.placement is not None else
                    Quadric._trusted(q, symmetric=True) for q0, q in zip(self.quadrics, out, strict=True))
         return NormalForm(qs, self.term_start, self.names, self.surface, self.orientation)
 
@@ -242,7 +243,7 @@ class _Converter:
             # rather than world coefficients that lost digits (a unit sphere at 10⁹ has c = 10¹⁸ − 1);
             # an affine path keeps the placement (mapped back to world, the normal form stays exact)
             if M[3, 0] == 0.0 and M[3, 1] == 0.0 and M[3, 2] == 0.0 and M[3, 3] != 0.0:
-                return q.transformed(M)
+                return q._transformed(M, Minv)  # (M's inverse checked once above)
             local, origin = placement
             T = np.eye(4)
             T[:3, 3] = origin

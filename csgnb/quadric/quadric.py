@@ -231,7 +231,11 @@ class Quadric:
         blockwise, so a plane stays a plane exactly.
         """
         M = as_matrix(M, "transform")
-        Minv = transform_inverse(M)
+        return self._transformed(M, transform_inverse(M))
+
+    def _transformed(self, M: np.ndarray, Minv: np.ndarray) -> Quadric:
+        """:meth:`transformed` with ``M`` checked and ``Minv = transform_inverse(M)`` given (a map applied to
+        many quadrics is inverted once)."""
         if M[3, 0] == 0.0 and M[3, 1] == 0.0 and M[3, 2] == 0.0 and M[3, 3] != 0.0 and (
                 np.any(M[:3, 3]) or self._origin is not None):
             # affine with a translation: x ↦ L x + t is the linear map, then the move to t (or to
