@@ -137,7 +137,8 @@ def drill_workload(args) -> dict:
             "first_tenth_median_ms": first * 1e3, "last_tenth_median_ms": last * 1e3,
             "manifold3d_median_ms": float(np.median(mf_t) * 1e3), "manifold3d_first_tenth_median_ms": mfirst * 1e3,
             "manifold3d_last_tenth_median_ms": mlast * 1e3,
-            "faces": surface.n_polygons, "manifold3d_triangles": int(cube.num_tri()),
+            "faces": surface.n_polygons, "faces_merged": surface.merged().n_polygons,
+            "manifold3d_triangles": int(cube.num_tri()),
             "cells": work.n_cells, "bsp_nodes": work.n_bsp_nodes, "cell_merges": work.stats.merges,
             "volume": float(vol), "manifold3d_volume": float(mf_vol),
             "volume_rel_dev": float(abs(float(vol) - mf_vol) / float(vol)),
@@ -266,6 +267,7 @@ def dome_workload(args, steps: int) -> dict:
             "manifold3d_cpu_s": mf_cpu, "median_ms": float(np.median(ts) * 1e3),
             "manifold3d_median_ms": float(np.median(mts) * 1e3), "first_tenth_median_ms": first * 1e3,
             "last_tenth_median_ms": last * 1e3, "faces": w.surface().n_polygons,
+            "faces_merged": w.surface(merged=True).n_polygons,
             "manifold3d_triangles": int(solid.num_tri()), "cells": w.n_cells, "bsp_nodes": w.n_bsp_nodes,
             "volume": vol, "manifold3d_volume": float(solid.volume()),
             "volume_rel_dev": abs(vol - float(solid.volume())) / vol}
@@ -329,7 +331,8 @@ def lattice_workload(args, n: int) -> dict:
             "manifold3d_median_ms": float(np.median(mts) * 1e3), "volume": int(occupancy.sum()),
             "exact_volume_mismatches": int(mismatches), "exact_final_volume": bool(exact_final),
             "manifold3d_volume_rel_dev": mf_dev, "cells": w.n_cells, "bsp_nodes": w.n_bsp_nodes,
-            "faces": w.surface().n_polygons, "manifold3d_triangles": int(solid.num_tri())}
+            "faces": w.surface().n_polygons, "faces_merged": w.surface(merged=True).n_polygons,
+            "manifold3d_triangles": int(solid.num_tri())}
 
 
 def gear_hulls(samples: int, width: int):
@@ -428,7 +431,9 @@ def main() -> None:
               f"(flat within 1.5x: {'met' if flat else 'NOT met'}); manifold3d median {d['manifold3d_median_ms']:.0f} "
               f"ms, first/last tenth {d['manifold3d_first_tenth_median_ms']:.0f}/"
               f"{d['manifold3d_last_tenth_median_ms']:.0f} ms")
-        print(f"  result: {d['faces']} exact polygons ({d['cells']} cells, {d['bsp_nodes']} BSP nodes, "
+        print(f"  result: {d['faces']} exact polygons ({d['faces_merged']} with coplanar pieces merged, "
+              f"{d['faces_merged'] / d['manifold3d_triangles']:.2f}x manifold3d's triangles; target <= 1.5x) "
+              f"({d['cells']} cells, {d['bsp_nodes']} BSP nodes, "
               f"{d['cell_merges']} cell merges); manifold3d {d['manifold3d_triangles']} triangles; volume "
               f"{d['volume']:.6f} vs {d['manifold3d_volume']:.6f} mm^3 (rel. dev. {d['volume_rel_dev']:.2e})")
     if "drill_mesh" in args.workloads:
@@ -447,8 +452,8 @@ def main() -> None:
                   f"{'met' if d['csgnb_s'] <= 30 else 'NOT met'})")
             print(f"  per step: median {d['median_ms']:.0f} ms, first/last tenth {d['first_tenth_median_ms']:.0f}/"
                   f"{d['last_tenth_median_ms']:.0f} ms (growth <= 1.5x: {'met' if flat else 'NOT met'}); manifold3d "
-                  f"median {d['manifold3d_median_ms']:.0f} ms; {d['faces']} polygons vs {d['manifold3d_triangles']} "
-                  f"triangles; volume rel. dev. {d['volume_rel_dev']:.1e}")
+                  f"median {d['manifold3d_median_ms']:.0f} ms; {d['faces']} polygons vs "
+                  f"{d['manifold3d_triangles']} triangles; volume rel. dev. {d['volume_rel_dev']:.1e}")
     if "gear_sweep" in args.workloads:
         gears = {}
         for s in args.samples:
@@ -476,8 +481,9 @@ def main() -> None:
                   f"{'-' if n != 1000 else 'met' if d['csgnb_s'] <= 3 else 'NOT met'})")
             print(f"  per step: median {d['median_ms']:.2f} ms (manifold3d {d['manifold3d_median_ms']:.2f}), "
                   f"first/last tenth {d['first_tenth_median_ms']:.2f}/{d['last_tenth_median_ms']:.2f} ms; "
-                  f"{d['faces']} polygons vs {d['manifold3d_triangles']} triangles; volume rel. dev. "
-                  f"{d['volume_rel_dev']:.1e}")
+                  f"{d['faces']} polygons ({d['faces_merged']} merged: "
+                  f"{d['faces_merged'] / d['manifold3d_triangles']:.2f}x, target <= 1.5x) vs "
+                  f"{d['manifold3d_triangles']} triangles; volume rel. dev. {d['volume_rel_dev']:.1e}")
         result["workloads"]["dome"] = domes
     if "lattice" in args.workloads:
         d = lattice_workload(args, args.lattice_ops)
@@ -489,7 +495,8 @@ def main() -> None:
               f"{d['manifold3d_median_ms']:.2f} ms")
         print(f"  exact volume vs voxel count: {d['exact_volume_mismatches']} mismatches in {d['ops']} steps, final "
               f"{'equal' if d['exact_final_volume'] else 'DIFFERENT'}; manifold3d final rel. dev. "
-              f"{d['manifold3d_volume_rel_dev']:.1e}; {d['faces']} polygons vs {d['manifold3d_triangles']} triangles")
+              f"{d['manifold3d_volume_rel_dev']:.1e}; {d['faces']} polygons ({d['faces_merged']} merged) vs "
+              f"{d['manifold3d_triangles']} triangles")
     if args.sweep:
         print(f"\nFigure 11: gear sweep (S = {args.samples[0]}) total time by BSP threshold")
         rows = []

@@ -613,3 +613,87 @@ def test_empty_pieces():
     assert s.n_polygons == 0 and s.n_vertices == 0 and s.is_closed()
     V, T = s.to_mesh()
     assert V.shape == (0, 3) and T.shape == (0, 3)
+
+
+# -- coplanar pieces merged (BoundarySurface.merged) -------------------------------------------------------
+
+
+def _plane_key(surface, i: int) -> tuple[int, ...]:
+    import math
+
+    sup = int(surface.support[i])
+    row = [int(v) for v in from_wide(surface.palette[sup if sup >= 0 else ~sup])]
+    if sup < 0:
+        row = [-v for v in row]
+    g = math.gcd(*row)
+    return tuple(v // g for v in row)
+
+
+def _area_per_plane(surface) -> dict:
+    """Exact oriented area vector summed per supporting plane: equal dicts cover the same oriented regions."""
+    pos = surface.exact_positions()
+    out: dict = {}
+    for i, poly in enumerate(surface.polygons()):
+        pts = [pos[v] for v in poly]
+        area = [Fraction(0)] * 3
+        for a, b in zip(pts, pts[1:] + pts[:1], strict=True):
+            area = [area[0] + a[1] * b[2] - a[2] * b[1], area[1] + a[2] * b[0] - a[0] * b[2],
+                    area[2] + a[0] * b[1] - a[1] * b[0]]
+        key = _plane_key(surface, i)
+        total = out.get(key, [Fraction(0)] * 3)
+        out[key] = [x + y for x, y in zip(total, area, strict=True)]
+    return {k: tuple(v) for k, v in out.items() if any(v)}
+
+
+def _convex_exactly(surface) -> bool:
+    """Every polygon turns left or goes straight at every vertex (about its plane's normal), and turns somewhere."""
+    pos = surface.exact_positions()
+    for i, poly in enumerate(surface.polygons()):
+        n = _plane_key(surface, i)[:3]
+        pts = [pos[v] for v in poly]
+        turns = []
+        for k in range(len(pts)):
+            p, q, r = pts[k - 1], pts[k], pts[(k + 1) % len(pts)]
+            u = [q[j] - p[j] for j in range(3)]
+            w = [r[j] - q[j] for j in range(3)]
+            c = (u[1] * w[2] - u[2] * w[1], u[2] * w[0] - u[0] * w[2], u[0] * w[1] - u[1] * w[0])
+            turns.append(sum(c[j] * n[j] for j in range(3)))
+        if min(turns) < 0 or max(turns) <= 0:
+            return False
+    return True
+
+
+def _carved(notch: bool):
+    from csgnb.bsp.solid import DIFFERENCE
+    from csgnb.mesh.hull import convex_hull
+    from csgnb.octree import Workpiece
+
+    w = Workpiece.box([-20, -20, -20], [20, 20, 20], threshold=16)
+    rng = np.random.default_rng(3)
+    for _ in range(6):  # small dents all over: cells split, faces cut by their walls
+        c = rng.integers(-22, 23, 3)
+        w.boolean(convex_hull(c + rng.integers(-4, 5, (7, 3))), DIFFERENCE)
+    if notch:  # a corner notch: the top face around it is L-shaped, and must not become one polygon
+        w.boolean(convex_hull(np.array([[x, y, z] for x in (6, 30) for y in (6, 30) for z in (8, 30)])), DIFFERENCE)
+    return w
+
+
+@pytest.mark.parametrize("notch", [False, True])
+def test_merged_surface_is_the_same_solid_in_fewer_convex_polygons(notch):
+    w = _carved(notch)
+    s = w.surface()
+    m = w.surface(merged=True)
+    assert m.n_polygons < s.n_polygons
+    assert m.n_vertices <= s.n_vertices
+    assert m.is_closed()
+    assert m.exact_volume() == s.exact_volume() == w.volume()
+    assert _area_per_plane(m) == _area_per_plane(s)
+    assert _convex_exactly(m)
+    t = m.triangulate()
+    assert t.triangles.shape[0] <= s.triangulate().triangles.shape[0]
+
+
+def test_merging_needs_edge_planes():
+    s = _carved(False).surface()
+    with pytest.raises(GeometryError, match="edge_planes"):
+        dataclasses.replace(s, edge_planes=None).merged()

@@ -157,6 +157,14 @@ class BoundarySurface:
         counts, reverse = self._edge_counts(label)
         return bool(np.all((counts == 1) & (reverse == 1)))
 
+    def merged(self) -> BoundarySurface:
+        """This surface with coplanar neighbouring pieces (a face cut by octree cell walls or splitting planes)
+        joined into larger convex polygons: the same vertices and solid, fewer polygons
+        (:func:`csgnb.bsp.surface_merge.merge_coplanar`)."""
+        from csgnb.bsp.surface_merge import merge_coplanar
+
+        return merge_coplanar(self)
+
     # -- export -------------------------------------------------------------------
 
     def manifold_split(self) -> ManifoldSplit:

@@ -931,10 +931,13 @@ class Workpiece:
         """Exact volume in model units cubed (the grid scale is a power of two)."""
         return self.volume() / Fraction(self.grid.scale) ** 3
 
-    def surface(self) -> BoundarySurface:
-        """The exact, closed, conforming boundary (faces between solid cells removed, no T-junctions)."""
+    def surface(self, *, merged: bool = False) -> BoundarySurface:
+        """The exact, closed, conforming boundary (faces between solid cells removed, no T-junctions).
+
+        ``merged=True`` joins the pieces a face was cut into by the cell walls back into larger convex
+        polygons (:meth:`BoundarySurface.merged`: same vertices and solid, fewer polygons)."""
         ex = extract_boundary(self.global_tree(), self.root_lo, self.root_lo + self.root_size, keep_cells=False)
-        return ex.surface
+        return ex.surface.merged() if merged else ex.surface
 
     def to_polydata(self, manifold: bool = False):
         """The boundary as a triangulated pyvista ``PolyData`` in model units (positions correctly rounded).
