@@ -36,8 +36,9 @@ Tools are :class:`~csgnb.mesh.hull.ConvexHull`\\ s, :class:`~csgnb.octree.Tool`\
 meshes ``(vertices, faces)`` in grid coordinates, as for a workpiece. ``track_volume`` is not
 offered: a shard measures nothing outside its box; measure ``volume()`` before and after.
 
-On two cores, ``ShardedWorkpiece(work, None, 2)`` ran the paper's drill (Figures 13-14) 1.9-2.1x faster than
-one workpiece (``benchmarks/bench_iterated.py``), the same exact volume.
+On two cores, ``ShardedWorkpiece(work, None, 2)`` ran the paper's 270-step drill (Figures 13-14) 1.75x faster
+than one workpiece (``benchmarks/bench_iterated.py``), the same exact volume; small tools gain less (the Python
+set-up of each Boolean holds the GIL).
 
 Known limits: a shard lives on one worker (Dask actors are not moved or retried): a lost worker loses its
 shards; the next call raises Dask's error and every later one :class:`ShardFailure` -- ``save``
