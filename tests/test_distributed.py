@@ -442,6 +442,26 @@ def test_shards_on_threads_fuzz(seed, shards):
         _same_surface(s, w)
 
 
+def test_shards_on_threads_refuse_a_bad_tool_at_once_and_stay_usable():
+    """A label function making a third material, or a tool that is no tool, raises in the caller before any shard
+    applies it; the sharded workpiece goes on."""
+    import numpy as np
+
+    from csgnb.distributed.sharded import ShardedWorkpiece
+    from csgnb.errors import GeometryError
+    from csgnb.mesh.hull import convex_hull
+    from csgnb.octree import Workpiece
+
+    hull = convex_hull(np.array([[x, y, z] for x in (-3, 3) for y in (-1, 1) for z in (-1, 1)]))
+    with ShardedWorkpiece(Workpiece.box([-8, -8, -8], [8, 8, 8]), None, 2) as s:
+        with pytest.raises(GeometryError, match="one material"):
+            s.boolean(hull, lambda a, b: 2 * max(a, b))
+        with pytest.raises(TypeError, match="ConvexHull"):
+            s.difference("a hull")
+        s.difference(hull)
+        assert s.volume() == 16**3 - 6 * 2 * 2
+
+
 def test_a_shard_reads_points_on_its_walls_from_its_own_side():
     """A workpiece changed only inside a box (``within=``) is stale beyond it: points on the box's faces read with
     ``box_face_sides`` get the labels of the workpiece that saw every change; read both ways, some do not."""

@@ -388,6 +388,9 @@ class ShardedWorkpiece:
         self._check_usable()
         t = _tool(tool, self.template)
         table = merge_table(fn, [0, 1], [0, 1])
+        if int(table.max()) > 1:  # refused here, before any shard applies it (the shards would each refuse it)
+            raise GeometryError("the octree workpiece holds one material (labels 0 and 1); the label function "
+                                f"returned {int(table.max())}")
         if all(int(table[a, 0]) == a for a in (0, 1)):
             targets = [] if t.kind == "empty" else self.shards_meeting(t.lo, t.hi)
         else:
