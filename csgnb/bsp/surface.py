@@ -78,6 +78,8 @@ class BoundarySurface:
     labels: np.ndarray
     edge_planes: np.ndarray | None = None
     _positions: np.ndarray | None = field(default=None, repr=False, compare=False)
+    #: Made by :meth:`merged` (coplanar pieces joined): its manifold split is not supported yet.
+    is_merged: bool = field(default=False, compare=False)
 
     @property
     def n_polygons(self) -> int:
@@ -178,6 +180,10 @@ class BoundarySurface:
         A surface that needs none of this comes back unchanged (``source == arange(n)``).
         See :mod:`csgnb.bsp.surface_mesh`.
         """
+        if self.is_merged:
+            raise GeometryError("manifold=True (the manifold split) is not supported on a merged surface yet: where "
+                                "the solid touches itself along an edge it can keep that edge shared by four "
+                                "triangles; export manifold=True from the unmerged surface (merged=False)")
         return manifold_split(self)
 
     def triangulate(self, manifold: bool = False) -> TriangleMesh:
@@ -188,6 +194,8 @@ class BoundarySurface:
         splits vertices first (:meth:`manifold_split`): then every edge of the triangle mesh
         has exactly two triangles.
         """
+        if manifold and self.is_merged:
+            self.manifold_split()  # raises: not supported on a merged surface yet
         return triangulate(self, manifold)
 
     def to_mesh(

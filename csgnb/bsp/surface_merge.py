@@ -19,6 +19,10 @@ A vertex left flat in every polygon that uses it (two pieces of each of two face
 is no corner of anything and is dropped, from all of them at once; a flat vertex another
 polygon needs as a corner stays (the surface stays conforming, without T-junctions), which
 ``BoundarySurface.triangulate`` handles exactly. The result encloses the same solid.
+
+Known limit: the manifold split (``manifold=True`` exports) is refused on a merged surface: on
+a part that touches itself along an edge it kept that edge shared by four triangles (found by
+``tests/test_bsp_surface.py``); export a 2-manifold from the unmerged surface.
 """
 
 from __future__ import annotations
@@ -156,4 +160,4 @@ def _merge_pass(s):
     positions = None if s._positions is None else s._positions[used]
     return BoundarySurface(s.palette, s.vertices[used], np.asarray(out_off, np.int64), remap[indices],
                            np.asarray(s.support)[keep], np.asarray(s.labels)[keep],
-                           np.asarray(out_planes, np.int64), positions)
+                           np.asarray(out_planes, np.int64), positions, is_merged=True)

@@ -937,37 +937,43 @@ class Workpiece:
         ``merged=True`` joins the pieces a face was cut into by the cell walls back into larger convex
         polygons (:meth:`BoundarySurface.merged`: same vertices and solid, fewer polygons)."""
         ex = extract_boundary(self.global_tree(), self.root_lo, self.root_lo + self.root_size, keep_cells=False)
-        return ex.surface.merged() if merged else ex.surface
+        return ex.surface.merged() if _flag(merged, "merged") else ex.surface
 
-    def to_polydata(self, manifold: bool = False):
+    def to_polydata(self, manifold: bool = False, *, merged: bool = False):
         """The boundary as a triangulated pyvista ``PolyData`` in model units (positions correctly rounded).
 
         ``manifold=True`` duplicates vertices along edges shared by four faces, so every edge has
-        exactly two triangles (what manifold3d and other 2-manifold consumers need).
+        exactly two triangles (what manifold3d and other 2-manifold consumers need). ``merged=True``
+        triangulates :meth:`surface` ``(merged=True)``: the same solid in fewer triangles (the faces'
+        pieces joined across cell walls, the vertices that were corners of nothing dropped).
         """
-        mesh = self.surface().to_polydata(manifold=_flag(manifold, "manifold"))
+        mesh = self.surface(merged=_flag(merged, "merged")).to_polydata(manifold=_flag(manifold, "manifold"))
         mesh.points = self.grid.to_model(mesh.points)
         return mesh
 
-    def to_mesh(self, manifold: bool = False) -> tuple[np.ndarray, np.ndarray]:
-        """Float vertices ``(n, 3)`` in model units and outward triangles ``(m, 3) int64`` of the boundary."""
-        return self.surface().to_mesh(_flag(manifold, "manifold"), transform=self.grid.to_model)
+    def to_mesh(self, manifold: bool = False, *, merged: bool = False) -> tuple[np.ndarray, np.ndarray]:
+        """Float vertices ``(n, 3)`` in model units and outward triangles ``(m, 3) int64`` of the boundary
+        (``merged``: as for :meth:`to_polydata`)."""
+        return self.surface(merged=_flag(merged, "merged")).to_mesh(_flag(manifold, "manifold"),
+                                                                     transform=self.grid.to_model)
 
     def to_trimesh(self, manifold: bool = False):
         """The boundary as a ``trimesh.Trimesh`` in model units (trimesh is optional: ``pip install trimesh``)."""
         return self.surface().to_trimesh(_flag(manifold, "manifold"), transform=self.grid.to_model)
 
-    def save_mesh(self, path, *, manifold: bool = False, file_format: str | None = None):
+    def save_mesh(self, path, *, manifold: bool = False, file_format: str | None = None, merged: bool = False):
         """Write the boundary in model units through meshio (``.stl``, ``.obj``, ``.ply``, ...); return the path.
 
-        ``save`` / ``load`` keep the exact workpiece; this writes the float triangles other tools read.
+        ``save`` / ``load`` keep the exact workpiece; this writes the float triangles other tools read
+        (``merged=True``: fewer of them, as for :meth:`to_polydata`).
         """
         if not isinstance(path, str | os.PathLike):
             raise TypeError(f"path must be a file name, got {type(path).__name__}")
         if file_format is None and Path(path).suffix.lower() not in _MESH_SUFFIXES:
             raise GeometryError(f"cannot tell the mesh format of {str(path)!r}: end it in "
                                 f"{', '.join(sorted(_MESH_SUFFIXES))} or pass file_format= (a meshio format name)")
-        return self.surface().save(path, _flag(manifold, "manifold"), self.grid.to_model, file_format)
+        return self.surface(merged=_flag(merged, "merged")).save(path, _flag(manifold, "manifold"), self.grid.to_model,
+                                                                 file_format)
 
     def __repr__(self) -> str:
         return (f"Workpiece({self.n_cells} cells, {self.n_bsp_nodes} BSP nodes, {self.width}-bit, "
