@@ -7,7 +7,10 @@ elevation 35° (about screen filling). In one process per model: the reference r
 ``--rt-repeat``), then for each splat size the splat renderer (prepared once, not timed; best of
 ``--repeat`` frames) and the pixel comparison of the two. Kernels are compiled (or loaded from the cache) by an untimed
 first call. Threads: numba's default (all cores) unless ``--threads``. Also the 640×480 viewer
-frame (render and JPEG encoding, as the notebook viewer does) of the 80-quadric model.
+frame (render and JPEG encoding, as the notebook viewer does) of the 80-quadric model, orbiting 2° per frame: with
+its default level of detail (``csgnb.render.level_of_detail``: the coarsest cloud of the same surface whose splats are
+about 12 px on screen, sampled once -- that one-off time is reported apart) and drawing the cloud itself, each frame
+checked pixel for pixel against the ray tracer.
 
     python benchmarks/bench_render.py --json /tmp/bench_render.json
 
@@ -17,7 +20,8 @@ more; "only splats" times every tile splatted. ``--calibrate`` fits that model's
 ``--json PATH`` writes ``{"models": [{"name", "quadrics", "splat", "samples", "splat_ms",
 "raytrace_ms", "speedup", "splats_only_ms", "raytraced_tiles", "tiles", "fragments", "overdraw", "covered",
 "disagree_fraction", "disagree", "holes", "off_edge", "stages_ms"}], "viewer_640x480_ms": ...,
-"viewer_640x480": [...], "threads": ...}``.
+"viewer_640x480": [{"splat", "samples", "ms", "render_ms", "level", "drawn_samples", "drawn_radius",
+"level_sampling_ms", "ms_cloud_itself", "render_ms_cloud_itself"}], "threads": ...}``.
 """
 
 from __future__ import annotations
@@ -191,14 +195,27 @@ def main(argv=None) -> None:
                   f"{frame.stats.fragments:10d} {frame.stats.overdraw:8.2f} {a.disagree:8d} {a.holes:5d} "
                   f"{paper[0]:9.2f} {paper[1]:8.2f}")
             if n_quadrics == max(q for q, _ in PAPER_RENDER):
-                v = Viewer(cloud, cam.with_size(640, 480), size=(640, 480))
-                times = []
-                for _ in range(max(3, args.repeat)):
-                    t0 = time.perf_counter()
-                    v.update()
-                    times.append(1e3 * (time.perf_counter() - t0))
-                    v.camera = v.camera.orbited(2.0)
-                viewer.append({"splat": splat, "ms": min(times), "render_ms": v.frame.stats.ms})
+                entry = {"splat": splat, "samples": len(cloud)}
+                for lod in (True, False):  # the viewer's default (a level of detail per view), and the cloud itself
+                    v = Viewer(cloud, cam.with_size(640, 480), size=(640, 480), lod=lod)
+                    times, renders = [], []
+                    for _ in range(max(3, args.repeat)):
+                        t0 = time.perf_counter()
+                        v.update()
+                        times.append(1e3 * (time.perf_counter() - t0))
+                        renders.append(v.frame.stats.ms)
+                        v.camera = v.camera.orbited(2.0)
+                    a = compare(v.frame, raytrace(shape, v.frame.camera))
+                    if a.holes or a.disagree:
+                        raise AssertionError(f"viewer, {splat}, lod={lod}: {a.holes} holes, {a.disagree} disagree")
+                    key = "" if lod else "_cloud_itself"
+                    entry["ms" + key] = min(times)
+                    entry["render_ms" + key] = renders[times.index(min(times))]  # of the fastest frame
+                    if lod:
+                        level = v.levels.level_for(v.frame.camera)
+                        entry.update(level=level, drawn_samples=len(v.drawn), drawn_radius=v.drawn.radius,
+                                     level_sampling_ms=1e3 * v.levels.seconds[level])
+                viewer.append(entry)
         sys.stdout.flush()
     for row in rows:
         if row["quadrics"] == 80:
@@ -207,7 +224,9 @@ def main(argv=None) -> None:
     viewer_ms = max((v["ms"] for v in viewer), default=float("nan"))
     for v in viewer:
         print(f"viewer 640x480, 80 quadrics, {v['splat']:6s}: {v['ms']:.1f} ms per frame "
-              f"(render {v['render_ms']:.1f} ms, the rest JPEG encoding)")
+              f"(render {v['render_ms']:.1f} ms, the rest JPEG encoding; level of detail {v['level']}: {v['drawn_samples']:,} of {v['samples']:,} "
+              f"samples, radius {v['drawn_radius']:.3g}, sampled once in {v['level_sampling_ms']:.0f} ms); "
+              f"the cloud itself {v['ms_cloud_itself']:.1f} ms; both pixel-perfect against the ray tracer")
     if args.json:
         with open(args.json, "w") as fh:
             json.dump({"models": rows, "viewer_640x480_ms": viewer_ms, "viewer_640x480": viewer, "threads": threads,

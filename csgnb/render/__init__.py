@@ -6,12 +6,15 @@ CSG per term, :mod:`.raytracer`); :func:`render`, the splat renderer with local 
 ray-tracing, clipping and the overdraw reductions of §6.1 (:mod:`.splats`); both return a
 :class:`Frame` of buffers (depth, normal, quadric, term, RGB, overdraw, ...) with PNG and pyvista
 export (:mod:`.frame`, shading in :mod:`.shading`); :func:`compare` checks pixel-perfect agreement
-(:mod:`.agreement`); :class:`Viewer` is the interactive notebook viewer (:mod:`.viewer`).
+(:mod:`.agreement`); :class:`Viewer` is the interactive notebook viewer (:mod:`.viewer`), drawing per view
+the level of detail whose splats are about a target size on screen (:class:`LevelsOfDetail`,
+:mod:`.level_of_detail`).
 """
 
 from csgnb.render.agreement import Agreement, compare, edge_mask, verify
 from csgnb.render.camera import PROJECTIONS, Camera
 from csgnb.render.frame import Frame, RenderStats
+from csgnb.render.level_of_detail import LevelsOfDetail, footprint_pixels
 from csgnb.render.raytracer import raytrace
 from csgnb.render.shading import CLIP_COLORS, COLOR_MODES, Lighting, overdraw_colors, quadric_colors
 from csgnb.render.splats import FOOTPRINTS, LOCAL_MODES, SplatRenderer, render, renderer_for
@@ -38,4 +41,6 @@ __all__ = [
     "overdraw_colors",
     "quadric_colors",
     "Viewer",
+    "LevelsOfDetail",
+    "footprint_pixels",
 ]

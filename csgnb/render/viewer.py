@@ -14,6 +14,7 @@ import time
 from csgnb.render.agreement import compare
 from csgnb.render.camera import Camera
 from csgnb.render.frame import Frame
+from csgnb.render.level_of_detail import LevelsOfDetail
 from csgnb.render.raytracer import raytrace
 from csgnb.render.scene import check_same_shape
 from csgnb.render.splats import renderer_for
@@ -37,20 +38,27 @@ class Viewer:
         (GeometryError if the cloud was sampled from another shape); ``reference=True`` uses the
         cloud's own normal form.
     size : (width, height) of each image.
+    lod : bool — draw, per view, the level of detail whose splats are about ``TARGET_FOOTPRINT_PX`` (12) pixels on
+        screen (:class:`~csgnb.render.level_of_detail.LevelsOfDetail`: clouds of the same surface at radii
+        ``cloud.radius · √2^k``, sampled on first use and kept). Every level draws the reference picture pixel for
+        pixel, in less time where ``cloud``'s splats are far from that size on screen. Default True; False draws
+        ``cloud`` itself.
     render options (``footprint``, ``backface_culling``, ``color_by``, ``fallback``, ...) go to ``render``; with a
     reference every tile is splatted (``fallback="never"``) unless they say otherwise, so that the difference
     checks the splats, not the ray tracer against itself.
 
     ``viewer.widget`` is the ipywidgets box; displaying the viewer shows it. ``viewer.frame`` is
-    the last splat frame, ``viewer.frame_ms`` its render time.
+    the last splat frame, ``viewer.frame_ms`` its render time, ``viewer.drawn`` the cloud it drew (``cloud`` or a
+    level of detail, ``viewer.levels``).
     """
 
     def __init__(self, cloud, camera: Camera | None = None, *, shape=None, reference: bool = False,
-                 size=(640, 480), **options) -> None:
+                 size=(640, 480), lod: bool = True, **options) -> None:
         import ipywidgets as widgets
 
-        self.renderer = renderer_for(cloud)
         self.cloud = cloud
+        self.levels = LevelsOfDetail(cloud) if lod else None
+        self.drawn = cloud
         self.reference_shape = None
         if shape is not None:
             self.reference_shape = check_same_shape(cloud, shape)
@@ -95,6 +103,11 @@ class Viewer:
         self.update(reference=True)
 
     # -- rendering -------------------------------------------------------------------------------
+    @property
+    def renderer(self):
+        """The SplatRenderer of the cloud drawn last (``drawn``)."""
+        return renderer_for(self.drawn)
+
     def _angles(self) -> tuple[float, float]:
         import math
 
@@ -111,12 +124,19 @@ class Viewer:
 
     def update(self, reference: bool = False) -> None:
         """Re-render the splats (and the reference and difference when ``reference``)."""
+        level = 0
+        if self.levels is not None:
+            level = self.levels.level_for(self.camera)
+            self.drawn = self.levels.cloud_at(level)  # sampled once, on the first view that needs it
         t0 = time.perf_counter()
-        self.frame = self.renderer.render(self.camera, **self.options)
+        self.frame = renderer_for(self.drawn).render(self.camera, **self.options)
         self.frame_ms = 1e3 * (time.perf_counter() - t0)
         self.image.value = self.frame.png_bytes(fmt="jpeg")
         stats = self.frame.stats
-        text = f"splats: {self.frame_ms:.1f} ms per frame ({stats.covered} pixels, overdraw {stats.overdraw:.1f}"
+        text = f"splats: {self.frame_ms:.1f} ms per frame ({len(self.drawn):,} splats of radius {self.drawn.radius:.3g}"
+        if self.levels is not None:
+            text += f", level of detail {level}" if level else ", the cloud itself"
+        text += f"; {stats.covered} pixels, overdraw {stats.overdraw:.1f}"
         if stats.raytraced_tiles:
             text += f", {stats.raytraced_tiles} of {stats.tiles} tiles ray traced: cheaper there"
         text += ")"

@@ -113,6 +113,8 @@ class SampleCloud:
     frame : ModelFrame or None — the normalised frame the sampler worked in
         (:mod:`csgnb.csg.normalisation`): ``frame.to_local(positions)`` gives coordinates of unit
         size, where the quadrics keep full precision even for models far from the origin.
+    bounds : (center (3,) float64, radius float) or None — the bounding sphere the cloud was sampled in
+        (``sample_csg(bounds=...)``), None if none was given: what to pass to sample the same region again.
 
     Guarantee (§4.2): every sample lies on the CSG surface, and every point of the CSG surface
     (inside the bounds) has a sample on the same quadric within its radius.
@@ -130,6 +132,7 @@ class SampleCloud:
     stats: SamplingStats
     trace: SamplingTrace | None = None
     frame: ModelFrame | None = None
+    bounds: tuple | None = None
 
     def __len__(self) -> int:
         return len(self.positions)

@@ -7,6 +7,7 @@ a task (:mod:`.tasks`: regions, plane frames, pruned eq. 22 data) → the adapti
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import threading
 import time
@@ -353,7 +354,9 @@ def sample_csg(
     ts, leaves = _subdivide(C, ts, rn, min_size * rn, distortion == "sqrt3", refine, trace, progress, reduce_radius,
                             max_samples)
     _check_estimate(leaves.samples, max_samples, True)
-    return _emit(nf, C, ts, leaves, rn, reduce_radius, trace, frame, t0, r)
+    kept = None if bounds is None else _bounds_frame(bounds)[0]
+    cloud = _emit(nf, C, ts, leaves, rn, reduce_radius, trace, frame, t0, r)
+    return cloud if kept is None else dataclasses.replace(cloud, bounds=(kept.center.copy(), kept.scale))
 
 
 class _Leaves:

@@ -1,0 +1,119 @@
+"""Levels of detail (csgnb.render.level_of_detail): per view the coarsest cloud whose splats are about a target size
+on screen, and every level drawing the reference picture."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from csgnb.csg.gallery import tour_part
+from csgnb.render import Camera, LevelsOfDetail, SplatRenderer, Viewer, compare, footprint_pixels, raytrace
+from csgnb.render.level_of_detail import FINER_MAX_SAMPLES, KEPT_LEVELS, LEVEL_STEP, TARGET_FOOTPRINT_PX
+from csgnb.sampling import sample_csg
+
+_cache: dict = {}
+
+
+def tour_cloud():
+    if "tour" not in _cache:
+        shape = tour_part()
+        _cache["tour"] = (shape, sample_csg(shape, 0.02))
+    return _cache["tour"]
+
+
+def test_footprint_in_pixels_follows_depth_and_projection():
+    cam = Camera.look_at((0, 0, 10), (0, 0, 0), up=(0, 1, 0), width=400, height=300, fov=60)
+    # radius · height / (2 · depth · tan(fov / 2))
+    expected = 0.5 * 300 / (2 * 10 * math.tan(math.radians(30)))
+    assert footprint_pixels(cam, 0.5, (0, 0, 0)) == pytest.approx(expected)
+    assert footprint_pixels(cam, 0.5, (3, 2, 5)) == pytest.approx(2 * expected)  # half the depth
+    assert footprint_pixels(cam, 0.5, (0, 0, 12)) == math.inf  # behind the eye
+    ortho = Camera.look_at((0, 0, 10), (0, 0, 0), up=(0, 1, 0), width=400, height=300, projection="orthographic",
+                           ortho_height=6.0)
+    assert footprint_pixels(ortho, 0.5, (0, 0, -100)) == pytest.approx(0.5 * 300 / 6.0)
+
+
+def test_levels_follow_the_zoom_and_stop_at_the_given_cloud():
+    _, cloud = tour_cloud()
+    lod = LevelsOfDetail(cloud)
+    cam = Camera.fit(cloud, 320, 240)
+    levels = [lod.level_for(cam.orbited(zoom=z)) for z in (0.25, 0.5, 1.0, 2.0, 4.0, 64.0)]
+    assert levels == sorted(levels, reverse=True) and levels[0] > levels[2] > 0 and levels[-1] < 0
+    for z in (0.5, 1.0, 2.0):
+        c = cam.orbited(zoom=z)
+        level = lod.level_for(c)
+        # the coarsest level at most the target on screen: the next one would be larger
+        px = footprint_pixels(c, lod.radius(level), lod.center)
+        assert px <= TARGET_FOOTPRINT_PX * (1 + 1e-9)
+        assert level == lod.max_level or px * LEVEL_STEP > TARGET_FOOTPRINT_PX
+    # close up, finer levels -- as long as their estimated samples stay within the budget
+    assert lod.min_level < 0 and len(cloud) * 2.0 ** -lod.min_level <= FINER_MAX_SAMPLES
+    assert len(cloud) * 2.0 ** (1 - lod.min_level) > FINER_MAX_SAMPLES
+    close = cam.orbited(zoom=32.0)
+    assert lod.level_for(close) < 0 and footprint_pixels(close, lod.radius(0), lod.center) > TARGET_FOOTPRINT_PX
+    assert lod.level_for(cam.with_size(4000, 3000).orbited(zoom=64.0)) == lod.min_level
+    assert lod.cloud_at(0) is cloud
+    with pytest.raises(ValueError, match="level must be in"):
+        lod.cloud_at(lod.max_level + 1)
+    with pytest.raises(ValueError, match="level must be in"):
+        lod.cloud_at(lod.min_level - 1)
+    with pytest.raises(ValueError, match="target_pixels"):
+        LevelsOfDetail(cloud, target_pixels=0)
+
+
+def test_every_level_draws_the_reference_picture():
+    """A coarser level changes the time, not the picture: the same colours, visible quadric and term at every
+    pixel as the given cloud, and no hole against the ray tracer."""
+    shape, cloud = tour_cloud()
+    lod = LevelsOfDetail(cloud)
+    cam = Camera.fit(cloud, 320, 240, azimuth=-50, elevation=30)
+    base = SplatRenderer(cloud).render(cam, fallback="never")
+    reference = raytrace(shape, cam)
+    chosen = lod.level_for(cam)
+    assert chosen >= 2
+    for level in sorted({1, chosen // 2, chosen}):
+        drawn = lod.cloud_at(level)
+        assert len(drawn) < len(cloud) and drawn.radius == pytest.approx(cloud.radius * LEVEL_STEP**level)
+        frame = SplatRenderer(drawn).render(cam, fallback="never")
+        for field in ("rgb", "quadric", "term"):
+            assert np.array_equal(getattr(frame, field), getattr(base, field)), (level, field)
+        agreement = compare(frame, reference)
+        assert agreement.holes == 0 and agreement.disagree == 0, level
+        assert lod.cloud_at(level) is drawn  # sampled once, kept
+    others = [k for k in range(1, lod.max_level + 1) if k != chosen][-KEPT_LEVELS:]  # the coarse ones: quick
+    assert len(others) == KEPT_LEVELS
+    for level in others:  # the least recently used levels are dropped, never the cloud itself
+        lod.cloud_at(level)
+    assert len(lod.levels) == 1 + KEPT_LEVELS and lod.levels[0] is cloud and chosen not in lod.levels
+
+
+def test_a_bounded_cloud_keeps_its_bounds_at_every_level():
+    """An unbounded surface (an infinite cylinder) sampled inside a bounding sphere is resampled inside the same
+    sphere's box: a level draws the same piece of it, not a larger one (resampling in the box of the cloud's
+    normalised frame instead reached z = ±2.12)."""
+    from csgnb.csg import leaf
+    from csgnb.quadric import elliptic_cylinder
+
+    bounds = ((0.0, 0.0, 0.0), 2.0)
+    cloud = sample_csg(leaf(elliptic_cylinder((0.5, 0.5))), 0.02, bounds=bounds)
+    assert cloud.bounds is not None and cloud.bounds[1] == 2.0
+    lod = LevelsOfDetail(cloud)
+    for level in (2, 5):
+        coarse = lod.cloud_at(level)
+        assert np.array_equal(coarse.bounds[0], cloud.bounds[0]) and coarse.bounds[1] == 2.0
+        z = coarse.positions[:, 2]
+        assert z.min() >= -2.0 - 1e-9 and z.max() <= 2.0 + 1e-9 and z.max() > 1.9
+
+
+def test_the_viewer_draws_a_level_of_detail_and_says_so():
+    shape, cloud = tour_cloud()
+    v = Viewer(cloud, shape=shape, size=(160, 120))
+    assert v.drawn is not cloud and len(v.drawn) < len(cloud)
+    assert "level of detail" in v.label.value and "holes 0" in v.label.value
+    v.zoom.value = 8.0  # closer: finer splats
+    assert len(v.drawn) > len(v.levels.cloud_at(v.levels.level_for(Camera.fit(cloud, 160, 120))))
+    plain = Viewer(cloud, shape=shape, size=(160, 120), lod=False)
+    assert plain.drawn is cloud and plain.levels is None and "holes 0" in plain.label.value
+    assert np.array_equal(plain.frame.rgb, Viewer(cloud, shape=shape, size=(160, 120)).frame.rgb)
