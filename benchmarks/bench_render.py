@@ -225,7 +225,8 @@ def main(argv=None) -> None:
     for v in viewer:
         print(f"viewer 640x480, 80 quadrics, {v['splat']:6s}: {v['ms']:.1f} ms per frame "
               f"(render {v['render_ms']:.1f} ms, the rest JPEG encoding; level of detail {v['level']}: "
-              f"{v['drawn_samples']:,} of {v['samples']:,} samples, radius {v['drawn_radius']:.3g}, sampled once in {v['level_sampling_ms']:.0f} ms); "
+              f"{v['drawn_samples']:,} of {v['samples']:,} samples, radius {v['drawn_radius']:.3g}, "
+              f"sampled once in {v['level_sampling_ms']:.0f} ms); "
               f"the cloud itself {v['ms_cloud_itself']:.1f} ms; both pixel-perfect against the ray tracer")
     if args.json:
         with open(args.json, "w") as fh:
