@@ -19,7 +19,8 @@ more; "only splats" times every tile splatted. ``--calibrate`` fits that model's
 
 ``--json PATH`` writes ``{"models": [{"name", "quadrics", "splat", "samples", "splat_ms",
 "raytrace_ms", "speedup", "splats_only_ms", "raytraced_tiles", "tiles", "fragments", "overdraw", "covered",
-"disagree_fraction", "disagree", "holes", "off_edge", "stages_ms"}], "viewer_640x480_ms": ...,
+"disagree_fraction", "disagree", "holes", "off_edge", "stages_ms", "lod_level", "lod_samples", "lod_ms",
+"lod_speedup", "lod_sampling_ms", "lod_holes", "lod_disagree"}], "viewer_640x480_ms": ...,
 "viewer_640x480": [{"splat", "samples", "ms", "render_ms", "level", "drawn_samples", "drawn_radius",
 "level_sampling_ms", "ms_cloud_itself", "render_ms_cloud_itself"}], "threads": ...}``.
 """
@@ -142,7 +143,7 @@ def main(argv=None) -> None:
     threads = numba.get_num_threads()
     import csgnb.csg as csg
     from csgnb.csg.gallery import TABLE2
-    from csgnb.render import Camera, SplatRenderer, Viewer, compare, raytrace
+    from csgnb.render import Camera, LevelsOfDetail, SplatRenderer, Viewer, compare, raytrace
     from csgnb.sampling import sample_csg
 
     W, H = args.width, args.height
@@ -150,11 +151,12 @@ def main(argv=None) -> None:
     print(f"Table 2, render columns: {W}x{H}, {threads} thread(s); splats vs the reference ray tracer "
           "(figures under load are provisional)")
     print("splats ms: the default (tiles where splats would cost more are ray traced, 'rt tiles' of 'tiles'); "
-          "only splats: every tile splatted")
+          "only splats: every tile splatted; lod: the level of detail a viewer of the cloud draws for this view "
+          "(csgnb.render.level_of_detail), its frame time, ratio to the ray tracer, and holes + disagreeing pixels")
     print(f"{'model':18s} {'q':>3s} {'splat':6s} {'samples':>8s} {'splats ms':>9s} {'only spl':>8s} {'rt tiles':>8s} "
           f"{'rt ms':>8s} {'ratio':>6s} "
           f"{'fragments':>10s} {'overdraw':>8s} {'disagree':>8s} {'holes':>5s} {'paper ms':>9s} "
-          f"{'paper rt':>8s}")
+          f"{'paper rt':>8s} {'lod':>4s} {'lod ms':>7s} {'ratio':>6s} {'wrong':>5s}")
     for name, (build, radii) in TABLE2.items():
         if args.only and name not in args.only:
             continue
@@ -179,6 +181,13 @@ def main(argv=None) -> None:
                     best, stages = frame.stats.ms, dict(frame.stats.timings)
                 only_splats = min(only_splats, renderer.render(cam, fallback="never").stats.ms)
             a = compare(frame, ref)
+            # the level of detail a viewer of this cloud would draw for this view (sampled once, not timed)
+            lod = LevelsOfDetail(cloud)
+            level = lod.level_for(cam)
+            lod_renderer = SplatRenderer(lod.cloud_at(level))
+            lod_renderer.render(cam.with_size(32, 18))
+            lod_frame = min((lod_renderer.render(cam) for _ in range(max(1, args.repeat))), key=lambda f: f.stats.ms)
+            lod_a = compare(lod_frame, ref)
             paper = PAPER_RENDER.get((n_quadrics, splat), (float("nan"), float("nan")))
             row = {
                 "name": name, "quadrics": n_quadrics, "splat": splat, "samples": len(cloud), "splat_ms": best,
@@ -188,12 +197,16 @@ def main(argv=None) -> None:
                 "overdraw": frame.stats.overdraw, "covered": a.covered, "disagree_fraction": a.disagree_fraction,
                 "disagree": a.disagree, "holes": a.holes, "off_edge": a.off_edge,
                 "stages_ms": {k: round(v, 2) for k, v in stages.items()},
+                "lod_level": level, "lod_samples": len(lod.cloud_at(level)), "lod_ms": lod_frame.stats.ms,
+                "lod_speedup": rt_ms / lod_frame.stats.ms, "lod_sampling_ms": 1e3 * lod.seconds[level],
+                "lod_holes": lod_a.holes, "lod_disagree": lod_a.disagree,
             }
             rows.append(row)
             print(f"{name:18s} {n_quadrics:3d} {splat:6s} {len(cloud):8d} {best:9.1f} {only_splats:8.1f} "
                   f"{frame.stats.raytraced_tiles:4d}/{frame.stats.tiles:<3d} {rt_ms:8.0f} {rt_ms / best:6.1f} "
                   f"{frame.stats.fragments:10d} {frame.stats.overdraw:8.2f} {a.disagree:8d} {a.holes:5d} "
-                  f"{paper[0]:9.2f} {paper[1]:8.2f}")
+                  f"{paper[0]:9.2f} {paper[1]:8.2f} {level:4d} {lod_frame.stats.ms:7.1f} "
+                  f"{rt_ms / lod_frame.stats.ms:6.1f} {lod_a.holes + lod_a.disagree:5d}")
             if n_quadrics == max(q for q, _ in PAPER_RENDER):
                 entry = {"splat": splat, "samples": len(cloud)}
                 for lod in (True, False):  # the viewer's default (a level of detail per view), and the cloud itself

@@ -37,8 +37,11 @@ def test_footprint_in_pixels_follows_depth_and_projection():
 
 def test_levels_follow_the_zoom_and_stop_at_the_given_cloud():
     _, cloud = tour_cloud()
-    lod = LevelsOfDetail(cloud)
     cam = Camera.fit(cloud, 320, 240)
+    coarser_only = LevelsOfDetail(cloud)  # the default: never finer than the cloud
+    assert coarser_only.min_level == 0 and coarser_only.level_for(cam.orbited(zoom=64.0)) == 0
+    assert coarser_only.level_for(cam) == LevelsOfDetail(cloud, finer=True).level_for(cam) > 0
+    lod = LevelsOfDetail(cloud, finer=True)
     levels = [lod.level_for(cam.orbited(zoom=z)) for z in (0.25, 0.5, 1.0, 2.0, 4.0, 64.0)]
     assert levels == sorted(levels, reverse=True) and levels[0] > levels[2] > 0 and levels[-1] < 0
     for z in (0.5, 1.0, 2.0):

@@ -8,8 +8,12 @@ make the picture from the surface, not from the samples: **any level gives the r
 pixel** -- only the time differs.
 
 :class:`LevelsOfDetail` keeps the given cloud (level 0, radius r) and, sampled on first use from the cloud's own
-normal form and bounds, clouds of radius ``r · √2^k``: coarser (k > 0) up to the model's size, finer (k < 0) while
-the estimated sample count (``len(cloud) · 2^-k``) stays within :data:`FINER_MAX_SAMPLES`. For a camera it picks the
+normal form and bounds, clouds of radius ``r · √2^k``: coarser (k > 0) up to the model's size and, with
+``finer=True``, finer (k < 0) while the estimated sample count (``len(cloud) · 2^-k``) stays within
+:data:`FINER_MAX_SAMPLES`. Finer levels are off by default: where a coarse cloud's splats are large on screen the
+renderer already ray traces the tiles they would make expensive, and at 1920×1080 finer levels were slower on three
+of the four Table 2 models that reached them (1.1-2.4x; ``bench_render.py``'s lod column); they won on the
+80-quadric plate's coarsest cloud at 640×480 (~25 %). For a camera it picks the
 coarsest level whose splat radius is at most :data:`TARGET_FOOTPRINT_PX` pixels at the depth of the cloud's centre.
 The levels sampled on the way are kept, the given cloud and the :data:`KEPT_LEVELS` used last. The target was
 measured (``bench_render.py``'s viewer rows; chapter 08): on the 80-quadric
@@ -65,12 +69,14 @@ class LevelsOfDetail:
         (``cloud.bounds``) with the sampler's defaults, on first use, and kept.
     target_pixels : float
         Splat radius on screen that :meth:`level_for` aims at (default :data:`TARGET_FOOTPRINT_PX`).
+    finer : bool
+        Also offer levels finer than ``cloud`` (within :data:`FINER_MAX_SAMPLES` estimated samples). Default False.
 
     ``levels`` maps each level kept to its cloud; ``seconds`` each level sampled so far to the time it took.
     ``min_level`` ≤ 0 ≤ ``max_level`` bound the levels.
     """
 
-    def __init__(self, cloud, *, target_pixels: float = TARGET_FOOTPRINT_PX) -> None:
+    def __init__(self, cloud, *, target_pixels: float = TARGET_FOOTPRINT_PX, finer: bool = False) -> None:
         target = float(target_pixels)
         if not (math.isfinite(target) and target > 0.0):
             raise ValueError(f"target_pixels must be a positive number of pixels, got {target_pixels!r}")
@@ -88,7 +94,7 @@ class LevelsOfDetail:
         while self.max_level < MAX_LEVEL and self.radius(self.max_level + 1) <= max(half_diagonal, cloud.radius):
             self.max_level += 1
         self.min_level = 0
-        while len(cloud) * 2.0 ** (1 - self.min_level) <= FINER_MAX_SAMPLES:
+        while finer and len(cloud) * 2.0 ** (1 - self.min_level) <= FINER_MAX_SAMPLES:
             self.min_level -= 1
 
     def radius(self, level: int) -> float:
