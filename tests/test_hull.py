@@ -399,7 +399,7 @@ def test_face_rings_at_the_edges_of_their_paths(extent):
 
 
 def test_sorted_unique_planes_int64_path_is_the_python_order():
-    """The int64 fast path (np.unique over rows) gives the planes the Python-int path gives: the same set in the
+    """The int64 fast path (unique rows by a lexsort) gives the planes the Python-int path gives: the same set in the
     same lexicographic order, duplicates dropped (the hull's facet order depends on it)."""
     import numpy as np
 
@@ -413,6 +413,25 @@ def test_sorted_unique_planes_int64_path_is_the_python_order():
         fast = _sorted_unique_planes(N, d)
         slow = _sorted_unique_planes(N.astype(object), d.astype(object))
         assert np.array_equal(fast[0], slow[0].astype(np.int64)) and np.array_equal(fast[1], slow[1].astype(np.int64))
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.integers(0, 60), st.integers(1, 5),
+       st.sampled_from([2, 7, 1 << 20, (1 << 62) - 1]))
+def test_unique_rows_is_numpys_row_unique(seed, n, k, extent):
+    """The hull's row deduplication (a lexsort and a neighbour comparison, not np.unique's structured view) gives
+    np.unique(axis=0)'s rows in np.unique's order, on int64 rows with duplicates, negatives and the int64 extremes."""
+    import numpy as np
+
+    from csgnb.mesh.hull import _unique_rows
+
+    rng = np.random.default_rng(seed)
+    M = rng.integers(-extent, extent, (n, k), endpoint=True, dtype=np.int64)
+    if n > 2:
+        M[rng.integers(0, n, n // 2)] = M[rng.integers(0, n, n // 2)]  # duplicates
+        M[0, 0] = np.iinfo(np.int64).min if seed % 2 else np.iinfo(np.int64).max
+    assert np.array_equal(_unique_rows(M), np.unique(M, axis=0))
+    assert _unique_rows(M).dtype == np.int64
 
 
 @settings(max_examples=60, deadline=None)

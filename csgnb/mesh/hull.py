@@ -608,7 +608,7 @@ def convex_hull(points, *, width: int | None = None, grid=None, name: str = "poi
         width = grid.width if grid is not None else DEFAULT_WIDTH
     elif grid is not None and width != grid.width:
         raise GeometryError(f"width={width} but the grid is {grid.width}-bit: pass one of them")
-    P = np.unique(_checked_points(points, width, name), axis=0)
+    P = _unique_rows(_checked_points(points, width, name))
     if P.shape[0] < 4:
         raise _flat_error(P, name) if P.shape[0] else GeometryError(f"the convex hull of no {name} is empty")
     origin = P[0].copy()
@@ -624,10 +624,23 @@ def convex_hull(points, *, width: int | None = None, grid=None, name: str = "poi
     return ConvexHull(L, origin, N, d, width=width, grid=grid)
 
 
+def _unique_rows(M: np.ndarray) -> np.ndarray:
+    """The distinct rows of ``M`` (n, k) in lexicographic order, as tuples of its numbers sort: ``np.unique(M,
+    axis=0)``, which for small integer arrays costs ~80 µs of set-up (a structured view, a copy) against ~10 µs for
+    a lexsort and a neighbour comparison (a capsule's hull did two of them per Boolean of the dome carve)."""
+    if M.dtype.kind not in "iu" or M.ndim != 2 or M.shape[0] < 2:
+        return np.unique(M, axis=0)
+    S = M[np.lexsort(M.T[::-1])]
+    keep = np.empty(S.shape[0], dtype=np.bool_)
+    keep[0] = True
+    np.any(S[1:] != S[:-1], axis=1, out=keep[1:])
+    return S[keep]
+
+
 def _sorted_unique_planes(N: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The distinct planes (N, d) in lexicographic order of (a, b, c, d)."""
-    if N.dtype != object and d.dtype != object:  # np.unique sorts int64 rows lexicographically, as tuples sort
-        M = np.unique(np.column_stack([N.astype(np.int64), d.astype(np.int64)]), axis=0)
+    if N.dtype != object and d.dtype != object:  # int64 rows sort lexicographically, as tuples sort
+        M = _unique_rows(np.column_stack([N.astype(np.int64), d.astype(np.int64)]))
         return M[:, :3], M[:, 3]
     rows = sorted({tuple(int(x) for x in r) + (int(e),) for r, e in zip(N, d, strict=True)})
     M = _maybe_int64(np.array(rows, dtype=object))
