@@ -38,11 +38,12 @@ class Viewer:
         (GeometryError if the cloud was sampled from another shape); ``reference=True`` uses the
         cloud's own normal form.
     size : (width, height) of each image.
-    lod : bool — draw, per view, the level of detail whose splats are about ``TARGET_FOOTPRINT_PX`` (12) pixels on
-        screen (:class:`~csgnb.render.level_of_detail.LevelsOfDetail`: clouds of the same surface at radii
+    lod : bool or None — draw, per view, the level of detail whose splats are about ``TARGET_FOOTPRINT_PX`` (12)
+        pixels on screen (:class:`~csgnb.render.level_of_detail.LevelsOfDetail`: clouds of the same surface at radii
         ``cloud.radius · √2^k``, sampled on first use and kept). Every level draws the reference picture pixel for
-        pixel, in less time where ``cloud``'s splats are far from that size on screen. Default True; False draws
-        ``cloud`` itself.
+        pixel, in less time where ``cloud``'s splats are small on screen. Default (None): on without a reference,
+        off with one -- the difference then checks ``cloud`` itself (a cloud with holes, e.g. thinned, must show
+        them, not a resampled level's picture). True / False force it.
     render options (``footprint``, ``backface_culling``, ``color_by``, ``fallback``, ...) go to ``render``; with a
     reference every tile is splatted (``fallback="never"``) unless they say otherwise, so that the difference
     checks the splats, not the ray tracer against itself.
@@ -53,17 +54,19 @@ class Viewer:
     """
 
     def __init__(self, cloud, camera: Camera | None = None, *, shape=None, reference: bool = False,
-                 size=(640, 480), lod: bool = True, **options) -> None:
+                 size=(640, 480), lod: bool | None = None, **options) -> None:
         import ipywidgets as widgets
 
         self.cloud = cloud
-        self.levels = LevelsOfDetail(cloud) if lod else None
         self.drawn = cloud
         self.reference_shape = None
         if shape is not None:
             self.reference_shape = check_same_shape(cloud, shape)
         elif reference:
             self.reference_shape = cloud.normal_form
+        if lod is None:
+            lod = self.reference_shape is None
+        self.levels = LevelsOfDetail(cloud) if lod else None
         w, h = size
         self.camera = camera.with_size(w, h) if camera is not None else Camera.fit(cloud, w, h)
         self.options = options if self.reference_shape is None else {"fallback": "never", **options}
