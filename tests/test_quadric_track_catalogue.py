@@ -166,6 +166,7 @@ def _render_calls():
     cloud = cs.sample_csg(shape, 0.5)
     cam = cr.Camera.look_at((4, 0, 0), (0, 0, 0), (0, 0, 1), 16, 12)
     fr = cr.raytrace(shape, cam)
+    lod = cr.LevelsOfDetail(cloud)
     box = ((-1.0, -1, -1), (1.0, 1, 1))
     return {
         "Camera": (cr.Camera, dict(eye=(4.0, 0, 0), target=(0.0, 0, 0), up=(0.0, 0, 1), width=16, height=12,
@@ -195,6 +196,11 @@ def _render_calls():
         "Frame.difference": (fr.difference, dict(other=fr)),
         "Frame.png_bytes": (fr.png_bytes, dict(rgb=None, fmt="png")),
         "Frame.to_pyvista": (fr.to_pyvista, dict(kind="points")),
+        "LevelsOfDetail": (cr.LevelsOfDetail, dict(cloud=cloud, target_pixels=12.0, finer=False)),
+        "LevelsOfDetail.level_for": (lod.level_for, dict(camera=cam)),
+        "LevelsOfDetail.cloud_at": (lod.cloud_at, dict(level=1)),
+        "LevelsOfDetail.cloud_for": (lod.cloud_for, dict(camera=cam)),
+        "footprint_pixels": (cr.footprint_pixels, dict(camera=cam, radius=0.5, point=(0.0, 0.0, 0.0))),
         "sample_csg": (cs.sample_csg, dict(shape=shape, radius=0.5, bounds=None, distortion="bounds", min_size=0.0,
                                            reduce_radius=False, refine=True, trace=False, max_terms=4096,
                                            max_samples=10**6)),
@@ -205,7 +211,9 @@ def _render_calls():
 RENDER_CALLS = ["Camera", "Camera.look_at", "Camera.orbit", "Camera.fit", "Camera.orbited", "Camera.with_size",
                 "Camera.rays", "Camera.project", "raytrace", "render", "SplatRenderer", "renderer_for", "compare",
                 "verify", "edge_mask", "overdraw_colors", "quadric_colors", "Lighting", "Frame.shaded",
-                "Frame.difference", "Frame.png_bytes", "Frame.to_pyvista", "sample_csg", "estimate_samples"]
+                "Frame.difference", "Frame.png_bytes", "Frame.to_pyvista", "LevelsOfDetail", "LevelsOfDetail.level_for",
+                "LevelsOfDetail.cloud_at", "LevelsOfDetail.cloud_for", "footprint_pixels", "sample_csg",
+                "estimate_samples"]
 
 
 def _split(f, kw):

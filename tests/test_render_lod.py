@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from csgnb.csg.gallery import tour_part
+from csgnb.errors import CsgnbError, GeometryError
 from csgnb.render import Camera, LevelsOfDetail, SplatRenderer, Viewer, compare, footprint_pixels, raytrace
 from csgnb.render.level_of_detail import FINER_MAX_SAMPLES, KEPT_LEVELS, LEVEL_STEP, TARGET_FOOTPRINT_PX
 from csgnb.sampling import sample_csg
@@ -58,11 +59,11 @@ def test_levels_follow_the_zoom_and_stop_at_the_given_cloud():
     assert lod.level_for(close) < 0 and footprint_pixels(close, lod.radius(0), lod.center) > TARGET_FOOTPRINT_PX
     assert lod.level_for(cam.with_size(4000, 3000).orbited(zoom=64.0)) == lod.min_level
     assert lod.cloud_at(0) is cloud
-    with pytest.raises(ValueError, match="level must be in"):
+    with pytest.raises(CsgnbError, match="level must be in"):
         lod.cloud_at(lod.max_level + 1)
-    with pytest.raises(ValueError, match="level must be in"):
+    with pytest.raises(CsgnbError, match="level must be in"):
         lod.cloud_at(lod.min_level - 1)
-    with pytest.raises(ValueError, match="target_pixels"):
+    with pytest.raises(GeometryError, match="target_pixels"):
         LevelsOfDetail(cloud, target_pixels=0)
 
 

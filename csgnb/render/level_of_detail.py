@@ -24,10 +24,14 @@ sides -- below, the per-splat passes; above, fragments and ray-traced tiles.
 from __future__ import annotations
 
 import math
+import numbers
 
 import numpy as np
 
+from csgnb.errors import CsgnbError
+from csgnb.quadric.arguments import as_finite_array, as_flag, as_positive
 from csgnb.render.camera import Camera
+from csgnb.render.scene import check_camera, check_cloud
 
 __all__ = ["FINER_MAX_SAMPLES", "LEVEL_STEP", "TARGET_FOOTPRINT_PX", "LevelsOfDetail", "footprint_pixels"]
 
@@ -51,9 +55,12 @@ def footprint_pixels(camera: Camera, radius: float, point) -> float:
     eye along the view direction (``inf`` when the point is at or behind the eye); orthographic:
     ``radius · height / ortho_height``.
     """
+    camera = check_camera(camera)
+    radius = as_positive(radius, "radius")
+    point = as_finite_array(point, (3,), "point")
     if camera.projection == "orthographic":
         return radius * camera.height / camera.ortho_height
-    depth = float((np.asarray(point, dtype=np.float64) - camera.eye) @ camera.forward)
+    depth = float((point - camera.eye) @ camera.forward)
     if depth <= 0.0:
         return math.inf
     return radius * camera.height / (2.0 * depth * math.tan(math.radians(camera.fov) / 2.0))
@@ -77,11 +84,9 @@ class LevelsOfDetail:
     """
 
     def __init__(self, cloud, *, target_pixels: float = TARGET_FOOTPRINT_PX, finer: bool = False) -> None:
-        target = float(target_pixels)
-        if not (math.isfinite(target) and target > 0.0):
-            raise ValueError(f"target_pixels must be a positive number of pixels, got {target_pixels!r}")
-        if len(cloud) == 0:
-            raise ValueError("the cloud is empty: there is nothing to draw at any level of detail")
+        check_cloud(cloud)
+        target = as_positive(target_pixels, "target_pixels")
+        finer = as_flag(finer, "finer")
         self.cloud = cloud
         self.target_pixels = target
         lo, hi = cloud.positions.min(axis=0), cloud.positions.max(axis=0)
@@ -105,7 +110,7 @@ class LevelsOfDetail:
         """The coarsest level in ``min_level..max_level`` whose splats are at most ``target_pixels`` wide (radius)
         on screen at the depth of the cloud's centre; ``min_level`` where even that one's are larger, 0 where the
         centre is at or behind the eye."""
-        px = footprint_pixels(camera, float(self.cloud.radius), self.center)
+        px = footprint_pixels(check_camera(camera), float(self.cloud.radius), self.center)
         if not math.isfinite(px):
             return 0
         # px · √2^k ≤ target  ⇔  k ≤ 2 log2(target / px)
@@ -119,9 +124,11 @@ class LevelsOfDetail:
 
         from csgnb.sampling import sample_csg
 
+        if isinstance(level, bool | np.bool_) or not isinstance(level, numbers.Integral):
+            raise TypeError(f"level must be an integer, got {type(level).__name__} {level!r:.40}")
         level = int(level)
         if not self.min_level <= level <= self.max_level:
-            raise ValueError(f"level must be in {self.min_level}..{self.max_level}, got {level}")
+            raise CsgnbError(f"level must be in {self.min_level}..{self.max_level} for this cloud, got {level}")
         hit = self.levels.pop(level, None)
         if hit is None:
             t0 = time.perf_counter()
