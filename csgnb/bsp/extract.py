@@ -30,7 +30,7 @@ from csgnb.bsp.tree import OUT, BSPTree
 from csgnb.errors import GeometryError
 from csgnb.exact.integral import integer_array
 from csgnb.exact.intrinsics import classify_at, intersect_into
-from csgnb.mesh.cutting import CUT_PROPER, cut_cell_inline, cut_cell_naive
+from csgnb.mesh.cutting import CUT_PROPER, cut_cell, cut_cell_naive
 from csgnb.mesh.halfedge import (
     FACE,
     HE,
@@ -382,7 +382,7 @@ def extract_into(m, tree, stack, state, cells, sc, out, mode, no_path):
                                           np.int64(tree.pos[node]), np.int64(tree.neg[node]))
         else:
             # The caps face the other child: the negative part's cap looks into pos[node].
-            status, a, b = cut_cell_inline(m, np.int64(h), np.int64(tree.plane[node]), np.int64(tree.pos[node]),
+            status, a, b = cut_cell(m, np.int64(h), np.int64(tree.plane[node]), np.int64(tree.pos[node]),
                                     np.int64(tree.neg[node]), no_path)
         if status == CUT_PROPER:
             # The child processed first goes on top. A leaf child first: its cell is done

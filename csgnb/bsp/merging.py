@@ -32,7 +32,7 @@ from csgnb.bsp.tree import OUT, BSPTree
 from csgnb.errors import GeometryError
 from csgnb.exact.integral import exact_int
 from csgnb.exact.wide import width_of
-from csgnb.mesh.cutting import CUT_PROPER, cut_cell_inline, cut_cell_naive
+from csgnb.mesh.cutting import CUT_PROPER, cut_cell, cut_cell_naive
 from csgnb.mesh.halfedge import MeshStore, grown_mesh_arrays, room_for_cut
 
 __all__ = ["MergeResult", "merge", "merge_table", "remove_redundancy"]
@@ -101,7 +101,7 @@ def merge_cells(m, a, b, b_offset, table, constant, stack, state, o, cells, no_p
                 return NEED_ROOM
             status, ca, cb = cut_cell_naive(m, work, np.int64(h), np.int64(row), np.int64(n2), np.int64(n1))
         else:
-            status, ca, cb = cut_cell_inline(m, np.int64(h), np.int64(row), np.int64(n2), np.int64(n1), no_path)
+            status, ca, cb = cut_cell(m, np.int64(h), np.int64(row), np.int64(n2), np.int64(n1), no_path)
         if status == CUT_PROPER:
             state[1] += 2
             o.plane[out] = row
