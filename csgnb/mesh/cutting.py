@@ -76,11 +76,11 @@ CUT_ERROR = -9
 
 # The per-vertex and per-edge helpers below are inlined at the numba IR level into the cut
 # (a call that is not inlined reference-counts each array it is passed, which costs more than
-# a classification). The cut itself is inlined only into the two loops that cut
-# (:func:`csgnb.bsp.extract.extract_into`, :func:`csgnb.bsp.merging.merge_cells`: its call, with
-# the mesh arrays as arguments, cost ~10 % of a carving) and into :func:`cut_cell`; those loops
-# are compiled once and called by every kernel that cuts. Inlining the loops into their callers
-# too (the octree's per-cell steps) re-typed and re-optimised a copy of the cut per caller:
+# a classification). The cut itself is inlined only into :func:`cut_cell`, its one compiled copy, which every
+# kernel that cuts calls -- the merge and extraction loops included: their call once cost ~10 % of a carving, but
+# with the mesh arrays passed unmanaged (``borrowing_jit``) it measured within the noise (2026-12-03), while
+# inlining it there re-typed and re-optimised two more copies (17 s of compilation). Inlining the loops into their
+# callers too (the octree's per-cell steps) re-typed and re-optimised a copy of the cut per caller:
 # minutes of compilation (issue 21). The naive baseline is a compiled function of its own.
 # Callers pass int64 scalars (``np.int64``) so that one specialisation serves them all.
 @jit(inline="always")
@@ -341,7 +341,7 @@ def cut_cell_inline(m, h0, s, opp_neg, opp_pos, path):
     properly (mesh unchanged); CUT_ERROR on an inconsistent mesh. The caller must have
     checked :func:`~csgnb.mesh.halfedge.room_for_cut` for the polytope's face count.
     ``path`` records the descent's vertices when longer than 1 (``path[0]`` = count).
-    Inlined into the loops that cut (see above); :func:`cut_cell` is its compiled entry.
+    :func:`cut_cell` is its compiled entry (see above); ``bench_cutting.py`` times this inlined form.
     """
     _new_stamp(m.counts)
     kind, value = _descend(m, h0, s, path)
@@ -361,7 +361,9 @@ def cut_cell_inline(m, h0, s, opp_neg, opp_pos, path):
 
 @borrowing_jit
 def cut_cell(m, h0, s, opp_neg, opp_pos, path):
-    """:func:`cut_cell_inline` as a compiled function (one copy for every caller that is not a cutting loop)."""
+    """:func:`cut_cell_inline` as a compiled function: one copy that every caller calls, the merge and extraction
+    loops included (inlined there, each re-typed and re-optimised its own copy -- 17 s of compilation -- for no
+    measurable speed; ``bench_cutting.py`` still times the inlined form)."""
     return cut_cell_inline(m, h0, s, opp_neg, opp_pos, path)
 
 
