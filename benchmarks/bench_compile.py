@@ -38,7 +38,7 @@ import time
 from _clock import load_average, nominal_clock_label
 
 REPO = pathlib.Path(__file__).resolve().parent.parent
-PARTS = ("exact", "mesh", "bsp", "octree", "quadric", "sampling")
+PARTS = ("exact", "mesh", "bsp", "octree", "quadric", "sampling", "render")  # csgnb.warmup.PARTS, in order
 EDITED = pathlib.Path("csgnb", "octree", "kernels.py")
 
 # -- the child ------------------------------------------------------------------------------------------------

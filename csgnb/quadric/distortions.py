@@ -75,7 +75,7 @@ def delta_range(form, ax, bx, ay, by, ac, x0, y0, x1, y1):
     return math.sqrt(1.0 + lo), (math.inf if bad else math.sqrt(1.0 + hi))
 
 
-@inline_jit
+@ieee_jit
 def delta_at_points(form, ax, bx, ay, by, ac, x0, y0, x1, y1, x2, y2):
     """Return max δ at three points, skipping points where N = T = 0 (inf if one is off the domain).
 
