@@ -36,6 +36,8 @@ from pathlib import Path
 
 import numba
 
+from csgnb._unlinked import resolve_unlinked
+
 __all__ = ["BORROWING_KERNELS", "CACHE_ENABLED", "PACKAGE_SOURCE_HASH", "borrowing_jit", "dependency_hash", "jit",
            "module_dependencies"]
 
@@ -206,8 +208,33 @@ def _install_package_cache_locator() -> None:
 
 _install_package_cache_locator()
 
-#: ``numba.njit`` with the package policy: cached, no fastmath, releases the GIL.
-jit = functools.partial(numba.njit, cache=CACHE_ENABLED, fastmath=False, nogil=True)
+
+def _resolving(dispatcher):
+    """``dispatcher``, resolving the calls by pointer (:mod:`csgnb._unlinked`) of every signature it compiles or
+    loads from the cache, before that signature can run."""
+    add_overload = getattr(dispatcher, "add_overload", None)
+    if add_overload is None:  # NUMBA_DISABLE_JIT: a plain Python function
+        return dispatcher
+
+    def resolving_add_overload(cres):
+        resolve_unlinked(cres.library)
+        add_overload(cres)
+
+    dispatcher.add_overload = resolving_add_overload
+    return dispatcher
+
+
+def jit(fn=None, **options):
+    """``numba.njit`` with the package policy: cached, no fastmath, releases the GIL; ``@jit`` or ``@jit(**options)``.
+
+    Every kernel resolves, when compiled or loaded from the cache, the kernels it calls by pointer
+    (:func:`csgnb._unlinked.unlinked`).
+    """
+    options = {"cache": CACHE_ENABLED, "fastmath": False, "nogil": True, **options}
+    if fn is None:
+        return lambda f: _resolving(numba.njit(f, **options))
+    return _resolving(numba.njit(fn, **options))
+
 
 #: The compiled inner loops that only borrow arrays (see :func:`borrowing_jit`), for the test that checks them.
 BORROWING_KERNELS: list = []
@@ -232,6 +259,7 @@ def borrowing_jit(fn):
         if _holds_array(cres.signature.return_type):
             raise TypeError(f"{fn.__qualname__} is compiled without reference counting (borrowing_jit) and returns "
                             f"{cres.signature.return_type}: a kernel that hands back arrays needs csgnb._jit.jit")
+        resolve_unlinked(cres.library)
         add_overload(cres)
 
     dispatcher.add_overload = checked_add_overload

@@ -32,6 +32,7 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
 from csgnb._jit import borrowing_jit, jit
+from csgnb._unlinked import unlinked
 from csgnb.bsp.polygon import PolygonSet, _checked_vertices, copy_point, polygons_from_triangles, split_polygon
 from csgnb.bsp.tree import OUT, BSPTree
 from csgnb.errors import GeometryError, InternalError, PrecisionError
@@ -47,6 +48,7 @@ __all__ = ["bsp_from_polygons", "bsp_from_mesh", "validate_mesh", "check_seed", 
 # the insertion loop
 
 
+@unlinked
 @borrowing_jit
 def build_kernel(palette, support, offsets, edges, verts, order, label,
                   plane, neg, pos, lab, a_edges, a_verts, sides, st_node, st_start, st_k):

@@ -23,6 +23,7 @@ import numpy as np
 
 from csgnb._jit import borrowing_jit, jit
 from csgnb._resumable import DONE, FAILED, NEED_ROOM, grown, run_resumable
+from csgnb._unlinked import unlinked
 from csgnb._views import unmanaged, unmanaged_tuple
 from csgnb.bsp.build import check_count
 from csgnb.bsp.surface import BoundarySurface, assemble_surface
@@ -301,6 +302,7 @@ def clip_face(m, f, lab, tree, sc, out):
 # kernels here and by the octree's per-cell steps; inlining them at the numba IR level re-typed a
 # copy per caller (issue 21). Callers pass int64 scalars and numpy bools, never literals: each
 # distinct argument type (Literal[int](2), int32) is one more compilation.
+@unlinked
 @borrowing_jit
 def clip_cell(m, h, lab, tree, sc, out, walls):
     """Clip every face of the cell ``h`` (label ``lab``) against its opposite subtree (:func:`clip_face`).
@@ -328,6 +330,7 @@ def clip_cell(m, h, lab, tree, sc, out, walls):
 # extraction: cells by cutting, pieces at the leaves, cells released (one kernel call)
 
 
+@unlinked
 @borrowing_jit
 def extract_into(m, tree, stack, state, cells, sc, out, mode, no_path):
     """Cut the box cell down the tree; at each leaf clip, record or release the cell.

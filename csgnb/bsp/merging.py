@@ -23,6 +23,7 @@ import numpy as np
 
 from csgnb._jit import borrowing_jit, jit
 from csgnb._resumable import DONE, FAILED, NEED_ROOM, grown, run_resumable
+from csgnb._unlinked import unlinked
 from csgnb._views import unmanaged, unmanaged_tuple
 from csgnb.bsp.build import bsp_from_polygons, check_seed
 from csgnb.bsp.extract import TreeArrays, boundary_pieces, check_box, check_tree, tree_arrays
@@ -43,6 +44,7 @@ _TREE, _NODE, _ALABEL, _HANDLE, _BOUND, _OUT = 0, 1, 2, 3, 4, 5
 
 
 # Compiled once and called per merge (on unmanaged views), not inlined into each caller (issue 21).
+@unlinked
 @borrowing_jit
 def merge_cells(m, a, b, b_offset, table, constant, stack, state, o, cells, no_path, work, naive):
     """Merge A and B cell by cell (§3.5); resumable (see :mod:`csgnb._resumable`).

@@ -40,6 +40,7 @@ import numpy as np
 
 from csgnb._jit import jit
 from csgnb._resumable import DONE, FAILED, NEED_ROOM
+from csgnb._unlinked import unlinked
 from csgnb._views import unmanaged, unmanaged_tuple
 from csgnb.bsp.build import build_kernel
 from csgnb.bsp.extract import PIECES, TreeArrays, clip_cell, extract_into
@@ -306,6 +307,7 @@ def convex_tool_in_box(pal, rows, corners, dist, tb):
     return 2, n
 
 
+@unlinked
 @jit
 def clip_tool_polygons(pal, tool, cand, lo, size, brows, arena, bi, need):
     """Clip the candidate polygons ``cand`` (indices) whose boxes meet the cell box to it; write the pieces into ``bi``.
@@ -425,6 +427,7 @@ def import_polygons(pal, bi, n, bs, seed, t, need):
 # a cell's solid inside a box: extraction + redundancy removal
 
 
+@unlinked
 @jit
 def simplify_in_box(pal, m, src, box, ws, seed, need):
     """The solid of tree ``src`` inside the box whose walls are ``box`` (6 rows), rebuilt from its boundary.
@@ -462,6 +465,7 @@ def simplify_in_box(pal, m, src, box, ws, seed, need):
     return BSP, count
 
 
+@unlinked
 @jit
 def merge_and_simplify(pal, m, ta, tb, table, constant, box, ws, seed, need):
     """A ∘ B inside the box (``table`` is the label function): merge by cutting, then redundancy removal.
@@ -625,6 +629,7 @@ def _centre_point(lo, size, pt):
     store_int64_at(pt, 0, 3, 2)
 
 
+@unlinked
 @jit
 def boolean_cell(pal, oc, pool, amap, node, tool_kind, tool, cand, table, constant, ws, seed, need):
     """Apply the Boolean to one leaf cell and write its result. Returns 1 done, 0 short of room."""
@@ -725,6 +730,7 @@ def _alloc_children(oc, node):
     return first
 
 
+@unlinked
 @jit
 def split_step(pal, oc, pool, amap, node, st, ws, threshold, min_size, seed, need):
     """Split cell ``node`` into its 8 children (resumable per child). Returns 1 done, 0 short of room."""
@@ -944,6 +950,7 @@ def _boolean_kernel(pal, oc, pool, amap, work, cand, done, tool_kind, tool, tlo,
 # combine (Figure 8)
 
 
+@unlinked
 @jit
 def combine_parent(pal, oc, pool, amap, node, ws, threshold, seed, need):
     """Replace the 8 leaf children of ``node`` by one cell if their solid fits ``threshold`` nodes.
