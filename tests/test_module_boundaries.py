@@ -1,7 +1,7 @@
 """Package boundaries: no csgnb module imports a private name (or a private module) of another sub-package.
 
 Sub-packages talk through public names only (a kernel another package calls has a public name where it is
-defined); the package-wide infrastructure at the top (``csgnb._jit``, ``csgnb._views``, ``csgnb._resumable``,
+defined); the package-wide infrastructure at the top (``csgnb._jit``, ``csgnb._unlinked``, ``csgnb._views``, ``csgnb._resumable``,
 ``csgnb._files``) is private to csgnb and shared by all of its sub-packages. Tests and benchmarks may reach into
 internals.
 """
@@ -14,7 +14,7 @@ import pathlib
 import csgnb
 
 PACKAGE = pathlib.Path(csgnb.__file__).parent
-SHARED = {"csgnb._jit", "csgnb._views", "csgnb._resumable", "csgnb._files"}
+SHARED = {"csgnb._jit", "csgnb._unlinked", "csgnb._views", "csgnb._resumable", "csgnb._files"}
 
 
 def _subpackage(module: str) -> str:
