@@ -132,9 +132,10 @@ PARTS = {"exact": _exact, "mesh": _mesh, "bsp": _bsp, "octree": _octree, "quadri
 
 
 #: The parts compiled in this process and in a second one. The two pipelines share no kernel; the "exact" part
-#: (the public predicates at every width) is no kernel the mesh, bsp and octree parts call, so it goes with the
-#: quadric pipeline, whose process finished ~10 s earlier (``bench_compile.py``: exact track 96.7 s, quadric 87.1 s).
-TRACKS = (("mesh", "bsp", "octree"), ("exact", "quadric", "sampling", "render"))
+#: (the public predicates at every width, ~7 s) goes with whichever track finishes first: since the octree's kernels
+#: call each other by pointer (``csgnb._unlinked``) that is the exact pipeline's (``bench_compile.py``, 2026-12-03:
+#: mesh + bsp + octree 93.1 s, exact + quadric + sampling + render 103.6 s).
+TRACKS = (("exact", "mesh", "bsp", "octree"), ("quadric", "sampling", "render"))
 
 
 def _warm_parts(names: list[str]) -> dict[str, float]:
@@ -152,8 +153,8 @@ def warm_up(*parts: str, progress: bool = True, parallel: bool | None = None) ->
 
     Prints what it does and shows a ``tqdm`` progress bar (a widget in a notebook) unless ``progress=False``.
     With ``parallel`` (default: when the machine has more than one core and both tracks are asked for) the
-    second track of :data:`TRACKS` (exact predicates and the quadric pipeline) compiles in a second process while
-    this one compiles the first (mesh, bsp, octree).
+    second track of :data:`TRACKS` (the quadric pipeline) compiles in a second process while this one compiles
+    the first (the exact predicates, mesh, bsp, octree).
     Returns the seconds spent per part.
     """
     names = list(parts) or list(PARTS)
