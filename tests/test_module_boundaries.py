@@ -1,9 +1,9 @@
 """Package boundaries: no csgnb module imports a private name (or a private module) of another sub-package.
 
 Sub-packages talk through public names only (a kernel another package calls has a public name where it is
-defined); the package-wide infrastructure at the top (``csgnb._jit``, ``csgnb._unlinked``, ``csgnb._views``, ``csgnb._resumable``,
-``csgnb._files``) is private to csgnb and shared by all of its sub-packages. Tests and benchmarks may reach into
-internals.
+defined); the package-wide infrastructure at the top (``csgnb._jit``, ``csgnb._unlinked``, ``csgnb._views``,
+``csgnb._resumable``, ``csgnb._files``) is private to csgnb and shared by all of its sub-packages. Tests and
+benchmarks may reach into internals.
 """
 
 from __future__ import annotations
