@@ -251,15 +251,14 @@ def borrowing_jit(fn):
     reloaded around them. In the cut, merge, clip and extraction loops they cost a third of a
     carving's time (a dome carve of 1,000 capsules: 5.2 s -> 3.5 s without them).
     """
-    dispatcher = numba.njit(fn, cache=CACHE_ENABLED, fastmath=False, nogil=True, _nrt=False)
-    add_overload = dispatcher.add_overload
+    dispatcher = _resolving(numba.njit(fn, cache=CACHE_ENABLED, fastmath=False, nogil=True, _nrt=False))
+    add_overload = dispatcher.add_overload  # resolves the calls by pointer
 
     def checked_add_overload(cres):
         # Every signature compiled or loaded passes here: refuse one that hands an array back.
         if _holds_array(cres.signature.return_type):
             raise TypeError(f"{fn.__qualname__} is compiled without reference counting (borrowing_jit) and returns "
                             f"{cres.signature.return_type}: a kernel that hands back arrays needs csgnb._jit.jit")
-        resolve_unlinked(cres.library)
         add_overload(cres)
 
     dispatcher.add_overload = checked_add_overload

@@ -25,7 +25,9 @@ The big per-cell steps (tool clipping, merge + redundancy removal, extraction in
 cell of a Boolean, a split, a combine) are separately compiled functions rather than inlined
 ones: they run once per cell, their call costs a few microseconds on unmanaged views, and
 compiling them once instead of inlining them into every kernel keeps the first run's compile
-time reasonable (issue 21: the inlined version took minutes; ``benchmarks/bench_compile.py``).
+time reasonable (issue 21: the inlined version took minutes; ``benchmarks/bench_compile.py``). They, and the
+merge, extraction, clipping and BSP building they call, are ``@unlinked`` (:mod:`csgnb._unlinked`): called by
+pointer, so their code is not copied into, and optimised again inside, every kernel above them.
 Only small helpers are inlined at the numba IR level.
 
 Kernels are resumable (:mod:`csgnb._resumable`): before a step that could overflow they
