@@ -255,7 +255,7 @@ def _operate(page, cell, control, describe: str, act) -> None:
     deadline = time.monotonic() + 300
     while _signature(cell) == before:
         if time.monotonic() > deadline:
-            raise AssertionError(f"{describe}: its output did not change")
+            raise AssertionError(f"{describe}: its output did not change (kernel idle: {_kernel_idle(page)})")
         page.wait_for_timeout(250)
     _wait_idle(page, 120)
     page.wait_for_timeout(500)
@@ -275,10 +275,20 @@ def _slider(page, cell, slider, describe):
         # readout that may update late on a busy machine -- pressing right, then left after a slow readout, put the
         # slider back where it was ("its output did not change", once in CI)
         now, top = handle.get_attribute("aria-valuenow"), handle.get_attribute("aria-valuemax")
-        handle.focus()
         if now is not None and top is not None:
-            page.keyboard.press("ArrowLeft" if float(now) >= float(top) else "ArrowRight")
-            return
+            key = "ArrowLeft" if float(now) >= float(top) else "ArrowRight"
+            # a key press can be lost on a loaded machine (the focus taken by the page between focus() and the
+            # press): press again until the handle moves, so that a lost key press is not read as a control that
+            # changes nothing
+            for _ in range(4):
+                handle.focus()
+                page.keyboard.press(key)
+                deadline = time.monotonic() + 15
+                while handle.get_attribute("aria-valuenow") == now and time.monotonic() < deadline:
+                    page.wait_for_timeout(200)
+                if handle.get_attribute("aria-valuenow") != now:
+                    return
+            raise AssertionError(f"{describe}: four {key} presses did not move the slider from {now}")
         old = readout.inner_text()
         page.keyboard.press("ArrowRight")
         deadline = time.monotonic() + 10

@@ -273,7 +273,7 @@ def _bins_reference(bbox, flag, zmin, tile, ntx, nty):
 def test_binning_matches_the_serial_definition_on_random_footprints():
     """The binning runs in parallel chunks; its tiles must list the same splats in the same order as the serial
     definition (depth bucket, then splat index), ties and empty frames included."""
-    from csgnb.render.splats import _bin_kernel
+    from csgnb.render.splats import _bin_splats
 
     rng = np.random.default_rng(4)
     for trial in range(25):
@@ -288,7 +288,7 @@ def test_binning_matches_the_serial_definition_on_random_footprints():
         if trial % 4 == 0:
             zmin = np.round(zmin, 1)  # many ties within a bucket
         start, items = np.empty(ntx * nty + 1, dtype=np.int64), np.empty(400_000, dtype=np.int32)
-        total = _bin_kernel(bbox, flag, zmin, tile, ntx, nty, start, items)
+        total = _bin_splats(bbox, flag, zmin, tile, ntx, nty, start, items)
         ref_start, ref_items = _bins_reference(bbox, flag, zmin, tile, ntx, nty)
         assert total == len(ref_items)
         assert np.array_equal(start, ref_start) and np.array_equal(items[:total], ref_items), trial
@@ -422,7 +422,7 @@ def test_box_footprints_stay_inside_the_balls_rectangle():
     out = {}
     for mode in (0, 1):
         bufs = (np.empty((n, 4), np.int32), np.empty((n, 12)), np.empty(n, np.int32), np.empty(n, np.int8), np.empty(n))
-        _footprint_kernel(cam.params(), renderer.SD, mode, True, *bufs)
+        _footprint_kernel(cam.params(), renderer.SD, mode, True, *bufs, 0, 1)
         out[mode] = bufs
     sphere, box = out[0][0], out[1][0]
     drawn = out[1][3] == 0

@@ -198,6 +198,9 @@ def split_polygon(palette, support_row, plane, edges, verts, start, k, sides, o_
       side should classify inline (``classify_at`` per vertex) and call this only
       for proper splits (as :mod:`csgnb.bsp.build` does).
     """
+    # every integer as int64: one compiled specialisation of the helpers whatever the callers' integer types
+    support_row, plane, start, k = np.int64(support_row), np.int64(plane), np.int64(start), np.int64(k)
+    o_neg, o_pos = np.int64(o_neg), np.int64(o_pos)
     side = classify_polygon(palette, verts, start, k, plane, sides)
     if side != 2:
         return side, 0, 0
@@ -218,14 +221,15 @@ def split_polygon_planes(palette, support_row, plane, edges_in, k, out_neg, out_
     and ``out_pos[:k_pos]`` (each (>= k + 1,) int32); otherwise nothing is written and
     ``(side, 0, 0)`` is returned. See :func:`split_polygon` for the guarantees.
     """
-    polygon_vertices_into(palette, support_row, edges_in, 0, k, work, 0)
-    side = classify_polygon(palette, work, 0, k, plane, sides)
+    support_row, plane, k, zero = np.int64(support_row), np.int64(plane), np.int64(k), np.int64(0)
+    polygon_vertices_into(palette, support_row, edges_in, zero, k, work, zero)
+    side = classify_polygon(palette, work, zero, k, plane, sides)
     if side != 2:
         return side, 0, 0
-    k_neg = _write_piece(palette, support_row, plane, edges_in, np.int64(0), work, np.int64(0), k, sides, np.int64(1),
-                         out_neg, np.int64(0), work, np.int64(0), np.bool_(False))
-    k_pos = _write_piece(palette, support_row, plane, edges_in, np.int64(0), work, np.int64(0), k, sides, np.int64(-1),
-                         out_pos, np.int64(0), work, np.int64(0), np.bool_(False))
+    k_neg = _write_piece(palette, support_row, plane, edges_in, zero, work, zero, k, sides, np.int64(1),
+                         out_neg, zero, work, zero, np.bool_(False))
+    k_pos = _write_piece(palette, support_row, plane, edges_in, zero, work, zero, k, sides, np.int64(-1),
+                         out_pos, zero, work, zero, np.bool_(False))
     return side, k_neg, k_pos
 
 
@@ -257,10 +261,10 @@ def _split_set_kernel(palette, support, offsets, edges, verts, plane, sides, sid
     pos_off[0] = 0
     for i in range(support.shape[0]):
         s = support[i]
-        row = s if s >= 0 else -s - 1
-        e0 = offsets[i]
-        k = offsets[i + 1] - e0
-        side = classify_polygon(palette, verts, e0, k, plane, sides)
+        row = np.int64(s if s >= 0 else -s - 1)
+        e0 = np.int64(offsets[i])
+        k = np.int64(offsets[i + 1] - e0)
+        side = classify_polygon(palette, verts, e0, k, np.int64(plane), sides)
         side_out[i] = side
         if side == -1 or side == 2:
             o = neg_off[nn]
@@ -269,8 +273,8 @@ def _split_set_kernel(palette, support, offsets, edges, verts, plane, sides, sid
                     neg_edges[o + j] = edges[e0 + j]
                 kn = k
             else:
-                kn = _write_piece(palette, row, plane, edges, e0, verts, e0, k, sides, np.int64(1),
-                                  neg_edges, o, verts, np.int64(0), np.bool_(False))
+                kn = _write_piece(palette, row, np.int64(plane), edges, e0, verts, e0, k, sides, np.int64(1),
+                                  neg_edges, np.int64(o), verts, np.int64(0), np.bool_(False))
             neg_src[nn] = i
             neg_off[nn + 1] = o + kn
             nn += 1
@@ -281,8 +285,8 @@ def _split_set_kernel(palette, support, offsets, edges, verts, plane, sides, sid
                     pos_edges[o + j] = edges[e0 + j]
                 kp = k
             else:
-                kp = _write_piece(palette, row, plane, edges, e0, verts, e0, k, sides, np.int64(-1),
-                                  pos_edges, o, verts, np.int64(0), np.bool_(False))
+                kp = _write_piece(palette, row, np.int64(plane), edges, e0, verts, e0, k, sides, np.int64(-1),
+                                  pos_edges, np.int64(o), verts, np.int64(0), np.bool_(False))
             pos_src[npos] = i
             pos_off[npos + 1] = o + kp
             npos += 1

@@ -16,9 +16,9 @@ import math
 import time
 
 import numpy as np
-from numba import prange
 
 from csgnb._jit import jit
+from csgnb._threads import run_parts
 from csgnb.quadric.arguments import as_flag
 from csgnb.render.camera import Camera
 from csgnb.render.frame import Frame, RenderStats
@@ -101,24 +101,17 @@ def trace_pixel(P, term_start, x, y, dd, hit_t, hit_k, inside):
     return best, bq, bt, roots
 
 
-@jit(parallel=True, error_model="numpy")
-def raytrace_tiles(cam, X, Y, P, term_start, max_term, grid, tiles, depth, qid, tid, work):
-    """Trace the pixels of the listed screen tiles, in parallel over the tiles.
-
-    grid : (tile, step, write) int64 — tile edge in pixels (tile t covers rows ``(t // ntx) · tile``
-    on, columns ``(t % ntx) · tile`` on, ntx = ⌈W / tile⌉); every ``step``-th pixel of a tile's rows
-    and columns is traced (1: all of them; more: a probe of the tile's cost); ``write`` 0 leaves
-    the buffers alone. tiles : (n,) int64. depth (view z), qid, tid : (H, W), written at the traced
-    pixels. work : (n,) int64, set to the roots computed in ``tiles[n]``.
-    """
+@jit(error_model="numpy")
+def _raytrace_tiles_kernel(cam, X, Y, P, term_start, max_term, grid, tiles, depth, qid, tid, work, part, parts):
+    """The listed tiles ``part``, ``part + parts``, ... of :func:`raytrace_tiles`."""
     H, W = depth.shape
     tile, step, write = grid[0], grid[1], grid[2] != 0
     ntx = (W + tile - 1) // tile
     persp = cam[18] == 0.0
-    for n in prange(tiles.shape[0]):
-        hit_t = np.empty(2 * max_term)
-        hit_k = np.empty(2 * max_term, dtype=np.int64)
-        inside = np.empty(max_term, dtype=np.bool_)
+    hit_t = np.empty(2 * max_term)
+    hit_k = np.empty(2 * max_term, dtype=np.int64)
+    inside = np.empty(max_term, dtype=np.bool_)
+    for n in range(part, tiles.shape[0], parts):
         i0 = (tiles[n] // ntx) * tile
         j0 = (tiles[n] % ntx) * tile
         roots = 0
@@ -133,6 +126,18 @@ def raytrace_tiles(cam, X, Y, P, term_start, max_term, grid, tiles, depth, qid, 
                     qid[i, j] = bq
                     tid[i, j] = bt
         work[n] = roots
+
+
+def raytrace_tiles(cam, X, Y, P, term_start, max_term, grid, tiles, depth, qid, tid, work) -> None:
+    """Trace the pixels of the listed screen tiles, the tiles shared among ``numba.get_num_threads()`` threads.
+
+    grid : (tile, step, write) int64 — tile edge in pixels (tile t covers rows ``(t // ntx) · tile``
+    on, columns ``(t % ntx) · tile`` on, ntx = ⌈W / tile⌉); every ``step``-th pixel of a tile's rows
+    and columns is traced (1: all of them; more: a probe of the tile's cost); ``write`` 0 leaves
+    the buffers alone. tiles : (n,) int64. depth (view z), qid, tid : (H, W), written at the traced
+    pixels. work : (n,) int64, set to the roots computed in ``tiles[n]``.
+    """
+    run_parts(_raytrace_tiles_kernel, cam, X, Y, P, term_start, max_term, grid, tiles, depth, qid, tid, work)
 
 
 def tile_count(shape: tuple[int, int], tile: int) -> tuple[int, int]:

@@ -11,9 +11,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import prange
 
 from csgnb._jit import jit
+from csgnb._threads import run_parts
 from csgnb.errors import CsgnbError, GeometryError
 from csgnb.quadric.arguments import as_count, as_instance, as_real
 from csgnb.render.rays import ray_direction, ray_point, row_gradient
@@ -97,11 +97,12 @@ def overdraw_colors(top: int = 30) -> np.ndarray:
     return 0.15 + 0.85 * rgb
 
 
-@jit(parallel=True, error_model="numpy")
-def _normals_kernel(cam, X, Y, Q, depth, qid, normal):
-    """normal[i, j] = N(p) of quadric ``qid[i, j]`` at p = o + z d (eq. 4); zero where empty."""
+@jit(error_model="numpy")
+def _normals_kernel(cam, X, Y, Q, depth, qid, normal, part, parts):
+    """normal[i, j] = N(p) of quadric ``qid[i, j]`` at p = o + z d (eq. 4); zero where empty (rows of block
+    ``part`` of ``parts``)."""
     H, W = depth.shape
-    for i in prange(H):
+    for i in range(H * part // parts, H * (part + 1) // parts):
         for j in range(W):
             k = qid[i, j]
             if k < 0:
@@ -118,9 +119,9 @@ def _normals_kernel(cam, X, Y, Q, depth, qid, normal):
             normal[i, j, 2] = g2 * inv
 
 
-@jit(parallel=True, error_model="numpy")
-def _shade_kernel(cam, X, Y, normal, key, palette, light, lit, background, rgb):
-    """rgb[i, j] = palette[key[i, j]] under a headlight and a key light (Blinn-Phong)."""
+@jit(error_model="numpy")
+def _shade_kernel(cam, X, Y, normal, key, palette, light, lit, background, rgb, part, parts):
+    """rgb[i, j] = palette[key[i, j]] under a headlight and a key light (Blinn-Phong); rows of block ``part``."""
     H, W = key.shape
     # key light: up-left of the view direction, in world coordinates
     lx = -0.45 * cam[6] + 0.6 * cam[9] - 0.66 * cam[3]
@@ -130,7 +131,7 @@ def _shade_kernel(cam, X, Y, normal, key, palette, light, lit, background, rgb):
     lx, ly, lz = lx * ln, ly * ln, lz * ln
     amb, dif, spe = light[0], light[1], light[2]
     shin = int(light[3])
-    for i in prange(H):
+    for i in range(H * part // parts, H * (part + 1) // parts):
         for j in range(W):
             c = key[i, j]
             if c < 0:
@@ -165,7 +166,7 @@ def _shade_kernel(cam, X, Y, normal, key, palette, light, lit, background, rgb):
 def surface_normals(cam: np.ndarray, X, Y, Q, depth, qid) -> np.ndarray:
     """Return unit outward normals at the visible points : (H, W, 3) float32 (zero where empty)."""
     out = np.empty(depth.shape + (3,), dtype=np.float32)
-    _normals_kernel(cam, X, Y, Q, depth, qid, out)
+    run_parts(_normals_kernel, cam, X, Y, Q, depth, qid, out)
     return out
 
 
@@ -179,7 +180,7 @@ def shade(cam: np.ndarray, X, Y, normal, key, palette, *, lit: bool = True, ligh
         as_instance(lighting, Lighting, "lighting", "a csgnb.render.Lighting or None")
     light = (lighting or Lighting()).array()
     out = np.empty(key.shape + (3,), dtype=np.uint8)
-    _shade_kernel(cam, X, Y, normal, np.ascontiguousarray(key, dtype=np.int32),
+    run_parts(_shade_kernel, cam, X, Y, normal, np.ascontiguousarray(key, dtype=np.int32),
                   np.ascontiguousarray(palette, dtype=np.float64), light, bool(lit),
                   np.asarray(background, dtype=np.float64), out)
     return out

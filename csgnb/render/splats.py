@@ -1,12 +1,13 @@
 """The splat renderer of §6: local quadric ray-tracing and clipping per fragment, tiled on the CPU.
 
-A frame is four kernels, each a data-parallel loop that maps one-to-one onto a GPU pass:
+A frame is four kernels, each a data-parallel loop that maps one-to-one onto a GPU pass (on the CPU the loops run
+in parts on ``numba.get_num_threads()`` threads, :func:`csgnb._threads.run_parts`: the one-thread image, bit for bit):
 
 1. ``_footprint_kernel`` (per splat): back-face culling and the splat's screen footprint — the
    bounding rectangle of its sphere (s, r) (the paper's screen-aligned quad) or the convex hull
    of its surface-aligned box (§6.1), as up to six screen vertices and a pixel rectangle;
-2. ``_bin_kernel``: splats → screen tiles (a counting sort: the tile's list of splat indices);
-3. ``_raster_kernel`` (per tile, ``prange``): for every pixel of every footprint (a *fragment*)
+2. ``_bin_splats``: splats → screen tiles (a counting sort: the tile's list of splat indices);
+3. ``_raster_kernel`` (per tile): for every pixel of every footprint (a *fragment*)
    intersect the pixel ray with the splat's own quadric (eq. 5), keep the nearest root that lies
    within r of the sample, discard it if a quadric of its clip set is positive there, depth test;
 4. normals and shading of the visible points (:mod:`.shading`).
@@ -28,9 +29,9 @@ import time
 import weakref
 
 import numpy as np
-from numba import prange
 
 from csgnb._jit import jit
+from csgnb._threads import run_parts, threads
 from csgnb.errors import CsgnbError
 from csgnb.quadric.arguments import as_count, as_flag
 from csgnb.render.camera import Camera
@@ -69,11 +70,11 @@ CLIP_TOLERANCE = 64.0 * EPS
 _CHUNK = 1024
 
 
-@jit(parallel=True, error_model="numpy")
-def _prepare_kernel(Q, lam, pos, nrm, rad, ids, SD):
-    """Static per-splat data SD (n, 12): s, r, unit normal, |∇Q(s)|, box heights, ρ."""
+@jit(error_model="numpy")
+def _prepare_kernel(Q, lam, pos, nrm, rad, ids, SD, part, parts):
+    """Static per-splat data SD (n, 12): s, r, unit normal, |∇Q(s)|, box heights, ρ (block ``part`` of ``parts``)."""
     n = pos.shape[0]
-    for k in prange(n):
+    for k in range(n * part // parts, n * (part + 1) // parts):
         q = ids[k]
         sx, sy, sz, r = pos[k, 0], pos[k, 1], pos[k, 2], rad[k]
         g0, g1, g2 = row_gradient(Q, q, sx, sy, sz)
@@ -108,9 +109,10 @@ def _to_camera(cam, x, y, z):
             x * cam[3] + y * cam[4] + z * cam[5])
 
 
-@jit(parallel=True, error_model="numpy")
-def _footprint_kernel(cam, SD, footprint, cull, bbox, hull, nh, flag, zmin):
-    """Per splat: flag (0 drawn, 1 culled, 2 off screen), pixel rectangle, footprint hull, nearest depth."""
+@jit(error_model="numpy")
+def _footprint_kernel(cam, SD, footprint, cull, bbox, hull, nh, flag, zmin, part, parts):
+    """Per splat: flag (0 drawn, 1 culled, 2 off screen), pixel rectangle, footprint hull, nearest depth (the chunks
+    of ``_CHUNK`` splats ``part``, ``part + parts``, ...)."""
     n = SD.shape[0]
     W, H = cam[16], cam[17]
     ortho = cam[18] != 0.0
@@ -122,12 +124,12 @@ def _footprint_kernel(cam, SD, footprint, cull, bbox, hull, nh, flag, zmin):
     tx, ty = cam[14], cam[15]
     side_x, side_y = math.sqrt(1.0 + tx * tx), math.sqrt(1.0 + ty * ty)
     n_chunks = (n + _CHUNK - 1) // _CHUNK
-    for c in prange(n_chunks):
-        px = np.empty(8)
-        py = np.empty(8)
-        order = np.empty(8, dtype=np.int64)
-        hx = np.empty(17)
-        hy = np.empty(17)
+    px = np.empty(8)
+    py = np.empty(8)
+    order = np.empty(8, dtype=np.int64)
+    hx = np.empty(17)
+    hy = np.empty(17)
+    for c in range(part, n_chunks, parts):
         for k in range(c * _CHUNK, min(n, (c + 1) * _CHUNK)):
             r = SD[k, 3]
             nx, ny, nz, gn = SD[k, 4], SD[k, 5], SD[k, 6], SD[k, 7]
@@ -267,92 +269,99 @@ def _footprint_kernel(cam, SD, footprint, cull, bbox, hull, nh, flag, zmin):
 _BUCKETS = 4096
 
 
-#: Chunks of the binning's parallel passes (fixed: the result is the serial order whatever the thread count).
+#: Chunks of the binning's passes (fixed: the result is the serial order whatever the number of threads).
 _BIN_CHUNKS = 16
 
 
-@jit(parallel=True, error_model="numpy")
-def _bin_kernel(bbox, flag, zmin, tile, ntx, nty, start, items):
-    """Counting sort of the drawn splats into tiles, front to back within a tile (by nearest depth,
-    in 4096 buckets): tile t holds items[start[t]:start[t + 1]]. Returns the pair count (if it
-    exceeds ``items``, nothing is written: grow it and call again).
-
-    Both sorts run over ``_BIN_CHUNKS`` chunks in parallel with per-chunk counts; offsets are laid out key-major,
-    chunk-minor, so every key's entries keep the serial (increasing splat, then increasing order) sequence: the
-    output is the one-thread output, bit for bit."""
-    n = bbox.shape[0]
-    nch = _BIN_CHUNKS
-    size = (n + nch - 1) // nch
-    los = np.full(nch, math.inf)
-    his = np.full(nch, -math.inf)
-    drawn_c = np.zeros(nch, dtype=np.int64)
-    for c in prange(nch):
+@jit(error_model="numpy")
+def _bin_depths(flag, zmin, los, his, drawn, part, parts):
+    """Per chunk of splats: the nearest depths' range and the drawn splats (chunks ``part``, ``part + parts``, ...)."""
+    n = flag.shape[0]
+    size = (n + _BIN_CHUNKS - 1) // _BIN_CHUNKS
+    for c in range(part, _BIN_CHUNKS, parts):
         lo, hi, d = math.inf, -math.inf, 0
         for k in range(c * size, min(n, (c + 1) * size)):
             if flag[k] == 0:
                 lo = min(lo, zmin[k])
                 hi = max(hi, zmin[k])
                 d += 1
-        los[c], his[c], drawn_c[c] = lo, hi, d
-    lo, hi, drawn = math.inf, -math.inf, 0
-    for c in range(nch):
-        lo = min(lo, los[c])
-        hi = max(hi, his[c])
-        drawn += drawn_c[c]
-    scale = (_BUCKETS - 1) / (hi - lo) if hi > lo else 0.0
-    hist = np.zeros((nch, _BUCKETS), dtype=np.int64)
-    for c in prange(nch):
-        for k in range(c * size, min(n, (c + 1) * size)):
-            if flag[k] == 0:
-                hist[c, int((zmin[k] - lo) * scale)] += 1
-    at = 0
-    for b in range(_BUCKETS):  # bucket-major, chunk-minor: within a bucket, increasing splat index
-        for c in range(nch):
-            h = hist[c, b]
-            hist[c, b] = at
-            at += h
-    order = np.empty(drawn, dtype=np.int32)
-    for c in prange(nch):
+        los[c], his[c], drawn[c] = lo, hi, d
+
+
+@jit(error_model="numpy")
+def _bin_buckets(flag, zmin, lo, scale, hist, order, scatter, part, parts):
+    """Per chunk c of splats: count the drawn splats per depth bucket into ``hist[c]``, or with ``scatter`` (``hist[c]``
+    then holds each bucket's first slot for the chunk) write them there, in splat order."""
+    n = flag.shape[0]
+    size = (n + _BIN_CHUNKS - 1) // _BIN_CHUNKS
+    for c in range(part, _BIN_CHUNKS, parts):
         for k in range(c * size, min(n, (c + 1) * size)):
             if flag[k] == 0:
                 b = int((zmin[k] - lo) * scale)
-                order[hist[c, b]] = k
+                if scatter:
+                    order[hist[c, b]] = k
                 hist[c, b] += 1
-    ntiles = ntx * nty
-    osize = (drawn + nch - 1) // nch
-    count = np.zeros((nch, ntiles), dtype=np.int64)
-    for c in prange(nch):
-        for o in range(c * osize, min(drawn, (c + 1) * osize)):
-            k = order[o]
-            for ty in range(bbox[k, 1] // tile, bbox[k, 3] // tile + 1):
-                for tx in range(bbox[k, 0] // tile, bbox[k, 2] // tile + 1):
-                    count[c, ty * ntx + tx] += 1
-    start[0] = 0
-    for t in range(ntiles):  # tile-major, chunk-minor: within a tile, increasing order
-        at = start[t]
-        for c in range(nch):
-            h = count[c, t]
-            count[c, t] = at
-            at += h
-        start[t + 1] = at
-    total = start[ntiles]
-    if total > items.shape[0]:
-        return total
-    for c in prange(nch):
+
+
+@jit(error_model="numpy")
+def _bin_tiles(bbox, order, tile, ntx, count, items, scatter, part, parts):
+    """Per chunk c of the depth order: count each tile's splats into ``count[c]``, or with ``scatter`` (``count[c]``
+    then holds each tile's first slot for the chunk) write them there, in depth order."""
+    drawn = order.shape[0]
+    osize = (drawn + _BIN_CHUNKS - 1) // _BIN_CHUNKS
+    for c in range(part, _BIN_CHUNKS, parts):
         for o in range(c * osize, min(drawn, (c + 1) * osize)):
             k = order[o]
             for ty in range(bbox[k, 1] // tile, bbox[k, 3] // tile + 1):
                 for tx in range(bbox[k, 0] // tile, bbox[k, 2] // tile + 1):
                     t = ty * ntx + tx
-                    items[count[c, t]] = k
+                    if scatter:
+                        items[count[c, t]] = k
                     count[c, t] += 1
+
+
+def _first_slots(counts: np.ndarray) -> np.ndarray:
+    """Exclusive prefix sums of ``counts`` (chunks, keys) laid out key-major, chunk-minor: every key's slots keep the
+    chunks in order, so the output is the serial one. Returns (chunks, keys) int64; the total is ``counts.sum()``."""
+    flat = counts.T.ravel()
+    slots = np.cumsum(flat) - flat
+    return np.ascontiguousarray(slots.reshape(counts.shape[::-1]).T)
+
+
+def _bin_splats(bbox, flag, zmin, tile, ntx, nty, start, items) -> int:
+    """Counting sort of the drawn splats into tiles, front to back within a tile (by nearest depth,
+    in 4096 buckets): tile t holds items[start[t]:start[t + 1]]. Returns the pair count (if it
+    exceeds ``items``, nothing is written: grow it and call again).
+
+    Both sorts run over ``_BIN_CHUNKS`` chunks of splats, on the threads (:func:`csgnb._threads.run_parts`), with
+    per-chunk counts; offsets are laid out key-major, chunk-minor, so every key's entries keep the serial
+    (increasing splat, then increasing order) sequence: the output is the one-thread output, bit for bit."""
+    nch = _BIN_CHUNKS
+    parts = min(threads(), nch)
+    los, his = np.full(nch, math.inf), np.full(nch, -math.inf)
+    drawn_c = np.zeros(nch, dtype=np.int64)
+    run_parts(_bin_depths, flag, zmin, los, his, drawn_c, parts=parts)
+    lo, hi, drawn = float(los.min()), float(his.max()), int(drawn_c.sum())
+    scale = (_BUCKETS - 1) / (hi - lo) if hi > lo else 0.0
+    hist = np.zeros((nch, _BUCKETS), dtype=np.int64)
+    order = np.empty(drawn, dtype=np.int32)
+    run_parts(_bin_buckets, flag, zmin, lo, scale, hist, order, False, parts=parts)
+    run_parts(_bin_buckets, flag, zmin, lo, scale, _first_slots(hist), order, True, parts=parts)
+    count = np.zeros((nch, ntx * nty), dtype=np.int64)
+    run_parts(_bin_tiles, bbox, order, tile, ntx, count, items, False, parts=parts)
+    start[0] = 0
+    np.cumsum(count.sum(axis=0), out=start[1:])
+    total = int(start[-1])
+    if total <= items.shape[0]:
+        run_parts(_bin_tiles, bbox, order, tile, ntx, _first_slots(count), items, True, parts=parts)
     return total
 
 
-@jit(parallel=True, error_model="numpy")
-def _tile_fragments(bbox, start, items, tile, ntx, H, W, fragments):
-    """Per tile, the pixels of its splats' rectangles inside it (an upper bound on its fragments) : (ntiles,) int64."""
-    for t in prange(start.shape[0] - 1):
+@jit(error_model="numpy")
+def _tile_fragments(bbox, start, items, tile, ntx, H, W, fragments, part, parts):
+    """Per tile, the pixels of its splats' rectangles inside it (an upper bound on its fragments) : (ntiles,) int64
+    (the tiles ``part``, ``part + parts``, ...)."""
+    for t in range(part, start.shape[0] - 1, parts):
         ti0 = (t // ntx) * tile
         tj0 = (t % ntx) * tile
         ti1 = min(ti0 + tile, H) - 1
@@ -364,9 +373,9 @@ def _tile_fragments(bbox, start, items, tile, ntx, H, W, fragments):
         fragments[t] = f
 
 
-@jit(parallel=True, error_model="numpy")
+@jit(error_model="numpy")
 def _raster_kernel(cam, X, Y, P, Q, ctol, SD, SI, cidx, bbox, hull, nh, zmin, start, items, tile, ntx, skip, local,
-                   clip, rtol, depth, winner, qwin, qclip, qlast, zr1, zr2, od):
+                   clip, rtol, depth, winner, qwin, qclip, qlast, zr1, zr2, od, part, parts):
     """Rasterize the binned footprints tile by tile: fragments, local ray-tracing, clipping, depth test.
 
     Two per-pixel memos skip fragments before any arithmetic without changing the image. A
@@ -378,22 +387,23 @@ def _raster_kernel(cam, X, Y, P, Q, ctol, SD, SI, cidx, bbox, hull, nh, zmin, st
     is); ``qclip[i, j]``: a quadric all of whose roots in (0, depth) are clipped there. And
     ``qlast``, ``zr1``, ``zr2`` keep the roots of the last quadric computed at each pixel: the
     overlapping splats of one surface reuse them. Tiles with ``skip[t]`` are left alone (ray traced instead).
+    This call draws the tiles ``part``, ``part + parts``, ... (a stride spreads a crowded region over the threads).
     """
     H, W = depth.shape
     nty = (H + tile - 1) // tile
     persp = cam[18] == 0.0
-    for t in prange(ntx * nty):
+    # hull edges of the current splat: y range, x at the lower y, dx/dy (no division per row)
+    ey0 = np.empty(6)
+    ey1 = np.empty(6)
+    ex0 = np.empty(6)
+    esl = np.empty(6)
+    for t in range(part, ntx * nty, parts):
         if skip[t]:
             continue
         ti0 = (t // ntx) * tile
         tj0 = (t % ntx) * tile
         ti1 = min(ti0 + tile, H) - 1
         tj1 = min(tj0 + tile, W) - 1
-        # hull edges of the current splat: y range, x at the lower y, dx/dy (no division per row)
-        ey0 = np.empty(6)
-        ey1 = np.empty(6)
-        ex0 = np.empty(6)
-        esl = np.empty(6)
         for b in range(start[t], start[t + 1]):
             k = items[b]
             sx, sy, sz, r = SD[k, 0], SD[k, 1], SD[k, 2], SD[k, 3]
@@ -493,11 +503,11 @@ def _raster_kernel(cam, X, Y, P, Q, ctol, SD, SI, cidx, bbox, hull, nh, zmin, st
                         qclip[i, j] = q
 
 
-@jit(parallel=True, error_model="numpy")
-def _resolve_kernel(winner, SI, nrm, term_of, local, qid, tid, ccount, normal):
-    """Per pixel, from the visible splat: quadric, term, clip-set size (and the disc normal)."""
+@jit(error_model="numpy")
+def _resolve_kernel(winner, SI, nrm, term_of, local, qid, tid, ccount, normal, part, parts):
+    """Per pixel, from the visible splat: quadric, term, clip-set size (and the disc normal); rows of block ``part``."""
     H, W = winner.shape
-    for i in prange(H):
+    for i in range(H * part // parts, H * (part + 1) // parts):
         for j in range(W):
             k = winner[i, j]
             if k < 0:
@@ -530,10 +540,10 @@ class SplatRenderer:
         n = len(cloud.positions)
         lam = np.array([[q.eigenvalues[0], q.eigenvalues[-1]] for q in nf.quadrics], dtype=np.float64)
         self.SD = np.empty((n, 12))
-        _prepare_kernel(self.Q, lam, np.ascontiguousarray(cloud.positions, dtype=np.float64),
-                        np.ascontiguousarray(cloud.normals, dtype=np.float64),
-                        np.ascontiguousarray(cloud.radii, dtype=np.float64),
-                        np.ascontiguousarray(cloud.quadric_ids, dtype=np.int32), self.SD)
+        run_parts(_prepare_kernel, self.Q, lam, np.ascontiguousarray(cloud.positions, dtype=np.float64),
+                  np.ascontiguousarray(cloud.normals, dtype=np.float64),
+                  np.ascontiguousarray(cloud.radii, dtype=np.float64),
+                  np.ascontiguousarray(cloud.quadric_ids, dtype=np.int32), self.SD)
         self.SI = np.ascontiguousarray(np.column_stack([cloud.quadric_ids, cloud.clip_start, cloud.clip_count]),
                                        dtype=np.int32)
         self.cidx = np.ascontiguousarray(cloud.clip_indices, dtype=np.int32)
@@ -642,18 +652,18 @@ class SplatRenderer:
         whole = exact and (fallback == "always" or (
             fallback == "auto" and raytrace_is_cheaper(trace_args, (H, W), tile, len(self.SD), n_terms)))
         if not whole:
-            _footprint_kernel(cam, self.SD, FOOTPRINTS.index(footprint), bool(backface_culling), self._bbox,
-                              self._hull, self._nh, self._flag, self._zmin)
+            run_parts(_footprint_kernel, cam, self.SD, FOOTPRINTS.index(footprint), bool(backface_culling),
+                      self._bbox, self._hull, self._nh, self._flag, self._zmin)
         t1 = time.perf_counter()
         if not whole:
-            total = _bin_kernel(self._bbox, self._flag, self._zmin, tile, ntx, nty, start, self._items)
+            total = _bin_splats(self._bbox, self._flag, self._zmin, tile, ntx, nty, start, self._items)
             if total > len(self._items):
                 self._items = np.empty(int(total * 1.25) + 1024, dtype=np.int32)
-                _bin_kernel(self._bbox, self._flag, self._zmin, tile, ntx, nty, start, self._items)
+                _bin_splats(self._bbox, self._flag, self._zmin, tile, ntx, nty, start, self._items)
         t2 = time.perf_counter()
         fragments_est = np.zeros(ntx * nty, dtype=np.int64)
         if not whole:
-            _tile_fragments(self._bbox, start, self._items, tile, ntx, H, W, fragments_est)
+            run_parts(_tile_fragments, self._bbox, start, self._items, tile, ntx, H, W, fragments_est)
         mode = "always" if whole else (fallback if exact else "never")
         plan = plan_tiles(mode, trace_args, fragments_est, start, tile, (H, W), n_terms)
         self.last_plan = plan  # the cost model's inputs and choice (benchmarks calibrate it from these)
@@ -664,19 +674,19 @@ class SplatRenderer:
         winner = np.full((H, W), -1, dtype=np.int32)
         qwin, qclip, qlast, zr1, zr2 = self._scratch(H, W)
         od = np.zeros((H, W), dtype=np.int32)
-        _raster_kernel(cam, X, Y, P, self.Q, ctol, self.SD, self.SI, self.cidx, self._bbox, self._hull, self._nh,
-                       self._zmin, start, self._items, tile, ntx, skip, li, bool(clip), rtol, depth, winner, qwin,
-                       qclip, qlast, zr1, zr2, od)
+        run_parts(_raster_kernel, cam, X, Y, P, self.Q, ctol, self.SD, self.SI, self.cidx, self._bbox, self._hull,
+                  self._nh, self._zmin, start, self._items, tile, ntx, skip, li, bool(clip), rtol, depth, winner, qwin,
+                  qclip, qlast, zr1, zr2, od)
         t3 = time.perf_counter()
         qid = np.empty((H, W), dtype=np.int32)
         tid = np.empty((H, W), dtype=np.int32)
         ccount = np.empty((H, W), dtype=np.int32)
         if li == 0:
             normal = np.zeros((H, W, 3), dtype=np.float32)
-            _resolve_kernel(winner, self.SI, self.normals, self.term_of, li, qid, tid, ccount, normal)
+            run_parts(_resolve_kernel, winner, self.SI, self.normals, self.term_of, li, qid, tid, ccount, normal)
         else:
-            _resolve_kernel(winner, self.SI, self.normals, self.term_of, li, qid, tid, ccount,
-                            np.empty((1, 1, 3), dtype=np.float32))
+            run_parts(_resolve_kernel, winner, self.SI, self.normals, self.term_of, li, qid, tid, ccount,
+                      np.empty((1, 1, 3), dtype=np.float32))
         t3b = time.perf_counter()
         if len(plan.raytraced):  # after the resolve, which clears the pixels no splat won
             raytrace_tiles(*trace_args, np.array([tile, 1, 1], dtype=np.int64), plan.raytraced, depth, qid, tid,

@@ -13,9 +13,9 @@ import threading
 import time
 from concurrent.futures import ThreadPoolExecutor
 
-import numba
 import numpy as np
 
+from csgnb import _threads
 from csgnb.csg.bounds import box_is_empty, surface_boxes, term_boxes
 from csgnb.csg.normal_form import NormalForm, to_normal_form
 from csgnb.csg.normalisation import ModelFrame, box_frame, graph_frame, quadrics_frame
@@ -418,11 +418,6 @@ def _new_buffers(jobs: int, trace: bool, expected: float = 0.0) -> list:
             np.empty(tcap, dtype=np.int64), np.empty((256, 14)), np.zeros(7, dtype=np.int64), [0, 0, 0, 0, 0]]
 
 
-def _threads() -> int:
-    """Threads for the sampler's passes: numba's setting (``NUMBA_NUM_THREADS``, ``numba.set_num_threads``)."""
-    return max(1, numba.get_num_threads())
-
-
 def _job_chunks(weights: np.ndarray, parts: int) -> list[tuple[int, int]]:
     """Split jobs ``0:len(weights)`` into consecutive ranges of about ``sum / parts`` estimated work each (a job
     heavier than that alone): enough pieces for the threads to balance a misestimate."""
@@ -441,7 +436,7 @@ def _job_chunks(weights: np.ndarray, parts: int) -> list[tuple[int, int]]:
 
 
 def _parallel_pass(C, ts: TaskSet, radius, min_size, sqrt3, refine, trace, ranges, bar, max_samples) -> list:
-    """Pass 1 over the job ranges, on ``_threads()`` threads when the model is large enough to gain from it.
+    """Pass 1 over the job ranges, on ``threads()`` threads when the model is large enough to gain from it.
 
     Consecutive chunks of jobs of about equal estimated work (their domain area over r², as the sample estimate;
     ``16 × threads`` of them, so that a misestimate evens out) are taken in turn by the threads (the kernel
@@ -451,7 +446,7 @@ def _parallel_pass(C, ts: TaskSet, radius, min_size, sqrt3, refine, trace, range
     output does not depend on the jobs before it (only the LA offsets in LI, the trace rows in UR and the
     counters are adjusted).
     """
-    threads = _threads()
+    threads = _threads.threads()
     jobs = len(ts.job_task)
     weights = _job_weights(ts, radius)
     if threads == 1 or weights.sum() < _PARALLEL_MIN_SAMPLES:
@@ -495,7 +490,7 @@ def _joined(workers: list, spans: list) -> list:
     """Join the spans ``(worker, fill before, fill after)`` of the workers' pass-1 buffers in order (see
     ``_parallel_pass``): fill levels are (leaves, clip-list indices, trace leaves, trace points, regions).
 
-    The joined arrays are allocated once and the spans copied into them on ``_threads()`` threads (numpy's copies
+    The joined arrays are allocated once and the spans copied into them on ``threads()`` threads (numpy's copies
     release the GIL; on the 615,642-sample plate the join moves ~50 MB, whose first touch of fresh pages is most of
     its time): the same arrays as concatenating the spans in order."""
     field_fill = (0, 0, 1, 2, 2, 3, 3, 4)  # the fill level counting each array's rows
@@ -516,7 +511,7 @@ def _joined(workers: list, spans: list) -> list:
         ur = out[7][to[4] : to[4] + after[4] - before[4]]
         ur[:, 13] = np.where(ur[:, 13] >= 0, ur[:, 13] + (to[2] - before[2]), ur[:, 13])  # trace rows
 
-    with ThreadPoolExecutor(_threads()) as pool:
+    with ThreadPoolExecutor(_threads.threads()) as pool:
         list(pool.map(copy, range(len(spans))))
     counters = np.sum([b[8] for b in workers], axis=0).astype(np.int64)
     return out + [counters, [int(x) for x in at]]
@@ -642,11 +637,11 @@ def _emit_leaves(C, ts: TaskSet, LF, LI, LA, radius, reduce_radius, frame: Model
 
 
 def _emit_parallel(C, ts: TaskSet, lv: _Leaves, radius, reduce_radius, frame: ModelFrame, out):
-    """Pass 2 on ``_threads()`` threads: consecutive chunks of leaves write their samples into their slice of the
+    """Pass 2 on ``threads()`` threads: consecutive chunks of leaves write their samples into their slice of the
     outputs (a leaf's first sample is the running sum of the counts before it) and their clip indices into a
     buffer of their own; the buffers are joined in order and each chunk's ``ptr`` shifted by the indices before
     it -- the one-thread output bit for bit."""
-    threads = _threads()
+    threads = _threads.threads()
     counts = lv.LI[:, 3]
     n_leaves = len(counts)
     if threads == 1 or lv.samples < _PARALLEL_MIN_EMIT:
