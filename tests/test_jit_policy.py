@@ -60,22 +60,11 @@ def test_cache_key_covers_the_kernels_import_closure():
     assert not any(d.startswith(("octree/", "apps/", "quadric/")) for d in deps)
 
 
-def test_an_edit_invalidates_only_the_kernels_that_depend_on_it(tmp_path, monkeypatch):
+def test_an_edit_invalidates_only_the_kernels_that_depend_on_it(tmp_path):
     """Edit one module in a copy of the package: exactly the modules importing it (transitively) get a new key."""
-    from csgnb import _jit
     from csgnb._jit import dependency_hash, module_dependencies
 
-    parsed = {}
-    original = _jit._imported_modules
-
-    def memo(path, package_dir):  # each file is parsed once per content (the test hashes ~80 modules 4 times)
-        key = (str(path), path.read_bytes())
-        if key not in parsed:
-            parsed[key] = original(path, package_dir)
-        return parsed[key]
-
-    monkeypatch.setattr(_jit, "_imported_modules", memo)
-
+    # (each file is parsed once per process while it is unchanged: the edits below must be seen through that memo)
     copy = tmp_path / "csgnb"
     shutil.copytree(PACKAGE, copy, ignore=shutil.ignore_patterns("__pycache__"))
     modules = sorted(copy.rglob("*.py"))
@@ -157,3 +146,15 @@ def test_borrowing_kernels_return_no_arrays():
     for path in PACKAGE.rglob("*.py"):
         if path.name != "_jit.py":
             assert "_nrt" not in path.read_text(), f"{path}: reference counting switched off outside csgnb._jit"
+
+
+def test_a_new_import_is_seen_by_the_parse_memo(tmp_path):
+    """Imports are parsed once per file and process; an edit that adds one must change the dependencies."""
+    from csgnb._jit import module_dependencies
+
+    (tmp_path / "a.py").write_text("x = 1\n")
+    (tmp_path / "b.py").write_text("y = 2\n")
+    assert [p.name for p in module_dependencies(tmp_path / "a.py", tmp_path)] == ["a.py"]
+    with open(tmp_path / "a.py", "a") as fh:
+        fh.write("from csgnb.b import y\n")
+    assert [p.name for p in module_dependencies(tmp_path / "a.py", tmp_path)] == ["a.py", "b.py"]
