@@ -7,7 +7,13 @@ depend on the edited module, and every later run loads the kernels from the cach
 runs one small, typical workload per part of the package so that this
 happens up front, visibly, instead of as a silent ``[*]`` in the middle of a notebook.
 
-``python -m csgnb.warmup`` warms every part (``scripts/demo.sh`` and ``scripts/lab.sh`` call it).
+By default it compiles what the default settings use (the tour, the milling and sampling defaults); with
+``variants=True`` also the alternatives a user picks by an argument: the naive mesh cut and BSP extraction the
+chapters compare against, the 192-bit predicates, the BSP merge without redundancy removal, random and tangent-plane
+BSPs, the sampler's traced and √3-distortion runs, every renderer option. Those otherwise compile on first use.
+
+``python -m csgnb.warmup`` warms every part with the defaults (``scripts/demo.sh`` and ``scripts/lab.sh`` call it);
+``python -m csgnb.warmup --variants`` adds the variants (``scripts/test.sh``: the tests use them all).
 """
 
 from __future__ import annotations
@@ -22,10 +28,10 @@ import numpy as np
 __all__ = ["PARTS", "warm_up"]
 
 
-def _exact() -> None:
+def _exact(variants: bool) -> None:
     from csgnb import exact
 
-    for width in exact.WIDTHS:
+    for width in exact.WIDTHS if variants else (exact.DEFAULT_WIDTH, 256):  # the tour's exact cells use 256
         planes = exact.plane_from_points([[0, 0, 0]], [[7, 0, 0]], [[0, 5, 0]], width=width)
         cut = exact.to_wide([[1, 0, 0, -1], [0, 1, 0, -2], [0, 0, 3, -1]], width)
         x = exact.intersect_3_planes(cut[0], cut[1], cut[2])
@@ -38,37 +44,45 @@ def _exact() -> None:
     exact.quantize(np.array([[0.0, 0.0, 0.0], [1.0, 2.0, 3.0]]), width=256)
 
 
-def _mesh() -> None:
+def _mesh(variants: bool) -> None:
     from csgnb import exact
+    from csgnb.apps import tools
+    from csgnb.exact import Grid
     from csgnb.mesh import MeshStore, cut
 
-    for naive in (False, True):
+    for naive in (False, True) if variants else (False,):
         store = MeshStore(exact.to_wide([[2, 3, 5, -19]], 128))
         box = store.add_box([0, 0, 0], [4, 4, 4])
         parts = cut(store, box, 0, naive=naive)
         store.exact_volume(parts.negative)
         store.check_cell(parts.positive)
         store.positions(store.cell_vertices(parts.negative))
+    # a milling move's hull (the tour's tool): many points, so the float hull (scipy) proposes its faces and the
+    # exact kernels check them
+    tool = tools.flat_end_mill(6, 12, segments=12).on(Grid.fit([-12.0, -12.0, -22.0], [75.0, 65.0, 25.0]))
+    tool.hull_at((0.0, 0.0, 5.0), (10.0, 3.0, 5.0))
 
 
-def _bsp() -> None:
+def _bsp(variants: bool) -> None:
     from csgnb.bsp import BSP, DIFFERENCE, extract_cells, random_bsp, tangent_plane_bsp
 
     a, b = BSP.box([0, 0, 0], [4, 4, 4]), BSP.box([2, 2, 2], [6, 6, 6])
-    for result in (a | b, a & b, a - b, a ^ b, a.merge(b, DIFFERENCE, simplify=False)):
+    results = [a | b, a & b, a - b] + ([a ^ b, a.merge(b, DIFFERENCE, simplify=False)] if variants else [])
+    for result in results:
         result.volume()
         result.surface().is_closed()
     axes = np.array([[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]])
     faces = [[0, 2, 4], [2, 1, 4], [1, 3, 4], [3, 0, 4], [2, 0, 5], [1, 2, 5], [3, 1, 5], [0, 3, 5]]
     octahedron = BSP.from_mesh(axes * [3, 2, 4] + 4, faces)
     (a - octahedron).classify([[1, 1, 1]])
-    tree = random_bsp(8, seed=0, extent=16, max_normal=5)
-    BSP(tree, [-16] * 3, [16] * 3).volume()
-    for naive in (False, True):
-        extract_cells(tangent_plane_bsp(16), [-8192] * 3, [8192] * 3, naive=naive)
+    if variants:
+        tree = random_bsp(8, seed=0, extent=16, max_normal=5)
+        BSP(tree, [-16] * 3, [16] * 3).volume()
+        for naive in (False, True):
+            extract_cells(tangent_plane_bsp(16), [-8192] * 3, [8192] * 3, naive=naive)
 
 
-def _octree() -> None:
+def _octree(variants: bool) -> None:
     from csgnb.mesh.hull import convex_hull
     from csgnb.octree import Tool, Workpiece
 
@@ -82,7 +96,7 @@ def _octree() -> None:
     w.classify([[0, 0, 0]])
 
 
-def _quadric() -> None:
+def _quadric(variants: bool) -> None:
     import csgnb.quadric as cq
 
     q = cq.hyperboloid_one_sheet((1.0, 0.8, 1.2))
@@ -97,33 +111,36 @@ def _quadric() -> None:
         cq.region_mesh(planes[region.plane], region, 4, 1.0)
 
 
-def _sampling() -> None:
+def _sampling(variants: bool) -> None:
     import csgnb.csg as csg
     from csgnb.sampling import sample_csg
 
     solid = (csg.sphere((0, 0, 0), 1.0, "A") & csg.sphere((0.8, 0, 0), 1.0, "B")) | csg.box(
         (0.2, 0.2, -0.3), (1.2, 1.0, 0.3), "C")
     sample_csg(solid, 0.2)
-    sample_csg(solid, 0.2, trace=True)
-    sample_csg(solid, 0.2, distortion="sqrt3", refine=False)
+    if variants:
+        sample_csg(solid, 0.2, trace=True)
+        sample_csg(solid, 0.2, distortion="sqrt3", refine=False)
 
 
-def _render() -> None:
+def _render(variants: bool) -> None:
     import csgnb.csg as csg
     from csgnb.render import Camera, SplatRenderer, compare, raytrace, render
     from csgnb.sampling import sample_csg
 
     solid = csg.sphere((0, 0, 0), 1.0, "A") - csg.box((0.2, -2, -2), (2, 2, 2), "B")
     cloud = sample_csg(solid, 0.3)
-    for projection in ("perspective", "orthographic"):
+    for projection in ("perspective", "orthographic") if variants else ("perspective",):
         cam = Camera.fit(cloud, 48, 32, projection=projection)
         reference = raytrace(solid, cam)
-        for footprint in ("box", "sphere"):
+        for footprint in ("box", "sphere") if variants else ("box",):
             compare(render(cloud, cam, footprint=footprint, fallback="never"), reference)
-        render(cloud, cam, local="disc", clip=False, color_by="overdraw")
-        render(cloud, cam, fallback="always")
-        # the per-tile plan probes tiles whose splats would cost more: large splats on a small screen
-        SplatRenderer(sample_csg(solid, 1.0)).render(cam.with_size(256, 192), color_by="normal")
+        render(cloud, cam)
+        if variants:
+            render(cloud, cam, local="disc", clip=False, color_by="overdraw")
+            render(cloud, cam, fallback="always")
+            # the per-tile plan probes tiles whose splats would cost more: large splats on a small screen
+            SplatRenderer(sample_csg(solid, 1.0)).render(cam.with_size(256, 192), color_by="normal")
 
 
 #: The parts :func:`warm_up` knows, in the order of the two pipelines.
@@ -132,29 +149,31 @@ PARTS = {"exact": _exact, "mesh": _mesh, "bsp": _bsp, "octree": _octree, "quadri
 
 
 #: The parts compiled in this process and in a second one. The two pipelines share no kernel; the "exact" part
-#: (the public predicates at every width, ~7 s) goes with whichever track finishes first: since the octree's kernels
-#: call each other by pointer (``csgnb._unlinked``) that is the exact pipeline's (``bench_compile.py``, 2026-12-03:
-#: mesh + bsp + octree 93.1 s, exact + quadric + sampling + render 103.6 s).
-TRACKS = (("exact", "mesh", "bsp", "octree"), ("quadric", "sampling", "render"))
+#: (the public predicates, ~7 s) goes with whichever track finishes first: since the renderer's kernels lost their
+#: parfors (``csgnb._threads``), that is the quadric pipeline's (``bench_compile.py``, 2026-12-03: exact + mesh + bsp
+#: + octree 109 s, quadric + sampling + render 88 s before the move).
+TRACKS = (("mesh", "bsp", "octree"), ("exact", "quadric", "sampling", "render"))
 
 
-def _warm_parts(names: list[str]) -> dict[str, float]:
+def _warm_parts(names: list[str], variants: bool = False) -> dict[str, float]:
     """Warm ``names`` in order, without output (run in a helper process by :func:`warm_up`)."""
     seconds = {}
     for name in names:
         t0 = time.perf_counter()
-        PARTS[name]()
+        PARTS[name](variants)
         seconds[name] = time.perf_counter() - t0
     return seconds
 
 
-def warm_up(*parts: str, progress: bool = True, parallel: bool | None = None) -> dict[str, float]:
+def warm_up(*parts: str, progress: bool = True, parallel: bool | None = None,
+            variants: bool = False) -> dict[str, float]:
     """Compile (or load from the cache) the kernels of ``parts`` (default: all of :data:`PARTS`).
 
     Prints what it does and shows a ``tqdm`` progress bar (a widget in a notebook) unless ``progress=False``.
     With ``parallel`` (default: when the machine has more than one core and both tracks are asked for) the
-    second track of :data:`TRACKS` (the quadric pipeline) compiles in a second process while this one compiles
-    the first (the exact predicates, mesh, bsp, octree).
+    second track of :data:`TRACKS` (the exact predicates and the quadric pipeline) compiles in a second process
+    while this one compiles the first (mesh, bsp, octree). ``variants``: also the kernels of the non-default
+    settings (see the module's docstring); otherwise they compile on first use.
     Returns the seconds spent per part.
     """
     names = list(parts) or list(PARTS)
@@ -181,12 +200,12 @@ def warm_up(*parts: str, progress: bool = True, parallel: bool | None = None) ->
         from concurrent.futures import ProcessPoolExecutor
 
         pool = ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn"))
-        future = pool.submit(_warm_parts, there)
+        future = pool.submit(_warm_parts, there, variants)
     try:
         for name in here:
             if progress:
                 bar.set_postfix_str(name)
-            seconds.update(_warm_parts([name]))
+            seconds.update(_warm_parts([name], variants))
             if progress:
                 bar.update(1)
         if future is not None:
@@ -208,9 +227,11 @@ def warm_up(*parts: str, progress: bool = True, parallel: bool | None = None) ->
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(prog="python -m csgnb.warmup", description=__doc__.splitlines()[0])
     parser.add_argument("parts", nargs="*", help=f"parts to warm, of {', '.join(PARTS)} (default: all)")
+    parser.add_argument("--variants", action="store_true",
+                        help="also the kernels of non-default settings (naive cuts, other widths, renderer options)")
     args = parser.parse_args(argv)
     try:
-        seconds = warm_up(*args.parts)
+        seconds = warm_up(*args.parts, variants=args.variants)
     except ValueError as err:
         parser.error(str(err))
     print("  " + ", ".join(f"{k} {v:.1f} s" for k, v in seconds.items()), file=sys.stderr)

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Runs every check (each step prints its time; the exit status is non-zero if any failed):
 #   1. lint: `ruff check` on the package, tests and benchmarks; `nbqa ruff` on the notebooks;
-#   2. kernels: `python -m csgnb.warmup` compiles every numba kernel once, its parts in parallel processes
+#   2. kernels: `python -m csgnb.warmup --variants` compiles every numba kernel once, its parts in parallel processes
 #      (minutes on a cold cache, seconds from the cache), so the workers below do not compile the same
 #      kernels twice at once;
 #   3. doctests: `pytest --doctest-modules csgnb`;
@@ -49,7 +49,7 @@ step() {  # step NAME COMMAND...: run it, time it, remember a failure
 
 step "ruff (package, tests, benchmarks)" ruff check csgnb tests benchmarks
 step "nbqa ruff (notebooks)" nbqa ruff notebooks
-step "kernels (python -m csgnb.warmup)" python -m csgnb.warmup
+step "kernels (python -m csgnb.warmup --variants)" python -m csgnb.warmup --variants
 step "doctests" python -m pytest --doctest-modules csgnb -q -p no:cacheprovider
 
 workers="${CSGNB_TEST_WORKERS:-2}"

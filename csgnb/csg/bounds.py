@@ -234,13 +234,21 @@ def _box_rows(box, N, h, at):
     return at
 
 
+@jit(inline="always")
+def _copy_rows(N, h, m, M, H):
+    """M[:m] = N[:m] and H[:m] = h[:m] for rows of 3 (element by element: numba's slice assignment types a
+    shape-mismatch error message, str() of tuples included, costing seconds of compilation per kernel)."""
+    for i in range(m):
+        M[i, 0], M[i, 1], M[i, 2] = N[i, 0], N[i, 1], N[i, 2]
+        H[i] = h[i]
+
+
 @jit
 def _polytope_box(N, h, m, box, slack, out):
     """out (6,) = AABB of {x ∈ box : N[:m] x ≤ h[:m]}, padded by ``slack`` and cut to ``box``; False if empty."""
     M = np.empty((m + 6, 3))
     H = np.empty(m + 6)
-    M[:m] = N[:m]
-    H[:m] = h[:m]
+    _copy_rows(N, h, m, M, H)
     n = _box_rows(box, M, H, np.int64(m))
     D = np.eye(3)
     ext = np.empty((3, 2))
@@ -282,7 +290,8 @@ def _term_boxes_kernel(Ms, term_start, search, has_limit, boxes, unbounded):
     huge = tol.UNBOUNDED * scale
     box = np.empty(6)
     if has_limit:
-        box[:] = search
+        for e in range(6):
+            box[e] = search[e]
     else:
         for e in range(3):
             box[e], box[3 + e] = -huge, huge
@@ -302,7 +311,7 @@ def _term_boxes_kernel(Ms, term_start, search, has_limit, boxes, unbounded):
         at = 0
         for q in range(a, b):
             for r in range(nrows[q]):
-                N[at] = rowsN[q, r]
+                N[at, 0], N[at, 1], N[at, 2] = rowsN[q, r, 0], rowsN[q, r, 1], rowsN[q, r, 2]
                 H[at] = rowsH[q, r]
                 at += 1
         out = boxes[t]
@@ -337,8 +346,7 @@ def _term_boxes_kernel(Ms, term_start, search, has_limit, boxes, unbounded):
                         k += 1
                 M = np.empty((at + 6, 3))
                 HM = np.empty(at + 6)
-                M[:at] = N[:at]
-                HM[:at] = H[:at]
+                _copy_rows(N, H, at, M, HM)
                 nm = _box_rows(box, M, HM, np.int64(at))
                 if _extents_kernel(M, HM, nm, slack, D, np.int64(n_axial), ext) == 0:
                     ok = False

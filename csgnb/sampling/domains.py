@@ -61,6 +61,15 @@ def _clip_uv(px, py, m, a, b, c, qx, qy):
     return n
 
 
+@jit(inline="always")
+def _copy_polygon(qx, qy, m, px, py):
+    """px[:m], py[:m] = qx[:m], qy[:m] (element by element: numba's slice assignment types a shape-mismatch error
+    message, seconds of compilation)."""
+    for e in range(m):
+        px[e] = qx[e]
+        py[e] = qy[e]
+
+
 @jit
 def jobs_kernel(center, axes, form, coef, box, unit, jt, jplane, jsheet, juv, jquad, at):
     """Write the jobs of one quadric inside ``box`` (6,) from index ``at`` on; return the new count.
@@ -139,11 +148,9 @@ def jobs_kernel(center, axes, form, coef, box, unit, jt, jplane, jsheet, juv, jq
                 lines = region_lines(fk, ax, bx, ay, by, ac, octant)
                 if not same_octants:
                     m = _clip_uv(px, py, np.int64(m), lines[0], lines[1], lines[2], qx, qy)
-                    px[:m] = qx[:m]
-                    py[:m] = qy[:m]
+                    _copy_polygon(qx, qy, m, px, py)
                 m = _clip_uv(px, py, np.int64(m), lines[3], lines[4], lines[5], qx, qy)
-                px[:m] = qx[:m]
-                py[:m] = qy[:m]
+                _copy_polygon(qx, qy, m, px, py)
                 if flat:  # a single plane: clip by the box's faces, exactly its polygon
                     tz = ac
                     for e in range(3):
@@ -153,12 +160,10 @@ def jobs_kernel(center, axes, form, coef, box, unit, jt, jplane, jsheet, juv, jq
                         c0 = center[e] + tz * axes[e, k]
                         if m >= 3:
                             m = _clip_uv(px, py, np.int64(m), -cu, -cv, box[3 + e] - c0, qx, qy)
-                            px[:m] = qx[:m]
-                            py[:m] = qy[:m]
+                            _copy_polygon(qx, qy, m, px, py)
                         if m >= 3:
                             m = _clip_uv(px, py, np.int64(m), cu, cv, c0 - box[e], qx, qy)
-                            px[:m] = qx[:m]
-                            py[:m] = qy[:m]
+                            _copy_polygon(qx, qy, m, px, py)
                 if m < 3:
                     continue
                 area = 0.0

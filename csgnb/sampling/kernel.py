@@ -701,6 +701,17 @@ def _record_region(UR, i, plane, v, delta, bulge, task, job, kind, trace_row):
     UR[i, 13] = trace_row
 
 
+@inline_jit
+def _reorder(values, a0, idx):
+    """values[a0 + i] = values[a0 + idx[i]] (before the call) for i < len(idx): a segment put in sorted order.
+
+    Element by element: numba's slice assignment ``values[a0:b0] = values[a0:b0][idx]`` types a shape-mismatch
+    error message (str() of tuples included), seconds of compilation for one line."""
+    seg = values[a0:a0 + idx.shape[0]].copy()
+    for i in range(idx.shape[0]):
+        values[a0 + i] = seg[idx[i]]
+
+
 @ieee_jit
 def cover_by_neighbours(ts, LF, LI, UR, radius, reduce_radius, covered):
     """Mark the regions ``UR`` (``_record_region``) that a sample of the same quadric covers; return the count.
@@ -776,8 +787,8 @@ def cover_by_neighbours(ts, LF, LI, UR, radius, reduce_radius, covered):
             leaf = sorted_leaf[o]
             cell[o] = _cell_key(P[leaf, 0], P[leaf, 1], P[leaf, 2], h)
         idx = np.argsort(cell[a0:b0])
-        sorted_leaf[a0:b0] = sorted_leaf[a0:b0][idx]
-        cell[a0:b0] = cell[a0:b0][idx]
+        _reorder(sorted_leaf, a0, idx)
+        _reorder(cell, a0, idx)
     count = 0
     for u in range(UR.shape[0]):
         covered[u] = False
@@ -824,8 +835,8 @@ def cover_by_neighbours(ts, LF, LI, UR, radius, reduce_radius, covered):
                 if g % 3 != 0:
                     a0, b0 = kind_first[g], kind_first[g + 1]
                     idx = np.argsort(key[a0:b0])
-                    sorted_leaf[a0:b0] = sorted_leaf[a0:b0][idx]
-                    key[a0:b0] = key[a0:b0][idx]
+                    _reorder(sorted_leaf, a0, idx)
+                    _reorder(key, a0, idx)
             sorted_lattices = True
         for kind in range(1, 3):  # then the nearest points of lattices
             if covered[u]:
