@@ -38,7 +38,8 @@ import time
 from _clock import load_average, nominal_clock_label
 
 REPO = pathlib.Path(__file__).resolve().parent.parent
-PARTS = ("exact", "mesh", "bsp", "octree", "quadric", "sampling", "render")  # csgnb.warmup.PARTS, in order
+# csgnb.warmup.PARTS, in order
+PARTS = ("exact", "mesh", "extraction", "bsp", "octree", "boundary", "tools", "quadric", "sampling", "render")
 EDITED = pathlib.Path("csgnb", "octree", "kernels.py")
 
 # -- the child ------------------------------------------------------------------------------------------------

@@ -46,8 +46,6 @@ def _exact(variants: bool) -> None:
 
 def _mesh(variants: bool) -> None:
     from csgnb import exact
-    from csgnb.apps import tools
-    from csgnb.exact import Grid
     from csgnb.mesh import MeshStore, cut
 
     for naive in (False, True) if variants else (False,):
@@ -57,6 +55,12 @@ def _mesh(variants: bool) -> None:
         store.exact_volume(parts.negative)
         store.check_cell(parts.positive)
         store.positions(store.cell_vertices(parts.negative))
+
+
+def _tools(variants: bool) -> None:
+    from csgnb.apps import tools
+    from csgnb.exact import Grid
+
     # a milling move's hull (the tour's tool): many points, so the float hull (scipy) proposes its faces and the
     # exact kernels check them
     tool = tools.flat_end_mill(6, 12, segments=12).on(Grid.fit([-12.0, -12.0, -22.0], [75.0, 65.0, 25.0]))
@@ -69,8 +73,7 @@ def _bsp(variants: bool) -> None:
     a, b = BSP.box([0, 0, 0], [4, 4, 4]), BSP.box([2, 2, 2], [6, 6, 6])
     results = [a | b, a & b, a - b] + ([a ^ b, a.merge(b, DIFFERENCE, simplify=False)] if variants else [])
     for result in results:
-        result.volume()
-        result.surface().is_closed()
+        result.volume()  # (the boundary's kernels: the "boundary" part)
     axes = np.array([[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]])
     faces = [[0, 2, 4], [2, 1, 4], [1, 3, 4], [3, 0, 4], [2, 0, 5], [1, 2, 5], [3, 1, 5], [0, 3, 5]]
     octahedron = BSP.from_mesh(axes * [3, 2, 4] + 4, faces)
@@ -82,6 +85,25 @@ def _bsp(variants: bool) -> None:
             extract_cells(tangent_plane_bsp(16), [-8192] * 3, [8192] * 3, naive=naive)
 
 
+def _extraction(variants: bool) -> None:
+    from csgnb.bsp import BSP
+
+    # a BSP's cells (clipped from its box) and their volume, no Boolean: what the bsp and octree parts call
+    box = BSP.box([0, 0, 0], [4, 4, 4])
+    box.volume()
+    box.classify([[1, 1, 1]])
+
+
+def _boundary(variants: bool) -> None:
+    from csgnb.bsp import BSP
+    from csgnb.octree import Workpiece
+
+    # the boundary surface of a BSP and of a workpiece (assembly, vertex merging), no Boolean: so that this part
+    # compiles in the second track without compiling the Booleans' kernels a second time
+    BSP.box([0, 0, 0], [4, 4, 4]).surface().is_closed()
+    Workpiece.box([-16, -16, -16], [16, 16, 16], threshold=16).surface()
+
+
 def _octree(variants: bool) -> None:
     from csgnb.mesh.hull import convex_hull
     from csgnb.octree import Tool, Workpiece
@@ -91,8 +113,7 @@ def _octree(variants: bool) -> None:
     w.difference(octahedron, track_volume=True)
     w |= convex_hull(np.array([[0, 0, 0], [5, 0, 0], [0, 5, 0], [0, 0, 5]]))
     w &= Tool.from_hull(octahedron).translated([3, 0, 0])
-    w.volume()
-    w.surface()
+    w.volume()  # (its boundary's kernels: the "boundary" part)
     w.classify([[0, 0, 0]])
 
 
@@ -144,21 +165,41 @@ def _render(variants: bool) -> None:
 
 
 #: The parts :func:`warm_up` knows, in the order of the two pipelines.
-PARTS = {"exact": _exact, "mesh": _mesh, "bsp": _bsp, "octree": _octree, "quadric": _quadric, "sampling": _sampling,
-         "render": _render}
+PARTS = {"exact": _exact, "mesh": _mesh, "extraction": _extraction, "bsp": _bsp, "octree": _octree,
+         "boundary": _boundary, "tools": _tools, "quadric": _quadric, "sampling": _sampling, "render": _render}
 
 
-#: The parts compiled in this process and in a second one. The two pipelines share no kernel; the "exact" part
-#: (the public predicates, ~7 s) goes with whichever track finishes first: since the renderer's kernels lost their
-#: parfors (``csgnb._threads``), that is the quadric pipeline's (``bench_compile.py``, 2026-12-03: exact + mesh + bsp
-#: + octree 109 s, quadric + sampling + render 88 s before the move).
-TRACKS = (("mesh", "bsp", "octree"), ("exact", "quadric", "sampling", "render"))
+#: The parts compiled in this process and in a second one, each track in its order, balanced on the measured compile
+#: times (``bench_compile.py --stages tour``): the exact pipeline's Booleans in the first, the quadric pipeline and
+#: the BSP boundary in the second. Both processes share the cache, so a kernel one of them has compiled is loaded by
+#: the other instead of compiled again; the order makes that so: the boundary (which the tour's octree calls) follows
+#: the sampling, by when the first track has compiled the BSP cells' extraction that the boundary calls.
+TRACKS = (("mesh", "extraction", "bsp", "octree", "tools"), ("exact", "quadric", "sampling", "boundary", "render"))
+
+#: A part of the second track that starts only once a part of the first is done, so that it loads that part's kernels
+#: from the cache instead of compiling them a second time at the same moment (a safety: in the order above the first
+#: track is done with it long before).
+WAITS_FOR = {"boundary": "extraction"}
+
+#: Seconds the second track waits for a part of the first at most (then it compiles on its own).
+_WAIT_LIMIT = 600.0
+
+#: In the second process: part name -> the event the first process sets when that part is done.
+_DONE: dict = {}
+
+
+def _set_done_events(events: dict) -> None:
+    global _DONE
+    _DONE = events
 
 
 def _warm_parts(names: list[str], variants: bool = False) -> dict[str, float]:
     """Warm ``names`` in order, without output (run in a helper process by :func:`warm_up`)."""
     seconds = {}
     for name in names:
+        done = _DONE.get(WAITS_FOR.get(name))
+        if done is not None:
+            done.wait(_WAIT_LIMIT)
         t0 = time.perf_counter()
         PARTS[name](variants)
         seconds[name] = time.perf_counter() - t0
@@ -171,17 +212,17 @@ def warm_up(*parts: str, progress: bool = True, parallel: bool | None = None,
 
     Prints what it does and shows a ``tqdm`` progress bar (a widget in a notebook) unless ``progress=False``.
     With ``parallel`` (default: when the machine has more than one core and both tracks are asked for) the
-    second track of :data:`TRACKS` (the exact predicates and the quadric pipeline) compiles in a second process
-    while this one compiles the first (mesh, bsp, octree). ``variants``: also the kernels of the non-default
-    settings (see the module's docstring); otherwise they compile on first use.
+    second track of :data:`TRACKS` (the exact predicates, the BSP cells' boundary, the quadric pipeline) compiles
+    in a second process while this one compiles the first (mesh, bsp, octree, the milling tool). ``variants``:
+    also the kernels of the non-default settings (see the module's docstring); otherwise they compile on first use.
     Returns the seconds spent per part.
     """
     names = list(parts) or list(PARTS)
     unknown = [p for p in names if p not in PARTS]
     if unknown:
         raise ValueError(f"unknown part(s) {unknown}: warm_up knows {list(PARTS)}")
-    here = [n for n in names if n in TRACKS[0]]
-    there = [n for n in names if n not in TRACKS[0]]
+    here = sorted((n for n in names if n in TRACKS[0]), key=TRACKS[0].index)
+    there = sorted((n for n in names if n not in TRACKS[0]), key=TRACKS[1].index)  # in the track's order
     if parallel is None:
         parallel = (os.cpu_count() or 1) > 1
     if not (parallel and here and there):
@@ -195,17 +236,22 @@ def warm_up(*parts: str, progress: bool = True, parallel: bool | None = None,
         bar = tqdm(total=len(names), desc="numba kernels", unit="part", leave=False)
     seconds: dict[str, float] = {}
     pool = future = None
+    done_events: dict = {}
     if there:
         import multiprocessing
         from concurrent.futures import ProcessPoolExecutor
 
-        pool = ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn"))
+        context = multiprocessing.get_context("spawn")
+        done_events = {p: context.Event() for p in set(WAITS_FOR.values()) if p in here}
+        pool = ProcessPoolExecutor(1, mp_context=context, initializer=_set_done_events, initargs=(done_events,))
         future = pool.submit(_warm_parts, there, variants)
     try:
         for name in here:
             if progress:
                 bar.set_postfix_str(name)
             seconds.update(_warm_parts([name], variants))
+            if name in done_events:
+                done_events[name].set()
             if progress:
                 bar.update(1)
         if future is not None:
@@ -215,6 +261,8 @@ def warm_up(*parts: str, progress: bool = True, parallel: bool | None = None,
             if progress:
                 bar.update(len(there))
     finally:
+        for event in done_events.values():  # never leave the second process waiting (an error above)
+            event.set()
         if pool is not None:
             pool.shutdown(cancel_futures=True)
     if progress:

@@ -22,10 +22,31 @@ def test_command_line_rejects_unknown_parts(capsys):
 
 
 def test_the_two_tracks_warm_in_parallel_processes(capsys):
-    """mesh + quadric: the quadric part runs in a second (spawned) process, which says so; both report their
-    seconds. The exact predicates go with the quadric pipeline's track (the lighter one)."""
-    seconds = warmup.warm_up("mesh", "quadric", progress=True, parallel=True)
-    assert list(seconds) == ["mesh", "quadric"] and all(v >= 0 for v in seconds.values())
-    assert "quadric compile in a second process" in capsys.readouterr().out
-    assert "exact" in warmup.TRACKS[1] and not set(warmup.TRACKS[0]) & set(warmup.TRACKS[1])
+    """mesh + sampling: the sampling part runs in a second (spawned) process, which says so; both report their
+    seconds. The tracks split the parts between them."""
+    seconds = warmup.warm_up("mesh", "sampling", progress=True, parallel=True)
+    assert list(seconds) == ["mesh", "sampling"] and all(v >= 0 for v in seconds.values())
+    assert "sampling compile in a second process" in capsys.readouterr().out
+    assert not set(warmup.TRACKS[0]) & set(warmup.TRACKS[1])
     assert set(warmup.TRACKS[0]) | set(warmup.TRACKS[1]) == set(warmup.PARTS)
+
+
+def test_a_part_that_waits_for_the_other_track_runs_after_it():
+    """boundary (second track) waits for extraction (first track), then both report their seconds."""
+    assert warmup.WAITS_FOR["boundary"] == "extraction"
+    seconds = warmup.warm_up("extraction", "boundary", progress=False, parallel=True)
+    assert list(seconds) == ["extraction", "boundary"] and all(v >= 0 for v in seconds.values())
+
+
+def test_an_error_in_the_first_track_does_not_leave_the_second_waiting(monkeypatch):
+    """The waited-for part fails: the error is raised at once, not after the second track's wait limit."""
+    import time
+
+    def failing(variants):
+        raise RuntimeError("extraction failed")
+
+    monkeypatch.setitem(warmup.PARTS, "extraction", failing)
+    t0 = time.perf_counter()
+    with pytest.raises(RuntimeError, match="extraction failed"):
+        warmup.warm_up("extraction", "boundary", progress=False, parallel=True)
+    assert time.perf_counter() - t0 < 0.5 * warmup._WAIT_LIMIT
