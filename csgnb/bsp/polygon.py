@@ -255,6 +255,7 @@ def set_vertices_kernel(palette, support, offsets, edges, verts):
 def _split_set_kernel(palette, support, offsets, edges, verts, plane, sides, side_out,
                       neg_src, neg_off, neg_edges, pos_src, pos_off, pos_edges):
     """Split every polygon of a set; return (number of negative, number of positive polygons)."""
+    plane = np.int64(plane)  # the helpers' one specialisation takes int64 (see split_polygon)
     nn = 0
     npos = 0
     neg_off[0] = 0
@@ -264,7 +265,7 @@ def _split_set_kernel(palette, support, offsets, edges, verts, plane, sides, sid
         row = np.int64(s if s >= 0 else -s - 1)
         e0 = np.int64(offsets[i])
         k = np.int64(offsets[i + 1] - e0)
-        side = classify_polygon(palette, verts, e0, k, np.int64(plane), sides)
+        side = classify_polygon(palette, verts, e0, k, plane, sides)
         side_out[i] = side
         if side == -1 or side == 2:
             o = neg_off[nn]
@@ -273,7 +274,7 @@ def _split_set_kernel(palette, support, offsets, edges, verts, plane, sides, sid
                     neg_edges[o + j] = edges[e0 + j]
                 kn = k
             else:
-                kn = _write_piece(palette, row, np.int64(plane), edges, e0, verts, e0, k, sides, np.int64(1),
+                kn = _write_piece(palette, row, plane, edges, e0, verts, e0, k, sides, np.int64(1),
                                   neg_edges, np.int64(o), verts, np.int64(0), np.bool_(False))
             neg_src[nn] = i
             neg_off[nn + 1] = o + kn
@@ -285,7 +286,7 @@ def _split_set_kernel(palette, support, offsets, edges, verts, plane, sides, sid
                     pos_edges[o + j] = edges[e0 + j]
                 kp = k
             else:
-                kp = _write_piece(palette, row, np.int64(plane), edges, e0, verts, e0, k, sides, np.int64(-1),
+                kp = _write_piece(palette, row, plane, edges, e0, verts, e0, k, sides, np.int64(-1),
                                   pos_edges, np.int64(o), verts, np.int64(0), np.bool_(False))
             pos_src[npos] = i
             pos_off[npos + 1] = o + kp
