@@ -34,6 +34,7 @@ from csgnb.errors import GeometryError
 from csgnb.exact.integral import exact_int
 from csgnb.exact.wide import width_of
 from csgnb.mesh.cutting import CUT_PROPER, cut_cell, cut_cell_naive
+from csgnb.mesh.float_box import box_side, cell_float_box, copy_box
 from csgnb.mesh.halfedge import MeshStore, grown_mesh_arrays, room_for_cut
 
 __all__ = ["MergeResult", "merge", "merge_table", "remove_redundancy"]
@@ -46,20 +47,28 @@ _TREE, _NODE, _ALABEL, _HANDLE, _BOUND, _OUT = 0, 1, 2, 3, 4, 5
 # Compiled once and called per merge (on unmanaged views), not inlined into each caller (issue 21).
 @unlinked
 @borrowing_jit
-def merge_cells(m, a, b, b_offset, table, constant, stack, state, o, cells, no_path, work, naive):
+def merge_cells(m, a, b, b_offset, table, constant, stack, state, o, cells, no_path, work, naive, boxes):
     """Merge A and B cell by cell (§3.5); resumable (see :mod:`csgnb._resumable`).
 
     ``a``, ``b``, ``o`` are :class:`~csgnb.bsp.extract.TreeArrays` (``o`` is filled:
     the output tree, with room for ``o.plane.shape[0]`` nodes); B's palette rows are
     ``b_offset`` + its rows. ``table[la, lb]`` is the merge function, ``constant[la]``
     its value when it does not depend on lb (else -1). ``state`` = (stack size, output
-    nodes, cells, cells whose label differs from A's: 0 means the result is A). Output
+    nodes, cells, cells whose label differs from A's: 0 means the result is A, B planes the
+    float filter decided). Output
     leaves are recorded in ``cells`` as (output node, handle); each cap face's ``OPP`` is
     the output node on its other side. ``naive`` cuts with the classify-every-vertex
-    baseline (the benchmarks' reference), which needs ``work`` (int32) as long as ``m.he``;
-    otherwise ``work`` is not read. Returns DONE,
-    NEED_ROOM or FAILED.
+    baseline (the benchmarks' reference), which needs ``work`` (int32) as long as ``m.he``.
+
+    ``boxes`` (``(k, 6) float64``, k > the stack's rows) turns on the float filter
+    (:mod:`csgnb.mesh.float_box`): each A-leaf walked through B gets a certified box of doubles,
+    and a B plane that certainly misses it is followed without an exact cut (a convex tool's
+    chain of facets mostly misses a cell); the parts of a proper cut keep their parent's box.
+    The output is the same tree with or without it. It also uses ``work`` for the cell's
+    half-edges (as long as the store's half-edges in use, else that cell goes unfiltered);
+    ``naive`` turns it off. Returns DONE, NEED_ROOM or FAILED.
     """
+    filtering = boxes.shape[0] > stack.shape[0] and not naive
     while state[0] > 0:
         top = state[0] - 1
         in_b = stack[top, _TREE] == 1
@@ -78,6 +87,8 @@ def merge_cells(m, a, b, b_offset, table, constant, stack, state, o, cells, no_p
                     stack[top, _TREE] = 1  # walk the cell through B
                     stack[top, _NODE] = 0
                     stack[top, _ALABEL] = la
+                    if filtering:
+                        cell_float_box(m, h, work, boxes, top)
                     continue
                 lab = constant[la]
             if lab != la:
@@ -93,6 +104,13 @@ def merge_cells(m, a, b, b_offset, table, constant, stack, state, o, cells, no_p
             state[2] += 1
             state[0] = top
             continue
+        if in_b and filtering:
+            side = box_side(m.palette, plane + b_offset, boxes, top)
+            if side != 0:
+                # Certainly not a proper cut: the exact cut would leave the cell on this side.
+                state[4] += 1
+                stack[top, _NODE] = b.neg[node] if side < 0 else b.pos[node]
+                continue
         if not room_for_cut(m, bound) or top + 2 > stack.shape[0] or state[1] + 2 > o.plane.shape[0]:
             return NEED_ROOM
         row = plane + b_offset if in_b else plane
@@ -123,6 +141,9 @@ def merge_cells(m, a, b, b_offset, table, constant, stack, state, o, cells, no_p
             stack[top + 1, _BOUND] = bound + 1
             stack[top + 1, _OUT] = n1
             state[0] = top + 2
+            if in_b and filtering:
+                # Both parts keep the parent's box (recomputing theirs measured slower on the dome carve).
+                copy_box(boxes, top, top + 1)
         elif status == 0:
             if in_b:
                 stack[top, _NODE] = b.neg[node] if ca < 0 else b.pos[node]
@@ -134,10 +155,10 @@ def merge_cells(m, a, b, b_offset, table, constant, stack, state, o, cells, no_p
 
 
 @jit
-def _merge_kernel(m, a, b, b_offset, table, constant, stack, state, o, cells, no_path, work, naive):
+def _merge_kernel(m, a, b, b_offset, table, constant, stack, state, o, cells, no_path, work, naive, boxes):
     m, a, b, o = unmanaged_tuple(m), unmanaged_tuple(a), unmanaged_tuple(b), unmanaged_tuple(o)
     return merge_cells(m, a, b, b_offset, unmanaged(table), unmanaged(constant), unmanaged(stack), unmanaged(state),
-                       o, unmanaged(cells), unmanaged(no_path), unmanaged(work), naive)
+                       o, unmanaged(cells), unmanaged(no_path), unmanaged(work), naive, unmanaged(boxes))
 
 
 def merge_table(fn, labels_a, labels_b) -> np.ndarray:
@@ -182,6 +203,8 @@ class MergeResult:
     tree: BSPTree
     store: MeshStore
     cells: np.ndarray
+    prefiltered: int = 0
+    """B planes the float filter found missing a cell (each an exact cut not made)."""
 
     def boundary_pieces(self):
         """Raw boundary pieces of the merged solid (see :func:`csgnb.bsp.extract.boundary_pieces`)."""
@@ -203,14 +226,16 @@ def constant_labels(table: np.ndarray, labels_b: np.ndarray) -> np.ndarray:
     return constant
 
 
-def merge(a: BSPTree, b: BSPTree, fn, lo, hi, *, naive: bool = False) -> MergeResult:
+def merge(a: BSPTree, b: BSPTree, fn, lo, hi, *, naive: bool = False, prefilter: bool = True) -> MergeResult:
     """Merge BSPs ``a`` and ``b`` with the leaf-label function ``fn(la, lb)`` inside the box ``[lo, hi]``.
 
     Union is ``lambda a, b: max(a, b)`` for in/out labels, intersection ``min``; any function
     of two labels (materials included) works. Both trees must have the same width, and their
     planes together with the box planes must fit its budget (checked). ``naive=True`` cuts
     with the classify-every-vertex baseline instead of edge descent (same result, slower:
-    the benchmarks' reference).
+    the benchmarks' reference). ``prefilter=False`` makes an exact cut for every B plane an
+    A-leaf's cell meets on its walk, instead of first asking the certified float filter of
+    :mod:`csgnb.mesh.float_box` (same tree; the filter is off with ``naive`` too).
 
     Returns
     -------
@@ -234,16 +259,18 @@ def merge(a: BSPTree, b: BSPTree, fn, lo, hi, *, naive: bool = False) -> MergeRe
     constant = constant_labels(table, lb)
     stack = np.zeros((max(64, 2 * (a.depth() + b.depth()) + 8), 6), np.int64)
     stack[0] = (0, 0, 0, box, 6, 0)
-    state = np.array([1, 1, 0, 0], np.int64)
+    state = np.array([1, 1, 0, 0, 0], np.int64)
     cap = 4 * (a.n_nodes + b.n_nodes) + 64
+    filtering = prefilter and not naive
     arrays = {"o": TreeArrays(*(np.full(cap, -1, np.int32) for _ in range(4))), "cells": np.zeros((cap, 2), np.int64),
-              "stack": stack, "work": np.empty(store.he.shape[0] if naive else 0, np.int32)}
+              "stack": stack, "work": np.empty(store.he.shape[0] if naive or filtering else 0, np.int32),
+              "boxes": np.empty((stack.shape[0] + 1 if filtering else 0, 6))}
     ta, tb = tree_arrays(a), tree_arrays(b)
     no_path = np.zeros(1, np.int64)
 
     def step():
         return _merge_kernel(store.m, ta, tb, a.palette.shape[0], table, constant, arrays["stack"], state,
-                             arrays["o"], arrays["cells"], no_path, arrays["work"], naive)
+                             arrays["o"], arrays["cells"], no_path, arrays["work"], naive, arrays["boxes"])
 
     def grow():
         top = int(state[0]) - 1
@@ -251,18 +278,20 @@ def merge(a: BSPTree, b: BSPTree, fn, lo, hi, *, naive: bool = False) -> MergeRe
         store.m = grown_mesh_arrays(store.m, 2 * bound, 6 * bound + 2, bound + 2, loop=bound)
         if top + 2 > arrays["stack"].shape[0]:
             arrays["stack"] = grown(arrays["stack"])
+            if filtering:
+                arrays["boxes"] = grown(arrays["boxes"], arrays["stack"].shape[0] + 1)
         if state[1] + 2 > arrays["o"].plane.shape[0]:
             arrays["o"] = TreeArrays(*(grown(x, fill=-1) for x in arrays["o"]))
         if state[2] >= arrays["cells"].shape[0]:
             arrays["cells"] = grown(arrays["cells"])
-        if naive and arrays["work"].shape[0] < store.he.shape[0]:
+        if (naive or filtering) and arrays["work"].shape[0] < store.he.shape[0]:
             arrays["work"] = np.empty(store.he.shape[0], np.int32)
 
     run_resumable(step, grow, "BSP merge")
     n = int(state[1])
     o = arrays["o"]
     tree = BSPTree(store.planes.copy(), o.plane[:n], o.neg[:n], o.pos[:n], o.label[:n], validate=False)
-    return MergeResult(tree, store, arrays["cells"][: int(state[2])])
+    return MergeResult(tree, store, arrays["cells"][: int(state[2])], int(state[4]))
 
 
 def remove_redundancy(result: MergeResult, *, seed: int = 0) -> BSPTree:

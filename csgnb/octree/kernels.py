@@ -495,7 +495,7 @@ def merge_and_simplify(pal, m, ta, tb, table, constant, box, ws, seed, need):
     st[2] = 0
     st[3] = 0
     status = merge_cells(m, ta, tb, np.int64(0), table, constant, ms, st, ws.to, ws.cells, ws.path, ws.sc.work,
-                         np.bool_(False))
+                         np.bool_(False), ws.merge_boxes)
     if status == NEED_ROOM:
         need[0] = R_MERGE
         return -1, 0, 0

@@ -121,6 +121,7 @@ class Workspace(NamedTuple):
     cells: np.ndarray
     merge_stack: np.ndarray
     merge_state: np.ndarray
+    merge_boxes: np.ndarray
     ext_stack: np.ndarray
     ext_state: np.ndarray
     path: np.ndarray
@@ -134,7 +135,7 @@ def unmanaged_workspace(ws):
                      unmanaged_tuple(ws.tb), unmanaged_tuple(ws.to), unmanaged_tuple(ws.tr), unmanaged(ws.box),
                      unmanaged(ws.corners), unmanaged(ws.axis3), unmanaged(ws.dist), unmanaged(ws.point),
                      unmanaged(ws.cells), unmanaged(ws.merge_stack), unmanaged(ws.merge_state),
-                     unmanaged(ws.ext_stack), unmanaged(ws.ext_state), unmanaged(ws.path))
+                     unmanaged(ws.merge_boxes), unmanaged(ws.ext_stack), unmanaged(ws.ext_state), unmanaged(ws.path))
 
 
 def _import_input(dtype, polygons: int, edges: int) -> ImportInput:
@@ -165,7 +166,8 @@ def new_workspace(palette: np.ndarray, threshold: int) -> Workspace:
         box=np.zeros(6, np.int64), corners=np.zeros((8, 3), np.int64), axis3=np.zeros(3, np.int64),
         dist=np.zeros(1, dtype), point=np.zeros((1, 4), dtype),
         cells=np.zeros((64 * t, 2), np.int64), merge_stack=np.zeros((16 * t, 6), np.int64),
-        merge_state=np.zeros(4, np.int64), ext_stack=np.zeros((16 * t, 3), np.int64), ext_state=np.zeros(4, np.int64),
+        merge_state=np.zeros(5, np.int64), merge_boxes=np.zeros((16 * t + 1, 6)),
+        ext_stack=np.zeros((16 * t, 3), np.int64), ext_state=np.zeros(4, np.int64),
         path=np.zeros(1, np.int64),
     )
 
@@ -199,8 +201,10 @@ def grow(ws: Workspace, resource: int) -> Workspace:
             ws = ws._replace(m=_grown_mesh(ws.m))
         return ws
     if resource == R_MERGE:
-        return ws._replace(m=_grown_mesh(ws.m), merge_stack=grown(ws.merge_stack), to=grown_tree_arrays(ws.to),
-                           cells=grown(ws.cells))
+        return ws._replace(m=_grown_mesh(ws.m), merge_stack=grown(ws.merge_stack),
+                           merge_boxes=grown(ws.merge_boxes, 2 * ws.merge_stack.shape[0] + 1)
+                           if ws.merge_boxes.shape[0] else ws.merge_boxes,  # empty: the float filter is off
+                           to=grown_tree_arrays(ws.to), cells=grown(ws.cells))
     if resource == R_TREE_A:
         return ws._replace(ta=grown_tree_arrays(ws.ta), ext_stack=grown(ws.ext_stack))
     if resource == R_TREE_B:
