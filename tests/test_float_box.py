@@ -12,17 +12,18 @@ from __future__ import annotations
 from fractions import Fraction
 
 import numpy as np
-import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from csgnb.bsp import DIFFERENCE, INTERSECTION, SYMMETRIC_DIFFERENCE, UNION, merge, random_bsp
+from csgnb.bsp.merging import merge_changes
 from csgnb.exact import Grid, to_wide
 from csgnb.mesh.cutting import cut
 from csgnb.mesh.float_box import plane_side_over_box, polytope_float_box
 from csgnb.mesh.halfedge import MeshStore
 from csgnb.mesh.hull import convex_hull
 from csgnb.octree import Workpiece
+from csgnb.octree.kernels import UNCHANGED_SHARE_TO_ASK
 
 
 def _value(plane, p) -> Fraction:
@@ -98,12 +99,18 @@ def test_a_box_at_infinity_decides_nothing():
 OPS = [UNION, INTERSECTION, DIFFERENCE, SYMMETRIC_DIFFERENCE]
 
 
-@pytest.mark.parametrize("seed", range(6))
-def test_merges_with_and_without_the_filter_build_the_same_tree(seed):
-    rng = np.random.default_rng(seed)
-    na, nb = (int(x) for x in rng.integers(5, 60, 2))
-    a = random_bsp(na, seed=seed, extent=32, max_normal=7)
-    b = random_bsp(nb, seed=seed + 50, extent=32, max_normal=7)
+def test_merges_with_and_without_the_filter_build_the_same_tree():
+    decided = 0
+    for seed in range(8):
+        rng = np.random.default_rng(seed)
+        na, nb = int(rng.integers(5, 60)), int(rng.integers(20, 90))
+        a = random_bsp(na, seed=seed, extent=32, max_normal=7)
+        b = random_bsp(nb, seed=seed + 50, extent=32, max_normal=7)
+        decided += _same_trees(a, b)
+    assert decided > 0  # the filter did decide planes here (a box is made after LAZY_CUTS misses)
+
+
+def _same_trees(a, b) -> int:
     decided = 0
     for fn in OPS:
         filtered = merge(a, b, fn, [-32] * 3, [32] * 3)
@@ -113,7 +120,31 @@ def test_merges_with_and_without_the_filter_build_the_same_tree(seed):
         for name in ("plane", "neg", "pos", "label"):
             np.testing.assert_array_equal(getattr(filtered.tree, name), getattr(exact.tree, name))
         np.testing.assert_array_equal(filtered.cells, exact.cells)
-    assert decided > 0  # the filter did decide planes here
+    return decided
+
+
+@settings(deadline=None, max_examples=30)
+@given(seed=st.integers(0, 2**31 - 1), sizes=st.tuples(st.integers(1, 50), st.integers(1, 50)),
+       op=st.sampled_from(OPS))
+def test_asking_first_agrees_with_the_merge_on_whether_a_changes(seed, sizes, op):
+    # merge_changes walks B first and stops at the first change; merge walks everything and counts the cells
+    # whose label differs from A's. Small B trees inside A's solid, or beside it, make "nothing changes" common.
+    a = random_bsp(sizes[0], seed=seed, extent=32, max_normal=5)
+    b = random_bsp(sizes[1], seed=seed + 7, extent=32, max_normal=5, p_in=0.3)
+    assert merge_changes(a, b, op, [-32] * 3, [32] * 3) == merge(a, b, op, [-32] * 3, [32] * 3).changed
+
+
+def test_a_merge_that_changes_nothing_is_found_without_walking_a():
+    a = random_bsp(30, seed=3, extent=32, max_normal=5)
+    assert not merge_changes(a, a, UNION, [-32] * 3, [32] * 3)  # A with itself
+    assert not merge_changes(a, a, INTERSECTION, [-32] * 3, [32] * 3)
+    assert merge_changes(a, a, SYMMETRIC_DIFFERENCE, [-32] * 3, [32] * 3) == (volume_of(a) > 0)
+
+
+def volume_of(tree):
+    from csgnb.bsp import extract_boundary
+
+    return extract_boundary(tree, [-32] * 3, [32] * 3).surface.exact_volume()
 
 
 def _capsules(grid, n):
@@ -125,19 +156,26 @@ def _capsules(grid, n):
 
 
 def test_octree_carving_with_and_without_the_filter_is_identical():
+    # Each capsule is subtracted twice: the second time nothing changes, so the share of unchanged cell
+    # merges climbs past the point where the octree asks first (merge_changes_a) -- both paths run here.
     grid = Grid.fit([-10, -10, -1], [10, 10, 10], width=128)
     dome = grid.to_grid(np.array([[x, y, z] for x in (-8, 8) for y in (-8, 8) for z in (0, 8)]))
-    works = []
+    works, shares = [], []
     for filtering in (True, False):
         w = Workpiece.empty(grid, threshold=40)
         if not filtering:
             w.ws = w.ws._replace(merge_boxes=np.zeros((0, 6)))
         w |= convex_hull(dome, grid=grid)
-        for c in _capsules(grid, 40):
-            w -= convex_hull(c, grid=grid)
+        for c in _capsules(grid, 30):
+            hull = convex_hull(c, grid=grid)
+            w -= hull
+            w -= hull
+            w -= hull
+            shares.append(int(w.ws.merge_state[5]))
         works.append(w)
     on, off = works
     assert on.ws.merge_state[4] > 0 and off.ws.merge_state[4] == 0
+    assert max(shares[:30]) > UNCHANGED_SHARE_TO_ASK
     assert off.ws.merge_boxes.shape[0] == 0  # stays off when the merge scratch grows
     assert on.volume() == off.volume()
     assert (on.n_cells, on.n_bsp_nodes) == (off.n_cells, off.n_bsp_nodes)

@@ -34,10 +34,10 @@ from csgnb.errors import GeometryError
 from csgnb.exact.integral import exact_int
 from csgnb.exact.wide import width_of
 from csgnb.mesh.cutting import CUT_PROPER, cut_cell, cut_cell_naive
-from csgnb.mesh.float_box import box_side, cell_float_box, copy_box
+from csgnb.mesh.float_box import BOX_COLUMNS, LAZY_CUTS, box_side, cell_float_box, copy_box
 from csgnb.mesh.halfedge import MeshStore, grown_mesh_arrays, room_for_cut
 
-__all__ = ["MergeResult", "merge", "merge_table", "remove_redundancy"]
+__all__ = ["MergeResult", "merge", "merge_changes", "merge_table", "remove_redundancy"]
 
 # Stack columns: which tree (0 = A, 1 = B), node, label of the A-leaf above (B only),
 # cell handle, bound on the cell's face count, output node.
@@ -60,10 +60,11 @@ def merge_cells(m, a, b, b_offset, table, constant, stack, state, o, cells, no_p
     the output node on its other side. ``naive`` cuts with the classify-every-vertex
     baseline (the benchmarks' reference), which needs ``work`` (int32) as long as ``m.he``.
 
-    ``boxes`` (``(k, 6) float64``, k > the stack's rows) turns on the float filter
-    (:mod:`csgnb.mesh.float_box`): each A-leaf walked through B gets a certified box of doubles,
-    and a B plane that certainly misses it is followed without an exact cut (a convex tool's
-    chain of facets mostly misses a cell); the parts of a proper cut keep their parent's box.
+    ``boxes`` (``(k, BOX_COLUMNS) float64``, k > the stack's rows) turns on the float filter
+    (:mod:`csgnb.mesh.float_box`): an A-leaf walked through B gets a certified box of doubles
+    once ``LAZY_CUTS`` exact cuts by B's planes missed its cell, and from then on a B plane that
+    certainly misses it is followed without an exact cut (a convex tool's chain of facets mostly
+    misses a cell); the parts of a proper cut keep their parent's box.
     The output is the same tree with or without it. It also uses ``work`` for the cell's
     half-edges (as long as the store's half-edges in use, else that cell goes unfiltered);
     ``naive`` turns it off. Returns DONE, NEED_ROOM or FAILED.
@@ -88,7 +89,8 @@ def merge_cells(m, a, b, b_offset, table, constant, stack, state, o, cells, no_p
                     stack[top, _NODE] = 0
                     stack[top, _ALABEL] = la
                     if filtering:
-                        cell_float_box(m, h, work, boxes, top)
+                        boxes[top, 0] = np.nan  # no box yet: computed after LAZY_CUTS exact cuts missed the cell
+                        boxes[top, 6] = 0.0
                     continue
                 lab = constant[la]
             if lab != la:
@@ -105,6 +107,9 @@ def merge_cells(m, a, b, b_offset, table, constant, stack, state, o, cells, no_p
             state[0] = top
             continue
         if in_b and filtering:
+            if boxes[top, 0] != boxes[top, 0] and boxes[top, 6] >= LAZY_CUTS:
+                cell_float_box(m, h, work, boxes, top)
+                boxes[top, 6] = -np.inf  # once per cell (it may have failed: then never)
             side = box_side(m.palette, plane + b_offset, boxes, top)
             if side != 0:
                 # Certainly not a proper cut: the exact cut would leave the cell on this side.
@@ -142,15 +147,99 @@ def merge_cells(m, a, b, b_offset, table, constant, stack, state, o, cells, no_p
             stack[top + 1, _OUT] = n1
             state[0] = top + 2
             if in_b and filtering:
-                # Both parts keep the parent's box (recomputing theirs measured slower on the dome carve).
+                # Both parts keep the parent's box and count (recomputing theirs measured slower on the dome carve).
                 copy_box(boxes, top, top + 1)
         elif status == 0:
             if in_b:
+                if filtering:
+                    boxes[top, 6] += 1.0
                 stack[top, _NODE] = b.neg[node] if ca < 0 else b.pos[node]
             else:
                 stack[top, _NODE] = a.neg[node] if ca < 0 else a.pos[node]
         else:
             return FAILED
+    return DONE
+
+
+CHANGED = 2
+"""Status of :func:`merge_changes_a` when the merge changes a label of A somewhere."""
+
+
+@jit(inline="always")
+def _keeps_a(table, lb):
+    """Whether ``table[la, lb] == la`` for every label la of A (B's leaf ``lb`` changes nothing)."""
+    for la in range(table.shape[0]):
+        if table[la, lb] != la:
+            return False
+    return True
+
+
+@unlinked
+@borrowing_jit
+def merge_changes_a(m, a, b, b_offset, table, stack, state, no_path, work, boxes):
+    """Whether merging B into A with ``table`` changes A anywhere in the cell of ``stack[0]``: B first, then A.
+
+    The merge walks every node of A to find out; most of a drill's cell merges find nothing
+    changed (its lands slide along the wall they cut), so this asks first, the other way round:
+    walk B's cell; at a B-leaf whose label changes no label of A (a difference's or a union's
+    outside) stop, at any other walk A inside that leaf's cell, and stop at the first A-leaf whose
+    label the table changes -- a cell of positive volume (only proper cuts split cells) where the
+    merge's output differs from A. Every plane of both trees first meets the float filter
+    (:mod:`csgnb.mesh.float_box`; ``boxes[0]`` holds the starting cell's box). Stack columns as in
+    :func:`merge_cells` (tree 0 = B here, the label column holds the B-leaf's label); ``state[0]``
+    the stack size, ``state[4]`` counts filtered planes. Returns :data:`CHANGED`, DONE (nothing
+    changes), NEED_ROOM or FAILED. The mesh store is left with the walk's cuts (the caller resets it).
+    """
+    while state[0] > 0:
+        top = state[0] - 1
+        in_a = stack[top, _TREE] == 1
+        node = stack[top, _NODE]
+        h = stack[top, _HANDLE]
+        bound = stack[top, _BOUND]
+        plane = a.plane[node] if in_a else b.plane[node]
+        if plane < 0:
+            if in_a:
+                la = a.label[node]
+                if table[la, stack[top, _ALABEL]] != la:
+                    return CHANGED
+                state[0] = top
+                continue
+            lb = b.label[node]
+            if _keeps_a(table, lb):
+                state[0] = top
+                continue
+            stack[top, _TREE] = 1  # walk this part of B's cell through A
+            stack[top, _NODE] = 0
+            stack[top, _ALABEL] = lb
+            cell_float_box(m, h, work, boxes, top)
+            continue
+        row = plane if in_a else plane + b_offset
+        side = box_side(m.palette, row, boxes, top)
+        if side != 0:
+            state[4] += 1
+        else:
+            if not room_for_cut(m, bound) or top + 2 > stack.shape[0] or top + 2 >= boxes.shape[0]:
+                return NEED_ROOM
+            status, ca, cb = cut_cell(m, np.int64(h), np.int64(row), np.int64(-1), np.int64(-1), no_path)
+            if status == CUT_PROPER:
+                for c in range(6):
+                    stack[top + 1, c] = stack[top, c]
+                copy_box(boxes, top, top + 1)
+                stack[top, _NODE] = b.pos[node] if not in_a else a.pos[node]
+                stack[top, _HANDLE] = cb
+                stack[top, _BOUND] = bound + 1
+                stack[top + 1, _NODE] = b.neg[node] if not in_a else a.neg[node]
+                stack[top + 1, _HANDLE] = ca
+                stack[top + 1, _BOUND] = bound + 1
+                state[0] = top + 2
+                continue
+            if status != 0:
+                return FAILED
+            side = ca
+        if in_a:
+            stack[top, _NODE] = a.neg[node] if side < 0 else a.pos[node]
+        else:
+            stack[top, _NODE] = b.neg[node] if side < 0 else b.pos[node]
     return DONE
 
 
@@ -205,6 +294,8 @@ class MergeResult:
     cells: np.ndarray
     prefiltered: int = 0
     """B planes the float filter found missing a cell (each an exact cut not made)."""
+    changed: bool = True
+    """Whether some output cell's label differs from A's there (False: the result is A's solid)."""
 
     def boundary_pieces(self):
         """Raw boundary pieces of the merged solid (see :func:`csgnb.bsp.extract.boundary_pieces`)."""
@@ -264,7 +355,7 @@ def merge(a: BSPTree, b: BSPTree, fn, lo, hi, *, naive: bool = False, prefilter:
     filtering = prefilter and not naive
     arrays = {"o": TreeArrays(*(np.full(cap, -1, np.int32) for _ in range(4))), "cells": np.zeros((cap, 2), np.int64),
               "stack": stack, "work": np.empty(store.he.shape[0] if naive or filtering else 0, np.int32),
-              "boxes": np.empty((stack.shape[0] + 1 if filtering else 0, 6))}
+              "boxes": np.empty((stack.shape[0] + 1 if filtering else 0, BOX_COLUMNS))}
     ta, tb = tree_arrays(a), tree_arrays(b)
     no_path = np.zeros(1, np.int64)
 
@@ -291,7 +382,59 @@ def merge(a: BSPTree, b: BSPTree, fn, lo, hi, *, naive: bool = False, prefilter:
     n = int(state[1])
     o = arrays["o"]
     tree = BSPTree(store.planes.copy(), o.plane[:n], o.neg[:n], o.pos[:n], o.label[:n], validate=False)
-    return MergeResult(tree, store, arrays["cells"][: int(state[2])], int(state[4]))
+    return MergeResult(tree, store, arrays["cells"][: int(state[2])], int(state[4]), bool(state[3] > 0))
+
+
+@jit
+def _changes_kernel(m, a, b, b_offset, table, stack, state, no_path, work, boxes):
+    m, a, b = unmanaged_tuple(m), unmanaged_tuple(a), unmanaged_tuple(b)
+    if state[0] == 1 and stack[0, _TREE] == 0 and stack[0, _NODE] == 0:
+        cell_float_box(m, np.int64(stack[0, _HANDLE]), unmanaged(work), unmanaged(boxes), np.int64(0))
+    return merge_changes_a(m, a, b, b_offset, unmanaged(table), unmanaged(stack), unmanaged(state),
+                           unmanaged(no_path), unmanaged(work), unmanaged(boxes))
+
+
+def merge_changes(a: BSPTree, b: BSPTree, fn, lo, hi) -> bool:
+    """Whether ``merge(a, b, fn, lo, hi)`` differs from ``a`` somewhere inside the box (a region of positive volume).
+
+    Walks B first and A only inside B's leaves that change a label of A (:func:`merge_changes_a`), stopping at the
+    first change: what the octree asks before merging a cell (a tool that only touches the solid changes nothing).
+    """
+    check_tree(a, "a")
+    check_tree(b, "b")
+    lo, hi = check_box(lo, hi)
+    if width_of(a.palette) != width_of(b.palette):
+        raise GeometryError(f"cannot merge a {a.width}-bit BSP with a {b.width}-bit BSP: convert one first")
+    store = MeshStore(np.concatenate([a.palette, b.palette]), capacity=256 + 8 * (a.n_nodes + b.n_nodes))
+    box = store.add_box(lo, hi)
+    table = merge_table(fn, a.label[a.plane < 0], b.label[b.plane < 0])
+    stack = np.zeros((max(64, 2 * (a.depth() + b.depth()) + 8), 6), np.int64)
+    stack[0] = (0, 0, 0, box, 6, 0)
+    state = np.array([1, 0, 0, 0, 0], np.int64)
+    arrays = {"stack": stack, "boxes": np.empty((stack.shape[0] + 1, BOX_COLUMNS)),
+              "work": np.empty(store.he.shape[0], np.int32)}
+    ta, tb = tree_arrays(a), tree_arrays(b)
+    no_path = np.zeros(1, np.int64)
+    changed = [False]
+
+    def step():
+        status = int(_changes_kernel(store.m, ta, tb, a.palette.shape[0], table, arrays["stack"], state, no_path,
+                                     arrays["work"], arrays["boxes"]))
+        changed[0] = status == CHANGED
+        return DONE if changed[0] else status
+
+    def grow():
+        top = int(state[0]) - 1
+        bound = int(arrays["stack"][top, _BOUND]) + 2
+        store.m = grown_mesh_arrays(store.m, 2 * bound, 6 * bound + 2, bound + 2, loop=bound)
+        if top + 2 > arrays["stack"].shape[0]:
+            arrays["stack"] = grown(arrays["stack"])
+            arrays["boxes"] = grown(arrays["boxes"], arrays["stack"].shape[0] + 1)
+        if arrays["work"].shape[0] < store.he.shape[0]:
+            arrays["work"] = np.empty(store.he.shape[0], np.int32)
+
+    run_resumable(step, grow, "BSP merge check")
+    return changed[0]
 
 
 def remove_redundancy(result: MergeResult, *, seed: int = 0) -> BSPTree:

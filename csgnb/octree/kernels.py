@@ -46,10 +46,11 @@ from csgnb._unlinked import unlinked
 from csgnb._views import unmanaged, unmanaged_tuple
 from csgnb.bsp.build import build_kernel
 from csgnb.bsp.extract import PIECES, TreeArrays, clip_cell, extract_into
-from csgnb.bsp.merging import merge_cells
+from csgnb.bsp.merging import CHANGED, merge_cells, merge_changes_a
 from csgnb.bsp.polygon import copy_point, split_polygon
 from csgnb.exact.intrinsics import classify_at, signed_distance_into, wide_sign_at
 from csgnb.exact.wide_store import store_int64_at
+from csgnb.mesh.float_box import cell_float_box
 from csgnb.mesh.halfedge import FREE_F, FREE_H, FREE_V, NF, NH, NV, add_box_cell
 from csgnb.octree.layout import (
     BSP,
@@ -467,6 +468,19 @@ def simplify_in_box(pal, m, src, box, ws, seed, need):
     return BSP, count
 
 
+# merge_state[5]: a moving average (1/16 per merge, in 1/1024) of the share of cell merges that leave A
+# unchanged. Asking first (merge_changes_a) costs a walk of B's cell and of A inside it before a merge
+# that changes something, and saves the whole merge when nothing changes: it pays above about half
+# (a drill's steps: 77 % unchanged, 17 % faster; the dome carve: 30 %, 30 % slower when always asked).
+UNCHANGED_SHARE_TO_ASK = 512
+
+
+@jit(inline="always")
+def _note_unchanged(st, unchanged):
+    x = 1024 if unchanged else 0
+    st[5] += (x - st[5]) // 16
+
+
 @unlinked
 @jit
 def merge_and_simplify(pal, m, ta, tb, table, constant, box, ws, seed, need):
@@ -480,16 +494,39 @@ def merge_and_simplify(pal, m, ta, tb, table, constant, box, ws, seed, need):
     if not mesh_room(m, 8):
         need[0] = R_MESH
         return -1, 0, 0
+    ms = ws.merge_stack
+    st = ws.merge_state
+    ask_first = ws.merge_boxes.shape[0] > ms.shape[0] and st[5] > UNCHANGED_SHARE_TO_ASK
+    if ask_first:
+        # Ask first whether the tool changes anything here (B's cell first, then A inside it, both
+        # through the float filter): most of a drill's cell merges would walk all of A to find nothing.
+        mesh_reset(m)
+        h = add_box_cell(m, box, -1)
+        ms[0, 0] = 0
+        ms[0, 1] = 0
+        ms[0, 2] = 0
+        ms[0, 3] = h
+        ms[0, 4] = 6
+        st[0] = 1
+        cell_float_box(m, np.int64(h), ws.sc.work, ws.merge_boxes, np.int64(0))
+        status = merge_changes_a(m, ta, tb, np.int64(0), table, ms, st, ws.path, ws.sc.work, ws.merge_boxes)
+        if status == NEED_ROOM:
+            need[0] = R_MERGE
+            return -1, 0, 0
+        if status != CHANGED:
+            if status != DONE:
+                need[0] = 0
+                return -1, 0, 0
+            _note_unchanged(st, True)
+            return BSP, 0, 2  # the solid is A's: nothing to write
     mesh_reset(m)
     h = add_box_cell(m, box, -1)
-    ms = ws.merge_stack
     ms[0, 0] = 0
     ms[0, 1] = 0
     ms[0, 2] = 0
     ms[0, 3] = h
     ms[0, 4] = 6
     ms[0, 5] = 0
-    st = ws.merge_state
     st[0] = 1
     st[1] = 1
     st[2] = 0
@@ -502,6 +539,7 @@ def merge_and_simplify(pal, m, ta, tb, table, constant, box, ws, seed, need):
     if status != DONE:
         need[0] = 0
         return -1, 0, 0
+    _note_unchanged(st, st[3] == 0)
     if st[3] == 0:
         # Every output cell kept A's label: the solid is A's, so A's tree stays (no redundancy
         # removal). A tool sliding along a wall it cut before (a drill's lands) hits this often.
