@@ -481,6 +481,21 @@ def _note_unchanged(st, unchanged):
     st[5] += (x - st[5]) // 16
 
 
+@jit(inline="always")
+def _start_at_box(m, box, ms, st):
+    """An empty store holding the cell's box, and a walk stack at it: the root of tree 0, output node 0."""
+    mesh_reset(m)
+    h = add_box_cell(m, box, -1)
+    ms[0, 0] = 0
+    ms[0, 1] = 0
+    ms[0, 2] = 0
+    ms[0, 3] = h
+    ms[0, 4] = 6
+    ms[0, 5] = 0
+    st[0] = 1
+    return h
+
+
 @unlinked
 @jit
 def merge_and_simplify(pal, m, ta, tb, table, constant, box, ws, seed, need):
@@ -500,14 +515,7 @@ def merge_and_simplify(pal, m, ta, tb, table, constant, box, ws, seed, need):
     if ask_first:
         # Ask first whether the tool changes anything here (B's cell first, then A inside it, both
         # through the float filter): most of a drill's cell merges would walk all of A to find nothing.
-        mesh_reset(m)
-        h = add_box_cell(m, box, -1)
-        ms[0, 0] = 0
-        ms[0, 1] = 0
-        ms[0, 2] = 0
-        ms[0, 3] = h
-        ms[0, 4] = 6
-        st[0] = 1
+        h = _start_at_box(m, box, ms, st)
         cell_float_box(m, np.int64(h), ws.sc.work, ws.merge_boxes, np.int64(0))
         status = merge_changes_a(m, ta, tb, np.int64(0), table, ms, st, ws.path, ws.sc.work, ws.merge_boxes)
         if status == NEED_ROOM:
@@ -519,15 +527,7 @@ def merge_and_simplify(pal, m, ta, tb, table, constant, box, ws, seed, need):
                 return -1, 0, 0
             _note_unchanged(st, True)
             return BSP, 0, 2  # the solid is A's: nothing to write
-    mesh_reset(m)
-    h = add_box_cell(m, box, -1)
-    ms[0, 0] = 0
-    ms[0, 1] = 0
-    ms[0, 2] = 0
-    ms[0, 3] = h
-    ms[0, 4] = 6
-    ms[0, 5] = 0
-    st[0] = 1
+    _start_at_box(m, box, ms, st)
     st[1] = 1
     st[2] = 0
     st[3] = 0
