@@ -158,6 +158,12 @@ class WorkpieceStats:
     splits: int = 0
     combines: int = 0
     pathological: int = 0
+    prefiltered: int = 0
+    """Planes the merges' float filter decided without an exact cut (:mod:`csgnb.mesh.float_box`), since the
+    workpiece was made or loaded."""
+    skipped_merges: int = 0
+    """Cell merges not made because asking first (:func:`csgnb.bsp.merging.merge_changes_a`) found that the tool
+    changes nothing there, since the workpiece was made or loaded."""
     seconds: list[float] = field(default_factory=list)
 
 
@@ -435,6 +441,8 @@ class Workpiece:
         s.splits += report.splits
         s.combines += report.combines
         s.pathological = int(self.oc.counts[S_PATHOLOGICAL])
+        s.prefiltered = int(self.ws.merge_state[4])
+        s.skipped_merges = int(self.ws.merge_state[6])
         s.seconds.append(report.seconds)
         return report
 

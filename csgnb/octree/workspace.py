@@ -167,7 +167,7 @@ def new_workspace(palette: np.ndarray, threshold: int) -> Workspace:
         box=np.zeros(6, np.int64), corners=np.zeros((8, 3), np.int64), axis3=np.zeros(3, np.int64),
         dist=np.zeros(1, dtype), point=np.zeros((1, 4), dtype),
         cells=np.zeros((64 * t, 2), np.int64), merge_stack=np.zeros((16 * t, 6), np.int64),
-        merge_state=np.zeros(6, np.int64), merge_boxes=np.zeros((16 * t + 1, BOX_COLUMNS)),
+        merge_state=np.zeros(7, np.int64), merge_boxes=np.zeros((16 * t + 1, BOX_COLUMNS)),
         ext_stack=np.zeros((16 * t, 3), np.int64), ext_state=np.zeros(4, np.int64),
         path=np.zeros(1, np.int64),
     )
