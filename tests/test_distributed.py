@@ -11,6 +11,7 @@ import hashlib
 import json
 import os
 import signal
+import threading
 from fractions import Fraction
 from pathlib import Path
 
@@ -573,3 +574,21 @@ def test_sharded_workpiece_refuses_bad_input(client, tmp_path):
     (folder / name).write_bytes(b"junk")
     with pytest.raises(ValueError, match="does not match the manifest"):
         ShardedWorkpiece.load(folder, client)
+
+
+def test_shards_wait_for_a_running_worker(monkeypatch):
+    """Placing shards asks the scheduler afresh for running workers: none within the wait is a clear
+    ShardFailure (it was a ZeroDivisionError when the client's cached answer listed none, as after a kill),
+    and a worker that arrives during the wait gets the shards."""
+    import csgnb.distributed.sharded as sharded
+    from csgnb.octree import Workpiece
+
+    start = Workpiece.box([-4, -4, -4], [4, 4, 4])
+    monkeypatch.setattr(sharded, "WORKER_WAIT_S", 1.0)
+    with LocalCluster(n_workers=0, processes=False, dashboard_address=":0") as cluster, Client(cluster) as c:
+        with pytest.raises(sharded.ShardFailure, match="no running worker"):
+            sharded.ShardedWorkpiece(start, c, 2)
+        monkeypatch.setattr(sharded, "WORKER_WAIT_S", 60.0)
+        threading.Timer(0.5, cluster.scale, args=(1,)).start()
+        s = sharded.ShardedWorkpiece(start, c, 2)
+        assert s.volume() == 512

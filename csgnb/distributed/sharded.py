@@ -78,6 +78,27 @@ def _counts(shards) -> tuple[int, int, int]:
 
 
 _THREAD_QUEUE = 64  # batches queued per shard thread before the caller waits (bounds the tools held)
+WORKER_WAIT_S = 60.0  # how long placing shards waits for a running Dask worker (one may be restarting)
+
+
+def _running_workers(client, timeout: float | None = None) -> list[str]:
+    """The addresses of the scheduler's running workers, asked afresh, waiting up to ``timeout`` seconds
+    (default :data:`WORKER_WAIT_S`) for at least one.
+
+    Not ``Client.scheduler_info()``: when its query fails (a connection reset just after a worker died) it
+    answers silently from a cache that lists no workers at all.
+    """
+    timeout = WORKER_WAIT_S if timeout is None else float(timeout)
+    deadline = time.monotonic() + timeout
+    while True:
+        info = client.sync(client.scheduler.identity, n_workers=-1)
+        workers = sorted(a for a, ws in info["workers"].items() if ws.get("status", "running") == "running")
+        if workers:
+            return workers
+        if time.monotonic() >= deadline:
+            raise ShardFailure(f"the Dask cluster has no running worker to hold the shards (waited {timeout:g} s): "
+                               "start workers, or pass client=None to run the shards in threads of this process")
+        time.sleep(0.1)
 
 
 def _default_shards(client) -> int:
@@ -351,7 +372,7 @@ class ShardedWorkpiece:
             self.actors = [_ThreadActor(_ThreadShard(lo, hi, blob), f"csgnb-shard-{k}")
                            for k, ((lo, hi), blob) in enumerate(zip(self.boxes, blobs, strict=True))]
         else:
-            workers = sorted(client.scheduler_info(n_workers=-1)["workers"])
+            workers = _running_workers(client)
             futures = [client.submit(Shard, lo, hi, blob, actor=True, workers=[workers[k % len(workers)]],
                                      allow_other_workers=False)
                        for k, ((lo, hi), blob) in enumerate(zip(self.boxes, blobs, strict=True))]
