@@ -460,3 +460,48 @@ def test_wide_qhull_path_equals_the_python_int_path(seed, extent, n):
     if H._signs_fit(int(np.abs(L).max()), np.asarray(N, np.int64), d):
         signs = H._side_signs(L.astype(np.int64), np.asarray(N, np.int64), *H._split_offsets(d))
         assert np.array_equal(signs, np.sign(exact).astype(np.int8))
+
+
+@settings(max_examples=120, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.sampled_from([2, 3, 40, 1000, (1 << 16) - 1]), st.integers(5, 90))
+def test_compiled_qhull_verification_equals_the_python_int_path(seed, extent, n):
+    """Below a local extent of 2**17 qhull's triangles are turned into planes and verified in one compiled kernel
+    (_verified_facets_int64): the same planes in the same order as the Python-integer path, or None exactly when
+    it gives None; _independent's compiled path picks the same four points."""
+    from csgnb.mesh import hull as H
+
+    rng = np.random.default_rng(seed)
+    P = np.unique(rng.integers(-extent, extent + 1, (n, 3)), axis=0)
+    L = P - P[0]
+    basis = H._independent(L)
+    slow_basis = H._independent(L.astype(object))
+    assert (basis is None) == (slow_basis is None)
+    if basis is None:
+        return
+    assert [int(i) for i in basis] == [int(i) for i in slow_basis]
+    assert int(np.abs(L).max()) < H._COMPILED_FACETS_SAFE
+    fast = H._qhull_facets(L, basis)
+    slow = H._qhull_facets(L.astype(object), basis)
+    assert (fast is None) == (slow is None)
+    if fast is not None:
+        assert fast[0].dtype == np.int64 and fast[1].dtype == np.int64
+        assert [list(map(int, r)) + [int(v)] for r, v in zip(*fast, strict=True)] == \
+               [list(map(int, r)) + [int(v)] for r, v in zip(*slow, strict=True)]
+
+
+@pytest.mark.parametrize("side", [2, 5, 9])
+def test_face_rings_of_dense_faces_sort_by_both_paths(side):
+    """Faces with more points than the insertion sort takes (_INSERTION_SORT_POINTS) are sorted by argsorts: a
+    full cube of grid points (side + 1)² per face gives the Python reference's rings and the cube's volume."""
+    from csgnb.mesh import hull as H
+
+    g = np.arange(side + 1)
+    P = np.array(np.meshgrid(g, g, g, indexing="ij")).reshape(3, -1).T
+    h = convex_hull(P)
+    L, N = h._candidates, h._normals
+    S = h._side(L)
+    assert max(int(np.sum(S[:, j] == 0)) for j in range(N.shape[0])) == (side + 1) ** 2
+    for j, ring in enumerate(h._faces_local):
+        on = np.flatnonzero(S[:, j] == 0)
+        assert np.array_equal(ring, on[H._polygon_order(L[on], N[j])])
+    assert h.volume() == side**3 and len(h.faces) == 6 and all(len(f) == 4 for f in h.faces)
