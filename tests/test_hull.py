@@ -346,6 +346,9 @@ def test_wrong_qhull_output_is_detected_and_replaced(monkeypatch, mode):
 
     if mode != "duplicate":  # a repeated triangle is the same plane: harmless, and accepted
         assert _qhull_facets(L, _independent(L)) is None
+    from csgnb.mesh import hull as H
+
+    monkeypatch.setattr(H, "_incremental_facets", lambda L, basis: None)  # small sets: qhull's path, then wrapping
     assert hull_planes(convex_hull(P)) == expect
 
 
@@ -505,3 +508,41 @@ def test_face_rings_of_dense_faces_sort_by_both_paths(side):
         on = np.flatnonzero(S[:, j] == 0)
         assert np.array_equal(ring, on[H._polygon_order(L[on], N[j])])
     assert h.volume() == side**3 and len(h.faces) == 6 and all(len(f) == 4 for f in h.faces)
+
+
+@settings(max_examples=150, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.sampled_from([1, 2, 3, 40, 1000, (1 << 16) - 1]), st.integers(5, 120))
+def test_incremental_hull_equals_the_python_int_path(seed, extent, n):
+    """The compiled exact incremental hull (small local extents) is verified and gives the planes of the
+    Python-integer qhull path, in the same order -- on grids of a few units (many coplanar and collinear points,
+    points inside faces and edges) and on wide ones."""
+    from csgnb.mesh import hull as H
+
+    rng = np.random.default_rng(seed)
+    P = np.unique(rng.integers(-extent, extent + 1, (n, 3)), axis=0)
+    L = P - P[0]
+    basis = H._independent(L)
+    if basis is None:
+        return
+    fast = H._incremental_facets(L, basis)
+    assert fast is not None  # exact signs: it never needs the fallback
+    slow = H._qhull_facets(L.astype(object), basis)
+    if slow is None:
+        slow = H._gift_wrap(L.astype(object))
+    assert [list(map(int, r)) + [int(v)] for r, v in zip(*fast, strict=True)] == \
+           [list(map(int, r)) + [int(v)] for r, v in zip(*slow, strict=True)]
+
+
+def test_a_faulty_incremental_hull_falls_back(monkeypatch):
+    """Triangles missing from the incremental hull fail the exact verification: convex_hull takes qhull's and
+    the hull is still exact."""
+    from csgnb.mesh import hull as H
+
+    rng = np.random.default_rng(5)
+    P = np.unique(rng.integers(-30, 31, (50, 3)), axis=0)
+    expect = reference_planes(P)
+    real = H._incremental_triangles
+    monkeypatch.setattr(H, "_incremental_triangles", lambda L, basis: real(L, basis)[1:])
+    L = P - P[0]
+    assert H._incremental_facets(L, H._independent(L)) is None
+    assert hull_planes(convex_hull(P)) == expect

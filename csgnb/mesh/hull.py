@@ -9,13 +9,16 @@ How a hull is found (:func:`convex_hull`):
 
 * up to :data:`BRUTE_FORCE_POINTS` points: every plane through three of them that has
   all points on or behind it is a facet plane -- exact by construction;
-* more points: scipy's float hull (qhull) proposes triangles; each becomes an exact
-  integer plane, oriented by an interior point, and is *verified*: all points on or
-  behind it, and the faces built from it (the exact 2-D hull of the points on each
-  plane) close up, every edge shared by exactly two faces in opposite directions.
-  A closed surface of supporting faces is the whole boundary, so a verified result is
-  exact. When verification fails (qhull's float output can be wrong for nearly flat
-  input) an exact gift wrapping on faces runs instead.
+* more points, of a local extent below :data:`_COMPILED_FACETS_SAFE` (2**17: tools, sweeps, capsules): a
+  compiled exact incremental hull proposes triangles (int64 signs, no rounding);
+* wider sets: scipy's float hull (qhull) proposes them.
+
+Either way each triangle becomes an exact integer plane, oriented by an interior point, and is
+*verified*: all points on or behind it, and the faces built from it (the exact 2-D hull of the
+points on each plane) close up, every edge shared by exactly two faces in opposite directions.
+A closed surface of supporting faces is the whole boundary, so a verified result is exact. When
+verification fails (qhull's float output can be wrong for nearly flat input; the incremental
+hull falls back to qhull) an exact gift wrapping on faces runs instead.
 
 Exact arithmetic: all tests run in coordinates local to one input point, where every
 value is a polynomial in coordinate *differences* bounded by the extent E of the point
@@ -34,6 +37,7 @@ from math import gcd
 import numpy as np
 
 from csgnb._jit import jit
+from csgnb._unlinked import unlinked
 from csgnb.errors import GeometryError, InternalError
 from csgnb.exact.budgets import check_mesh_points
 from csgnb.exact.intrinsics import cross_sign, plane_side_sign
@@ -136,6 +140,45 @@ def _ring_inputs(N: np.ndarray, S: np.ndarray) -> tuple[np.ndarray, np.ndarray, 
 
 
 @jit
+def _row_less(K, i, j):
+    """Whether row i of ``K`` (r, c) int64 comes before row j in lexicographic order."""
+    for c in range(K.shape[1]):
+        if K[i, c] != K[j, c]:
+            return K[i, c] < K[j, c]
+    return False
+
+
+@jit
+def _lex_order(K):
+    """Indices ``(r,)`` int64 of the rows of ``K`` (r, c) int64 in lexicographic order (equal rows in any order).
+
+    A heapsort: the hull kernels sort a few hundred rows, and numba's own sorts (argsort, ndarray.sort) cost
+    over a second of compilation each on a cold cache."""
+    m = K.shape[0]
+    order = np.arange(m)
+    for start in range(m // 2 - 1, -1, -1):
+        _sift_down(K, order, start, m)
+    for end in range(m - 1, 0, -1):
+        order[0], order[end] = order[end], order[0]
+        _sift_down(K, order, 0, end)
+    return order
+
+
+@jit
+def _sift_down(K, order, root, end):
+    while True:
+        child = 2 * root + 1
+        if child >= end:
+            return
+        if child + 1 < end and _row_less(K, order[child], order[child + 1]):
+            child += 1
+        if not _row_less(K, order[root], order[child]):
+            return
+        order[root], order[child] = order[child], order[root]
+        root = child
+
+
+@jit
 def _face_rings(L, on, ax, flip):
     """Every facet's polygon, as :func:`_polygon_order` orders it, for int64 points in one compiled pass.
 
@@ -164,9 +207,10 @@ def _face_rings(L, on, ax, flip):
 
 _INSERTION_SORT_POINTS = 16
 """Facets with at most this many points sort them by insertion in place (a capsule's are triangles); larger
-ones by two stable argsorts."""
+ones by :func:`_lex_order`."""
 
 
+@unlinked
 @jit
 def _face_rings_of_members(L, starts, members, ax, flip):
     """:func:`_face_rings` from the points on each facet: ``members[starts[j]:starts[j + 1]]`` (int64, ascending)
@@ -180,7 +224,6 @@ def _face_rings_of_members(L, starts, members, ax, flip):
     for j in range(k):
         most = max(most, starts[j + 1] - starts[j])
     sorted_pts = np.empty(most, np.int64)
-    key = np.empty(most, np.int64)
     chain = np.empty(2 * most + 2, np.int64)
     pos = 0
     for j in range(k):
@@ -198,13 +241,13 @@ def _face_rings_of_members(L, starts, members, ax, flip):
                     q -= 1
                 sorted_pts[q] = p
         else:
-            pts = members[starts[j]:starts[j + 1]]
-            for t in range(m):  # lexicographic (u, v): by v, then stably by u
-                key[t] = L[pts[t], v]
-            by_v = pts[np.argsort(key[:m], kind="mergesort")]
+            uv = np.empty((m, 2), np.int64)
             for t in range(m):
-                key[t] = L[by_v[t], u]
-            sorted_pts[:m] = by_v[np.argsort(key[:m], kind="mergesort")]
+                p = members[starts[j] + t]
+                uv[t, 0], uv[t, 1] = L[p, u], L[p, v]
+            by_uv = _lex_order(uv)
+            for t in range(m):
+                sorted_pts[t] = members[starts[j] + by_uv[t]]
         if m < 3:
             for t in range(m):
                 ring[pos + t] = sorted_pts[t]
@@ -269,26 +312,34 @@ def _side_signs(L, N, dh, dl):
     return out
 
 
+@unlinked
 @jit
 def _rings_close(offsets, ring, n):
     """Whether the polygons ``ring[offsets[j]:offsets[j + 1]]`` over ``n`` points form a closed surface:
     every ring has three or more vertices, and every directed edge occurs once, its reverse once."""
     total = offsets[-1]
-    keys = np.empty(total, np.int64)
+    edges = np.empty((total, 2), np.int64)
     for j in range(offsets.shape[0] - 1):
         s, e = offsets[j], offsets[j + 1]
         if e - s < 3:
             return False
         for t in range(s, e):
-            keys[t] = ring[t] * n + ring[s + (t + 1 - s) % (e - s)]
-    keys.sort()
+            edges[t, 0], edges[t, 1] = ring[t], ring[s + (t + 1 - s) % (e - s)]
+    order = _lex_order(edges)
     for t in range(1, total):
-        if keys[t] == keys[t - 1]:
+        if edges[order[t], 0] == edges[order[t - 1], 0] and edges[order[t], 1] == edges[order[t - 1], 1]:
             return False
     for t in range(total):
-        rev = (keys[t] % n) * n + keys[t] // n
-        at = np.searchsorted(keys, rev)
-        if at == total or keys[at] != rev:
+        a, b = edges[order[t], 1], edges[order[t], 0]  # the reverse edge, searched among the sorted ones
+        lo, hi = 0, total
+        while lo < hi:
+            mid = (lo + hi) // 2
+            r = order[mid]
+            if edges[r, 0] < a or (edges[r, 0] == a and edges[r, 1] < b):
+                lo = mid + 1
+            else:
+                hi = mid
+        if lo == total or edges[order[lo], 0] != a or edges[order[lo], 1] != b:
             return False
     return True
 
@@ -686,7 +737,9 @@ def convex_hull(points, *, width: int | None = None, grid=None, name: str = "poi
     if P.shape[0] <= BRUTE_FORCE_POINTS:
         N, d = _enumerate_facets(L)
     else:
-        found = _qhull_facets(L, basis)
+        found = _incremental_facets(L, basis)
+        if found is None:
+            found = _qhull_facets(L, basis)
         N, d = found if found is not None else _gift_wrap(L)
     return ConvexHull(L, origin, N, d, width=width, grid=grid)
 
@@ -758,6 +811,17 @@ def _faces_close_py(L: np.ndarray, N: np.ndarray, S: np.ndarray) -> bool:
     return all((b, a) in half for (a, b) in half)
 
 
+def _incremental_facets(L: np.ndarray, basis: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+    """Facets of int64 local points of extent below :data:`_COMPILED_FACETS_SAFE` by the compiled exact incremental
+    hull, verified like qhull's (:func:`_verified_facets_int64`); None for other points or when a check fails."""
+    if L.dtype == object or int(np.abs(L).max(initial=0)) >= _COMPILED_FACETS_SAFE:
+        return None
+    L = np.ascontiguousarray(L, np.int64)
+    basis = np.asarray(basis, np.int64)
+    ok, N, d = _verified_facets_int64(L, _incremental_triangles(L, basis), basis)
+    return (N, d) if ok else None
+
+
 def _qhull_facets(L: np.ndarray, basis: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
     """Facets proposed by qhull and verified exactly; None when qhull fails or a check does not hold."""
     from scipy.spatial import ConvexHull as _Qhull
@@ -811,6 +875,8 @@ def _verified_facets_int64(L, simplices, basis):
     """
     t = simplices.shape[0]
     n = L.shape[0]
+    if t < 4:  # no closed surface has fewer than four triangles (and none would pass as "every edge paired")
+        return False, np.zeros((0, 3), np.int64), np.zeros(0, np.int64)
     c4 = np.zeros(3, np.int64)
     for q in range(4):
         for c in range(3):
@@ -829,9 +895,7 @@ def _verified_facets_int64(L, simplices, basis):
             a, b, c, d = -a, -b, -c, -d
         g = _gcd3(a, b, c)
         P[r, 0], P[r, 1], P[r, 2], P[r, 3] = a // g, b // g, c // g, d // g
-    order = np.arange(t)
-    for col in range(3, -1, -1):  # lexicographic (a, b, c, d): stable sorts from the last column
-        order = order[np.argsort(P[order, col], kind="mergesort")]
+    order = _lex_order(P)  # lexicographic (a, b, c, d)
     keep = np.empty(t, np.int64)
     k = 0
     for r in range(t):
@@ -853,7 +917,8 @@ def _verified_facets_int64(L, simplices, basis):
         m = starts[j]
         if m + n > members.shape[0]:
             grown = np.empty(2 * members.shape[0] + n, np.int64)
-            grown[:m] = members[:m]
+            for t in range(m):  # a loop, not a slice assignment: those compile seconds of shape-error code
+                grown[t] = members[t]
             members = grown
         for i in range(n):
             s = a * L[i, 0] + b * L[i, 1] + c * L[i, 2] + d
@@ -869,6 +934,131 @@ def _verified_facets_int64(L, simplices, basis):
         flip[j] = N[j, ax[j]] < 0
     offsets, ring = _face_rings_of_members(L, starts, members, ax, flip)
     return _rings_close(offsets, ring, n), N, dd
+
+
+@jit
+def _new_face(fv, fp, nb, f, a, b, c, L):
+    """Face ``f`` := triangle (a, b, c) (indices into ``L``) with its plane n = (b - a) × (c - a), d = -n·a."""
+    fv[f, 0], fv[f, 1], fv[f, 2] = a, b, c
+    u0, u1, u2 = L[b, 0] - L[a, 0], L[b, 1] - L[a, 1], L[b, 2] - L[a, 2]
+    v0, v1, v2 = L[c, 0] - L[a, 0], L[c, 1] - L[a, 1], L[c, 2] - L[a, 2]
+    n0, n1, n2 = u1 * v2 - u2 * v1, u2 * v0 - u0 * v2, u0 * v1 - u1 * v0
+    fp[f, 0], fp[f, 1], fp[f, 2] = n0, n1, n2
+    fp[f, 3] = -(n0 * L[a, 0] + n1 * L[a, 1] + n2 * L[a, 2])
+    nb[f, 0] = nb[f, 1] = nb[f, 2] = -1
+
+
+@jit
+def _incremental_triangles(L, basis):
+    """A triangulated convex hull of int64 local points ``L`` (n, 3) of extent below :data:`_COMPILED_FACETS_SAFE`,
+    by exact incremental construction: ``(t, 3)`` int64 outward triangles (counter-clockwise seen from outside).
+
+    Starts from the tetrahedron on ``basis`` (four affinely independent indices); each further point, in a fixed
+    pseudo-random order, replaces the faces it sees strictly (n·p + d > 0, exact in int64) by the fan from it to
+    their horizon. A point on a face's plane does not see it: it is on the hull or adds coplanar triangles, and no
+    new triangle is flat (its apex is strictly beyond the plane through its base edge). Every value stays far
+    inside int64 (normals below 8E², signed values below 48E³). What it returns is checked by
+    :func:`_verified_facets_int64` like qhull's triangles, so a fault here costs time, never exactness.
+    """
+    n = L.shape[0]
+    cap = 32 * n + 64
+    fv = np.empty((cap, 3), np.int64)  # vertices
+    fp = np.empty((cap, 4), np.int64)  # planes
+    nb = np.empty((cap, 3), np.int64)  # neighbour across edge e: fv[f, e] -> fv[f, (e + 1) % 3]
+    nf = 0
+    b = basis
+    for q in range(4):  # the tetrahedron: each face oriented away from the fourth vertex
+        i, j, k = b[(q + 1) % 4], b[(q + 2) % 4], b[(q + 3) % 4]
+        _new_face(fv, fp, nb, nf, i, j, k, L)
+        o = b[q]
+        if fp[nf, 0] * L[o, 0] + fp[nf, 1] * L[o, 1] + fp[nf, 2] * L[o, 2] + fp[nf, 3] > 0:
+            _new_face(fv, fp, nb, nf, i, k, j, L)
+        nf += 1
+    for f in range(4):  # neighbours of the tetrahedron: the face holding the reversed edge
+        for e in range(3):
+            a, c = fv[f, e], fv[f, (e + 1) % 3]
+            for g in range(4):
+                for h in range(3):
+                    if g != f and fv[g, h] == c and fv[g, (h + 1) % 3] == a:
+                        nb[f, e] = g
+    faces = np.empty(cap, np.int64)  # the alive faces, in a list
+    for f in range(4):
+        faces[f] = f
+    n_alive = 4
+    visible = np.zeros(cap, np.bool_)
+    seen = np.empty(cap, np.int64)
+    from_vertex = np.full(n, -1, np.int64)  # per horizon vertex: the new face whose base edge starts there
+    to_vertex = np.full(n, -1, np.int64)  # ... and the one whose base edge ends there
+    order = np.empty(n, np.int64)
+    _shuffle_indices(order, n)
+    for r in range(n):
+        p = order[r]
+        if p == b[0] or p == b[1] or p == b[2] or p == b[3]:
+            continue
+        n_seen = 0
+        for t in range(n_alive):
+            f = faces[t]
+            if fp[f, 0] * L[p, 0] + fp[f, 1] * L[p, 1] + fp[f, 2] * L[p, 2] + fp[f, 3] > 0:
+                visible[f] = True
+                seen[n_seen] = f
+                n_seen += 1
+        if n_seen == 0:
+            continue  # inside the hull, or on it
+        if nf + 3 * n_seen + 4 > cap:  # the fan has at most (horizon) <= 3 * seen faces; a random order creates
+            return np.zeros((0, 3), np.int64)  # ~6n in all: this many is a pathological order, left to qhull
+        first_new = nf
+        for t in range(n_seen):
+            f = seen[t]
+            for e in range(3):
+                g = nb[f, e]
+                if g < 0:  # a broken neighbourhood: a fault; the caller falls back
+                    return np.zeros((0, 3), np.int64)
+                if visible[g]:
+                    continue
+                a, c = fv[f, e], fv[f, (e + 1) % 3]
+                _new_face(fv, fp, nb, nf, a, c, p, L)
+                nb[nf, 0] = g
+                for h in range(3):
+                    if nb[g, h] == f:
+                        nb[g, h] = nf
+                from_vertex[a] = nf
+                to_vertex[c] = nf
+                nf += 1
+        for f in range(first_new, nf):  # the fan's own edges: c -> p meets the face from c, p -> a the face to a
+            nb[f, 1] = from_vertex[fv[f, 1]]
+            nb[f, 2] = to_vertex[fv[f, 0]]
+        m = 0
+        for t in range(n_alive):
+            f = faces[t]
+            if visible[f]:
+                visible[f] = False
+            else:
+                faces[m] = f
+                m += 1
+        for f in range(first_new, nf):
+            faces[m] = f
+            m += 1
+        n_alive = m
+    out = np.empty((n_alive, 3), np.int64)
+    for t in range(n_alive):
+        for c in range(3):
+            out[t, c] = fv[faces[t], c]
+    return out
+
+
+@jit(inline="always")
+def _shuffle_indices(order, n):
+    """``order[:n]`` := a fixed pseudo-random permutation of 0..n-1 (Fisher-Yates with a 64-bit LCG): an
+    incremental hull inserting points in sorted order would see most faces at every step."""
+    x = np.uint64(0x9E3779B97F4A7C15)
+    for i in range(n):
+        order[i] = i
+    for i in range(n - 1, 0, -1):
+        x = x * np.uint64(6364136223846793005) + np.uint64(1442695040888963407)
+        j = np.int64((x >> np.uint64(33)) % np.uint64(i + 1))
+        t = order[i]
+        order[i] = order[j]
+        order[j] = t
 
 
 def _qhull_facets_wide(L: np.ndarray, simplices: np.ndarray, basis: np.ndarray, E: int):
