@@ -9,9 +9,9 @@ How a hull is found (:func:`convex_hull`):
 
 * up to :data:`BRUTE_FORCE_POINTS` points: every plane through three of them that has
   all points on or behind it is a facet plane -- exact by construction;
-* more points, of a local extent below :data:`_COMPILED_FACETS_SAFE` (2**17: tools, sweeps, capsules): a
-  compiled exact incremental hull proposes triangles (int64 signs, no rounding);
-* wider sets: scipy's float hull (qhull) proposes them.
+* more points, of a local extent below :data:`_COMPILED_FACETS_SAFE` (2**29: every width's mesh budget): a
+  compiled exact incremental hull proposes triangles (exact signs, no rounding);
+* wider sets (Python-int points): scipy's float hull (qhull) proposes them.
 
 Either way each triangle becomes an exact integer plane, oriented by an interior point, and is
 *verified*: all points on or behind it, and the faces built from it (the exact 2-D hull of the
@@ -820,13 +820,25 @@ def _faces_close_py(L: np.ndarray, N: np.ndarray, S: np.ndarray) -> bool:
 
 def _incremental_facets(L: np.ndarray, basis: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
     """Facets of int64 local points of extent below :data:`_COMPILED_FACETS_SAFE` by the compiled exact incremental
-    hull, verified like qhull's (:func:`_verified_facets_int64`); None for other points or when a check fails."""
+    hull, verified like qhull's (:func:`_verified_facets`); None for other points or when a check fails."""
     if L.dtype == object or int(np.abs(L).max(initial=0)) >= _COMPILED_FACETS_SAFE:
         return None
     L = np.ascontiguousarray(L, np.int64)
     basis = np.asarray(basis, np.int64)
-    ok, N, d = _verified_facets_int64(L, _incremental_triangles(L, basis), basis)
-    return (N, d) if ok else None
+    return _checked_facets(L, _incremental_triangles(L, basis), basis)
+
+
+def _checked_facets(L: np.ndarray, simplices: np.ndarray, basis: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+    """:func:`_verified_facets` of triangles over int64 local points (extent below :data:`_COMPILED_FACETS_SAFE`),
+    with each facet's offset d = -n·(its anchor point): int64 where 24E³ fits, Python ints beyond."""
+    ok, N, anchor = _verified_facets(L, np.ascontiguousarray(simplices, np.int64), np.asarray(basis, np.int64))
+    if not ok:
+        return None
+    E = int(np.abs(L).max(initial=0))
+    A = L[anchor]
+    if 24 * E**3 < _INT64_SAFE:
+        return N, -np.einsum("ij,ij->i", N, A)
+    return N, _maybe_int64(-np.sum(_object(N) * _object(A), axis=1))
 
 
 def _qhull_facets(L: np.ndarray, basis: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
@@ -840,9 +852,7 @@ def _qhull_facets(L: np.ndarray, basis: np.ndarray) -> tuple[np.ndarray, np.ndar
         return None
     E = int(np.abs(L).max(initial=0))
     if L.dtype != object and E < _COMPILED_FACETS_SAFE:
-        ok, N, d = _verified_facets_int64(L.astype(np.int64), np.ascontiguousarray(simplices, np.int64),
-                                          np.asarray(basis, np.int64))
-        return (N, d) if ok else None
+        return _checked_facets(L.astype(np.int64), simplices, basis)
     if L.dtype != object and _arith(E, 48) is not np.int64 and 8 * E * E < _INT64_SAFE:
         return _qhull_facets_wide(L.astype(np.int64), simplices, basis, E)
     A = L.astype(_arith(E, 48))
@@ -863,22 +873,25 @@ def _qhull_facets(L: np.ndarray, basis: np.ndarray) -> tuple[np.ndarray, np.ndar
     return N, d
 
 
-_COMPILED_FACETS_SAFE = 1 << 17
-"""Local extents below this take :func:`_verified_facets_int64`: every value it forms (normals below 8E², offsets
-below 24E³, the orientation test below 192E³) stays far inside int64."""
+_COMPILED_FACETS_SAFE = 1 << 29
+"""Local extents below this take the compiled hull kernels (every width's mesh budget): normals below 8E² < 2**62 in
+int64, each sign of a point against a facet n·(p - anchor) in i128 (below 48E³ < 2**93)."""
 
 
 @jit
-def _verified_facets_int64(L, simplices, basis):
-    """:func:`_qhull_facets` after qhull, compiled, for int64 local points of extent below
-    :data:`_COMPILED_FACETS_SAFE` (a dome carve's capsule hull: ~0.45 ms of NumPy calls before, ~0.03 ms here).
+def _verified_facets(L, simplices, basis):
+    """Triangles made into exact facet planes and verified, compiled, for int64 local points of extent below
+    :data:`_COMPILED_FACETS_SAFE` (a dome carve's capsule hull: ~0.45 ms of NumPy calls before, ~0.07 ms here).
 
-    ``L`` (n, 3) int64 local points, ``simplices`` (t, 3) int64 qhull's triangles, ``basis`` (4,) int64 indices
-    of four affinely independent points. Each triangle becomes an integer plane oriented away from the four
-    points' centroid (refused when through it), divided by the gcd of its normal; the distinct planes in
-    lexicographic order of (a, b, c, d); verified: every point on or behind every plane, and the faces (the
-    exact 2-D hulls of the points on each plane) close up. Returns ``(ok, N (k, 3) int64, d (k,) int64)``,
-    the planes :func:`_qhull_facets`' NumPy path gives, in its order, when ``ok``.
+    ``L`` (n, 3) int64 local points, ``simplices`` (t, 3) int64 proposed triangles (the incremental hull's or
+    qhull's), ``basis`` (4,) int64 indices of four affinely independent points. Each triangle's normal is
+    oriented away from the four points' centroid (the triangle refused when its plane passes through it) and
+    divided by its gcd; the distinct normals in lexicographic order (two facets of a convex polytope never share
+    an outward normal, so this is the order of the planes (a, b, c, d), and a plane repeated by several
+    triangles is one); verified: every point on or behind every plane, and the faces (the exact 2-D hulls of
+    the points on each plane) close up. Every sign is n·(p - anchor) in i128, the anchor a point of the
+    triangle: no offset is formed. Returns ``(ok, N (k, 3) int64, anchor (k,) int64)``; the offsets are
+    d = -N·L[anchor].
     """
     t = simplices.shape[0]
     n = L.shape[0]
@@ -888,39 +901,42 @@ def _verified_facets_int64(L, simplices, basis):
     for q in range(4):
         for c in range(3):
             c4[c] += L[basis[q], c]
-    P = np.empty((t, 4), np.int64)
+    P = np.empty((t, 3), np.int64)
+    tri_anchor = np.empty(t, np.int64)
     for r in range(t):
         i, j, k = simplices[r, 0], simplices[r, 1], simplices[r, 2]
         u0, u1, u2 = L[j, 0] - L[i, 0], L[j, 1] - L[i, 1], L[j, 2] - L[i, 2]
         v0, v1, v2 = L[k, 0] - L[i, 0], L[k, 1] - L[i, 1], L[k, 2] - L[i, 2]
         a, b, c = u1 * v2 - u2 * v1, u2 * v0 - u0 * v2, u0 * v1 - u1 * v0
-        d = -(a * L[i, 0] + b * L[i, 1] + c * L[i, 2])
-        s = a * c4[0] + b * c4[1] + c * c4[2] + 4 * d
-        if s == 0:  # a flat triangle, or a plane through the interior point: qhull was wrong
+        # the side of 4 x the centroid: n·(c4 - 4 L[i])
+        s = plane_side_sign(a, b, c, c4[0] - 4 * L[i, 0], c4[1] - 4 * L[i, 1], c4[2] - 4 * L[i, 2],
+                            np.int64(0), np.int64(0))
+        if s == 0:  # a flat triangle, or a plane through the interior point: the proposal was wrong
             return False, np.zeros((0, 3), np.int64), np.zeros(0, np.int64)
         if s > 0:
-            a, b, c, d = -a, -b, -c, -d
+            a, b, c = -a, -b, -c
         g = _gcd3(a, b, c)
-        P[r, 0], P[r, 1], P[r, 2], P[r, 3] = a // g, b // g, c // g, d // g
-    order = _lex_order(P)  # lexicographic (a, b, c, d)
+        P[r, 0], P[r, 1], P[r, 2] = a // g, b // g, c // g
+        tri_anchor[r] = i
+    order = _lex_order(P)
     keep = np.empty(t, np.int64)
     k = 0
     for r in range(t):
         o = order[r]
-        if k == 0 or (P[o, 0] != P[keep[k - 1], 0] or P[o, 1] != P[keep[k - 1], 1]
-                      or P[o, 2] != P[keep[k - 1], 2] or P[o, 3] != P[keep[k - 1], 3]):
+        if k == 0 or (P[o, 0] != P[keep[k - 1], 0] or P[o, 1] != P[keep[k - 1], 1] or P[o, 2] != P[keep[k - 1], 2]):
             keep[k] = o
             k += 1
     N = np.empty((k, 3), np.int64)
-    dd = np.empty(k, np.int64)
+    anchor = np.empty(k, np.int64)
     for r in range(k):
-        N[r, 0], N[r, 1], N[r, 2], dd[r] = P[keep[r], 0], P[keep[r], 1], P[keep[r], 2], P[keep[r], 3]
+        N[r, 0], N[r, 1], N[r, 2], anchor[r] = P[keep[r], 0], P[keep[r], 1], P[keep[r], 2], tri_anchor[keep[r]]
     starts = np.zeros(k + 1, np.int64)
     members = np.empty(8 * n, np.int64)  # grown when needed: each point lies on a few facets
     ax = np.zeros(k, np.int64)
     flip = np.zeros(k, np.bool_)
+    zero = np.int64(0)
     for j in range(k):
-        a, b, c, d = N[j, 0], N[j, 1], N[j, 2], dd[j]
+        a, b, c, o = N[j, 0], N[j, 1], N[j, 2], anchor[j]
         m = starts[j]
         if m + n > members.shape[0]:
             grown = np.empty(2 * members.shape[0] + n, np.int64)
@@ -928,9 +944,9 @@ def _verified_facets_int64(L, simplices, basis):
                 grown[t] = members[t]
             members = grown
         for i in range(n):
-            s = a * L[i, 0] + b * L[i, 1] + c * L[i, 2] + d
+            s = plane_side_sign(a, b, c, L[i, 0] - L[o, 0], L[i, 1] - L[o, 1], L[i, 2] - L[o, 2], zero, zero)
             if s > 0:
-                return False, N, dd
+                return False, N, anchor
             if s == 0:
                 members[m] = i
                 m += 1
@@ -940,19 +956,25 @@ def _verified_facets_int64(L, simplices, basis):
                 ax[j] = col
         flip[j] = N[j, ax[j]] < 0
     offsets, ring = _face_rings_of_members(L, starts, members, ax, flip)
-    return _rings_close(offsets, ring, n), N, dd
+    return _rings_close(offsets, ring, n), N, anchor
 
 
 @jit
 def _new_face(fv, fp, nb, f, a, b, c, L):
-    """Face ``f`` := triangle (a, b, c) (indices into ``L``) with its plane n = (b - a) × (c - a), d = -n·a."""
+    """Face ``f`` := triangle (a, b, c) (indices into ``L``) with its normal n = (b - a) × (c - a) in ``fp[f]``."""
     fv[f, 0], fv[f, 1], fv[f, 2] = a, b, c
     u0, u1, u2 = L[b, 0] - L[a, 0], L[b, 1] - L[a, 1], L[b, 2] - L[a, 2]
     v0, v1, v2 = L[c, 0] - L[a, 0], L[c, 1] - L[a, 1], L[c, 2] - L[a, 2]
-    n0, n1, n2 = u1 * v2 - u2 * v1, u2 * v0 - u0 * v2, u0 * v1 - u1 * v0
-    fp[f, 0], fp[f, 1], fp[f, 2] = n0, n1, n2
-    fp[f, 3] = -(n0 * L[a, 0] + n1 * L[a, 1] + n2 * L[a, 2])
+    fp[f, 0], fp[f, 1], fp[f, 2] = u1 * v2 - u2 * v1, u2 * v0 - u0 * v2, u0 * v1 - u1 * v0
     nb[f, 0] = nb[f, 1] = nb[f, 2] = -1
+
+
+@jit
+def _sees(fv, fp, f, L, p):
+    """Whether point ``p`` lies strictly in front of face ``f``: n·(p - a) > 0, a its first vertex (i128)."""
+    a = fv[f, 0]
+    return plane_side_sign(fp[f, 0], fp[f, 1], fp[f, 2], L[p, 0] - L[a, 0], L[p, 1] - L[a, 1], L[p, 2] - L[a, 2],
+                           np.int64(0), np.int64(0)) > 0
 
 
 @jit
@@ -961,24 +983,23 @@ def _incremental_triangles(L, basis):
     by exact incremental construction: ``(t, 3)`` int64 outward triangles (counter-clockwise seen from outside).
 
     Starts from the tetrahedron on ``basis`` (four affinely independent indices); each further point, in a fixed
-    pseudo-random order, replaces the faces it sees strictly (n·p + d > 0, exact in int64) by the fan from it to
-    their horizon. A point on a face's plane does not see it: it is on the hull or adds coplanar triangles, and no
-    new triangle is flat (its apex is strictly beyond the plane through its base edge). Every value stays far
-    inside int64 (normals below 8E², signed values below 48E³). What it returns is checked by
-    :func:`_verified_facets_int64` like qhull's triangles, so a fault here costs time, never exactness.
+    pseudo-random order, replaces the faces it sees strictly (n·(p - a) > 0) by the fan from it to their
+    horizon. A point on a face's plane does not see it: it is on the hull or adds coplanar triangles, and no
+    new triangle is flat (its apex is strictly beyond the plane through its base edge). Every value is exact
+    (normals below 8E² in int64, signs n·(p - a) in i128). What it returns is checked by
+    :func:`_verified_facets` like qhull's triangles, so a fault here costs time, never exactness.
     """
     n = L.shape[0]
     cap = 32 * n + 64
     fv = np.empty((cap, 3), np.int64)  # vertices
-    fp = np.empty((cap, 4), np.int64)  # planes
+    fp = np.empty((cap, 3), np.int64)  # normals
     nb = np.empty((cap, 3), np.int64)  # neighbour across edge e: fv[f, e] -> fv[f, (e + 1) % 3]
     nf = 0
     b = basis
     for q in range(4):  # the tetrahedron: each face oriented away from the fourth vertex
         i, j, k = b[(q + 1) % 4], b[(q + 2) % 4], b[(q + 3) % 4]
         _new_face(fv, fp, nb, nf, i, j, k, L)
-        o = b[q]
-        if fp[nf, 0] * L[o, 0] + fp[nf, 1] * L[o, 1] + fp[nf, 2] * L[o, 2] + fp[nf, 3] > 0:
+        if _sees(fv, fp, nf, L, b[q]):
             _new_face(fv, fp, nb, nf, i, k, j, L)
         nf += 1
     for f in range(4):  # neighbours of the tetrahedron: the face holding the reversed edge
@@ -1005,7 +1026,7 @@ def _incremental_triangles(L, basis):
         n_seen = 0
         for t in range(n_alive):
             f = faces[t]
-            if fp[f, 0] * L[p, 0] + fp[f, 1] * L[p, 1] + fp[f, 2] * L[p, 2] + fp[f, 3] > 0:
+            if _sees(fv, fp, f, L, p):
                 visible[f] = True
                 seen[n_seen] = f
                 n_seen += 1
