@@ -440,9 +440,9 @@ def test_unique_rows_is_numpys_row_unique(seed, n, k, extent):
 @settings(max_examples=60, deadline=None)
 @given(st.integers(0, 2**32 - 1), st.sampled_from([2 * 10**5, 10**7, 8 * 10**7]), st.integers(8, 80))
 def test_wide_qhull_path_equals_the_python_int_path(seed, extent, n):
-    """On wide grids the facets' offsets are Python ints and every sign of a point against a facet is taken in i128
-    (_side_signs) instead of from an (n, k) matrix of Python ints: the same planes, in the same order, and the
-    same signs as the Python-integer computation."""
+    """On wide grids the facets' offsets are Python ints: the compiled verification (signs in i128 against each
+    facet's anchor point) gives the planes of the Python-integer computation, in the same order, and a hull's
+    signs of points against its facets (_side_signs, offsets split in two int64 halves) are the exact ones."""
     from csgnb.mesh import hull as H
 
     rng = np.random.default_rng(seed)

@@ -853,8 +853,6 @@ def _qhull_facets(L: np.ndarray, basis: np.ndarray) -> tuple[np.ndarray, np.ndar
     E = int(np.abs(L).max(initial=0))
     if L.dtype != object and E < _COMPILED_FACETS_SAFE:
         return _checked_facets(L.astype(np.int64), simplices, basis)
-    if L.dtype != object and _arith(E, 48) is not np.int64 and 8 * E * E < _INT64_SAFE:
-        return _qhull_facets_wide(L.astype(np.int64), simplices, basis, E)
     A = L.astype(_arith(E, 48))
     N = _cross(A[simplices[:, 1]] - A[simplices[:, 0]], A[simplices[:, 2]] - A[simplices[:, 0]])
     d = -np.sum(N * A[simplices[:, 0]], axis=1)
@@ -1087,29 +1085,6 @@ def _shuffle_indices(order, n):
         t = order[i]
         order[i] = order[j]
         order[j] = t
-
-
-def _qhull_facets_wide(L: np.ndarray, simplices: np.ndarray, basis: np.ndarray, E: int):
-    """:func:`_qhull_facets` for points whose normals fit int64 but whose signed values do not (wide grids): the
-    offsets in Python ints (one per facet), every sign of a point against a facet in i128 (:func:`_side_signs`)
-    instead of an (n, k) matrix of Python ints."""
-    N = _cross(L[simplices[:, 1]] - L[simplices[:, 0]], L[simplices[:, 2]] - L[simplices[:, 0]])
-    anchor = _object(L[simplices[:, 0]])
-    d = -np.sum(_object(N) * anchor, axis=1)
-    c4 = L[basis].sum(axis=0)[None, :]  # 4x the centroid of four independent points (strictly inside)
-    if not _signs_fit(4 * E, N, 4 * d):
-        return None
-    s = _side_signs(c4, N, *_split_offsets(4 * d))[0]
-    if np.any(s == 0):
-        return None
-    flip = np.where(s > 0, -1, 1)
-    N, d = _reduce_planes(N * flip[:, None], d * _object(flip))
-    N, d = _sorted_unique_planes(N, d)
-    N = N.astype(np.int64)
-    S = _side_signs(L, N, *_split_offsets(d))
-    if np.any(S > 0) or not _faces_close(L, N, d, S):
-        return None
-    return N, d
 
 
 def _wrap(A: np.ndarray, a: np.ndarray, b: np.ndarray, q: int) -> tuple[np.ndarray, object]:
