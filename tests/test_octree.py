@@ -295,3 +295,60 @@ def test_first_cell_larger_than_the_empty_pool(op):
         w = Workpiece.box([-500] * 3, [500] * 3, width=128)
         w &= hull
     assert w.volume() == hull.volume()
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.integers(0, 300), st.integers(1, 40))
+def test_combine_order_is_numpys(seed, n_leaves, n_nodes):
+    """The compiled combine order (an insertion sort) equals the NumPy expression it replaced: distinct parents >= 0,
+    smallest cell first, equal sizes by the larger index first -- with repeated parents, roots (-1) and ties; beyond
+    COMBINE_ORDER_LEAVES leaves the NumPy path runs, and gives the same."""
+    from csgnb.octree import kernels as K
+    from csgnb.octree.workpiece import _combine_order
+
+    rng = np.random.default_rng(seed)
+    parent = rng.integers(-1, n_nodes, n_nodes + 5).astype(np.int32)
+    size = (2 ** rng.integers(0, 4, n_nodes + 5)).astype(np.int64)
+    leaves = rng.integers(0, n_nodes + 5, n_leaves).astype(np.int64)
+    p = np.unique(parent[leaves])
+    p = p[p >= 0]
+    expect = p[np.argsort(-size[p], kind="stable")[::-1]].tolist()
+    if n_leaves <= K.COMBINE_ORDER_LEAVES:
+        assert K.combine_order(parent, size, leaves).tolist() == expect
+    Oc = type("Oc", (), {"parent": parent, "size": size})
+    assert _combine_order(Oc, leaves).tolist() == expect
+
+
+def test_convex_tool_tree_is_the_linear_bsp():
+    """A convex tool's compiled linear BSP is csgnb.mesh.hull.linear_bsp_arrays over its palette rows."""
+    from csgnb.mesh.hull import linear_bsp_arrays
+    from csgnb.octree.tool import convex_tool_tree
+
+    for k in (0, 1, 4, 37):
+        rows = np.arange(100, 100 + k, dtype=np.int64)[::-1].copy()
+        got = convex_tool_tree(rows)
+        plane, neg, pos, label = linear_bsp_arrays(k)
+        expect = np.where(plane >= 0, rows[np.maximum(plane, 0)], -1) if k else plane
+        assert got[0].dtype == np.int32 and got[0].tolist() == expect.tolist()
+        for a, b in zip(got[1:], (neg, pos, label), strict=True):
+            assert a.dtype == np.int32 and a.tolist() == b.tolist()
+
+
+def test_int64_planes_are_stored_as_to_wide_stores_them():
+    """store_int64_rows writes int64 planes into a palette's limbs as to_wide converts them (sign extension at 128,
+    192 and 256 bits, the int64 extremes included); the hull's compiled global planes are the exact n, d - n·o."""
+    from csgnb.exact.wide import wide_dtype
+    from csgnb.octree.tool import store_int64_rows
+
+    rng = np.random.default_rng(2)
+    values = rng.integers(-(1 << 62), 1 << 62, (9, 4))
+    values[0, 0], values[1, 1] = np.iinfo(np.int64).min, np.iinfo(np.int64).max
+    for width in (128, 192, 256):
+        palette = np.zeros((20, 4), wide_dtype(width))
+        store_int64_rows(palette["limbs"], 3, values, values.view(np.uint64))
+        assert palette[3:12].tobytes() == to_wide(values, width).tobytes()
+        assert not palette[:3]["limbs"].any() and not palette[12:]["limbs"].any()
+    h = convex_hull(rng.integers(-50, 51, (40, 3)) + [10**6, -(10**5), 7], width=256)
+    exact = [[int(a), int(b), int(c), int(e) - sum(int(x) * int(y) for x, y in zip((a, b, c), h._origin, strict=True))]
+             for (a, b, c), e in zip(h._normals, h._d_local, strict=True)]
+    assert h.planes.dtype == np.int64 and h.planes.tolist() == exact

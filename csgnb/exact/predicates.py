@@ -128,7 +128,7 @@ def _gcd(u, v):
 
 
 @jit
-def _gcd3(a, b, c):
+def gcd3(a, b, c):
     """gcd(|a|, |b|, |c|); the third operand is first reduced modulo the (usually small) gcd of the others."""
     g = _gcd(abs(a), abs(b))
     if g > 1:
@@ -173,7 +173,7 @@ def _plane_from_points_kernel(P, Q, R, out, canonical, ext, state):
             bb = z1 * x2 - x1 * z2
             c = x1 * y2 - y1 * x2
             if canonical:
-                g = _gcd3(a, bb, c)
+                g = gcd3(a, bb, c)
                 if g > 1:
                     # d = -n·p is formed after the division, so it is reduced as well.
                     a //= g

@@ -41,7 +41,7 @@ from csgnb._unlinked import unlinked
 from csgnb.errors import GeometryError, InternalError
 from csgnb.exact.budgets import check_mesh_points
 from csgnb.exact.intrinsics import cross_sign, plane_side_sign
-from csgnb.exact.predicates import _gcd3
+from csgnb.exact.predicates import gcd3
 from csgnb.exact.wide import DEFAULT_WIDTH, to_wide
 
 __all__ = ["BRUTE_FORCE_POINTS", "ConvexHull", "convex_hull", "small_hulls"]
@@ -400,11 +400,10 @@ class ConvexHull:
     def planes(self) -> np.ndarray:
         """(k, 4) outward facet planes in global coordinates (int64 where every value fits)."""
         N, o = self._normals, self._origin
-        bound = 3 * int(np.abs(N).max(initial=0)) * int(np.abs(o).max(initial=0))
-        if N.dtype != object and self._d_local.dtype != object and \
-                bound + int(np.abs(self._d_local).max(initial=0)) < _INT64_SAFE:
-            d = self._d_local - N @ o
-            return np.column_stack([N.astype(np.int64), d])
+        if N.dtype != object and self._d_local.dtype != object:
+            planes = _global_planes(N.astype(np.int64), self._d_local.astype(np.int64), o.astype(np.int64))
+            if planes.shape[0] == N.shape[0]:
+                return planes
         No = _object(N)
         d = _object(self._d_local) - No @ _object(o)
         return _maybe_int64(np.column_stack([No, d]))
@@ -605,6 +604,28 @@ class ConvexHull:
 
 # ---------------------------------------------------------------------------
 # construction
+
+
+@jit
+def _global_planes(N, d, o):
+    """``(k, 4) int64`` planes (n, d - n·o) of local planes ``N`` (k, 3), ``d`` (k,) int64 at ``origin`` (3,) int64;
+    an empty ``(0, 4)`` array when 3 max|n| max|o| + max|d| reaches 2**62 (the caller takes Python ints then).
+    The bound is checked first in floats with a wide margin, so no int64 product can wrap."""
+    k = N.shape[0]
+    big_n = 0.0
+    big_d = 0.0
+    for j in range(k):
+        big_d = max(big_d, abs(float(d[j])))
+        for c in range(3):
+            big_n = max(big_n, abs(float(N[j, c])))
+    big_o = max(abs(float(o[0])), abs(float(o[1])), abs(float(o[2])))
+    if 3.0 * big_n * big_o + big_d >= 2.0**61:  # float error < 2**-50 relative: far from 2**62
+        return np.zeros((0, 4), np.int64)
+    out = np.empty((k, 4), np.int64)
+    for j in range(k):
+        out[j, 0], out[j, 1], out[j, 2] = N[j, 0], N[j, 1], N[j, 2]
+        out[j, 3] = d[j] - (N[j, 0] * o[0] + N[j, 1] * o[1] + N[j, 2] * o[2])
+    return out
 
 
 def _checked_points(points, width: int, name: str = "points") -> np.ndarray:
@@ -913,7 +934,7 @@ def _verified_facets(L, simplices, basis):
             return False, np.zeros((0, 3), np.int64), np.zeros(0, np.int64)
         if s > 0:
             a, b, c = -a, -b, -c
-        g = _gcd3(a, b, c)
+        g = gcd3(a, b, c)
         P[r, 0], P[r, 1], P[r, 2] = a // g, b // g, c // g
         tri_anchor[r] = i
     order = _lex_order(P)

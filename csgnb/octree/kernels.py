@@ -1125,6 +1125,39 @@ def _combine_kernel(pal, oc, pool, amap, parents, ws, st, threshold, seed, need)
 # queries
 
 
+COMBINE_ORDER_LEAVES = 256
+"""Up to this many leaves a Boolean touched, :func:`combine_order` orders their parents (an insertion sort);
+beyond, NumPy does (``np.unique`` and a stable argsort: the same order)."""
+
+
+@jit
+def combine_order(parent, size, leaves):
+    """The distinct parents (``>= 0``) of ``leaves`` in the order the combine pass visits them: smallest cell
+    first, equal sizes by the larger node index first -- what ``p = np.unique(parent[leaves]); p = p[p >= 0];
+    p[np.argsort(-size[p], kind="stable")[::-1]]`` gives, without its ~60 µs of NumPy calls per Boolean (an
+    insertion sort: for :data:`COMBINE_ORDER_LEAVES` leaves at most). ``(p,) int64``."""
+    out = np.empty(leaves.shape[0], np.int64)
+    m = 0
+    for i in range(leaves.shape[0]):
+        p = np.int64(parent[leaves[i]])
+        if p < 0:
+            continue
+        seen = False
+        for q in range(m):
+            if out[q] == p:
+                seen = True
+                break
+        if seen:
+            continue
+        j = m
+        while j > 0 and (size[out[j - 1]] > size[p] or (size[out[j - 1]] == size[p] and out[j - 1] < p)):
+            out[j] = out[j - 1]
+            j -= 1
+        out[j] = p
+        m += 1
+    return out[:m]
+
+
 @jit
 def _leaves_meeting_box(oc, lo, hi, out):
     """Leaves whose open box meets the open box ``(lo, hi)``; return how many were written (or -needed)."""

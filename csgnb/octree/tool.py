@@ -29,8 +29,9 @@ __all__ = ["Tool"]
 
 @jit
 def spread_order(normals):
-    """A farthest-first order of the directions ``normals`` ``(k, 3)`` float64 (not necessarily unit): the first,
-    then repeatedly the one whose largest cosine to those already chosen is smallest. ``(k,)`` int64.
+    """A farthest-first order of the directions ``normals[:, :3]`` (``(k, >= 3)``, integers or floats, not necessarily
+    unit; a tool's ``(k, 4)`` planes will do): the first, then repeatedly the one whose largest cosine to those
+    already chosen is smallest. ``(k,)`` int64.
 
     A convex tool's planes reach a cell in this order (its linear BSP): a cell beside the tool
     meets a plane facing it among the first few, and the walk through the chain ends there. In
@@ -40,9 +41,9 @@ def spread_order(normals):
     k = normals.shape[0]
     unit = np.empty((k, 3))
     for i in range(k):
-        r = np.sqrt(normals[i, 0] ** 2 + normals[i, 1] ** 2 + normals[i, 2] ** 2)
-        for c in range(3):
-            unit[i, c] = normals[i, c] / r
+        x, y, z = float(normals[i, 0]), float(normals[i, 1]), float(normals[i, 2])
+        r = np.sqrt(x * x + y * y + z * z)
+        unit[i, 0], unit[i, 1], unit[i, 2] = x / r, y / r, z / r
     order = np.empty(k, np.int64)
     taken = np.zeros(k, np.bool_)
     closest = np.full(k, -2.0)
@@ -61,6 +62,38 @@ def spread_order(normals):
                 best, nxt = closest[i], i
         pick = nxt
     return order
+
+
+@jit
+def convex_tool_tree(rows):
+    """The linear BSP of a convex tool over its palette ``rows`` ``(k,) int64``: node arrays ``plane, neg, pos, label``
+    ``(2k + 1,) int32`` -- node 2i tests row i (outside: an out leaf at 2i + 1; inside: on to 2i + 2), node 2k is
+    the in leaf. One compiled call instead of four allocations and index assignments per Boolean."""
+    k = rows.shape[0]
+    plane = np.full(2 * k + 1, -1, np.int32)
+    neg = np.full(2 * k + 1, -1, np.int32)
+    pos = np.full(2 * k + 1, -1, np.int32)
+    label = np.zeros(2 * k + 1, np.int32)
+    for i in range(k):
+        plane[2 * i] = rows[i]
+        neg[2 * i] = 2 * i + 2
+        pos[2 * i] = 2 * i + 1
+        label[2 * i] = -1
+    label[2 * k] = 1
+    return plane, neg, pos, label
+
+
+@jit
+def store_int64_rows(limbs, start, values, bits):
+    """Write int64 ``values`` (k, c) into rows ``start:start + k`` of a wide array's ``limbs`` view (n, c, L) uint64:
+    the low limb (``bits``: ``values.view(np.uint64)``, the same two's complement bits), then the sign extended
+    over the others -- what ``to_wide`` does, in one compiled pass."""
+    for j in range(values.shape[0]):
+        for c in range(values.shape[1]):
+            limbs[start + j, c, 0] = bits[j, c]
+            fill = np.uint64(0xFFFFFFFFFFFFFFFF) if values[j, c] < 0 else np.uint64(0)
+            for q in range(1, limbs.shape[2]):
+                limbs[start + j, c, q] = fill
 
 
 _SMALL = 1 << 62  # int64 planes stay below this, so a sum of two never overflows
@@ -132,7 +165,7 @@ class Tool:
             raise TypeError(f"Tool.from_hull takes a csgnb.mesh.hull.ConvexHull, got {type(hull).__name__}")
         planes = _exact_planes(hull.planes)
         if planes.shape[0] > 4:
-            planes = planes[spread_order(planes[:, :3].astype(np.float64))]
+            planes = planes[spread_order(planes if planes.dtype == np.int64 else planes[:, :3].astype(np.float64))]
         return cls("convex", planes, hull.lo, hull.hi, grid=getattr(hull, "grid", None))
 
     @classmethod

@@ -79,7 +79,7 @@ from csgnb.octree.layout import (
     new_pool,
     new_tree_arrays,
 )
-from csgnb.octree.tool import Tool, _as_int64
+from csgnb.octree.tool import Tool, _as_int64, convex_tool_tree, store_int64_rows
 from csgnb.octree.volume import CellVolumes, LocalChange, convex_change
 from csgnb.octree.workspace import ToolArrays, grow, new_workspace, with_palette
 
@@ -123,6 +123,16 @@ class OpReport:
     def removed(self) -> Fraction | None:
         """Volume removed (``-volume_change``), when tracked."""
         return None if self.volume_change is None else -self.volume_change
+
+
+def _combine_order(oc, leaves: np.ndarray) -> np.ndarray:
+    """The parents of the leaves a Boolean touched, in the order the combine pass takes them (smallest cell first,
+    equal sizes by the larger index first: children before a parent that holds them)."""
+    if leaves.shape[0] <= K.COMBINE_ORDER_LEAVES:
+        return K.combine_order(oc.parent, oc.size, leaves)
+    parents = np.unique(oc.parent[leaves])
+    parents = parents[parents >= 0]
+    return parents[np.argsort(-oc.size[parents], kind="stable")[::-1]].astype(np.int64)
 
 
 def _polygon_geometry(tool: Tool, width: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -314,7 +324,11 @@ class Workpiece:
         k = planes.shape[0]
         start = int(self.oc.counts[N_PAL])
         self._palette_room(k)
-        self.palette[start:start + k] = tool.planes_wide(self.width)
+        if planes.dtype == np.int64 and k:
+            planes = np.ascontiguousarray(planes)
+            store_int64_rows(self.palette["limbs"], start, planes, planes.view(np.uint64))  # no wide copy
+        else:
+            self.palette[start:start + k] = tool.planes_wide(self.width)
         self.oc.counts[N_PAL] = start + k
         return np.arange(start, start + k, dtype=np.int64)
 
@@ -328,17 +342,7 @@ class Workpiece:
         dtype = self.palette.dtype
         empty_i32 = np.zeros(0, np.int32)
         if tool.kind == "convex":
-            k = rows.shape[0]
-            plane = np.full(2 * k + 1, -1, np.int32)
-            neg = np.full(2 * k + 1, -1, np.int32)
-            pos = np.full(2 * k + 1, -1, np.int32)
-            label = np.zeros(2 * k + 1, np.int32)
-            idx = np.arange(k)
-            plane[2 * idx] = rows
-            neg[2 * idx] = 2 * idx + 2
-            pos[2 * idx] = 2 * idx + 1
-            label[2 * idx] = -1
-            label[2 * k] = 1
+            plane, neg, pos, label = convex_tool_tree(rows)
             return K.CONVEX_TOOL, ToolArrays(rows, empty_i32, np.zeros(1, np.int32), empty_i32, np.zeros((0, 4), dtype),
                                              np.zeros((0, 3), np.int64), np.zeros((0, 3), np.int64),
                                              plane, neg, pos, label)
@@ -418,10 +422,9 @@ class Workpiece:
         counts_before = self.oc.counts.copy()
         leaves = self._run_boolean(kind, ta, lo, hi, table, constant)
         if leaves.shape[0]:
-            parents = np.unique(self.oc.parent[leaves])
-            parents = parents[parents >= 0]
+            parents = _combine_order(self.oc, leaves)
             if parents.shape[0]:
-                self._run_combine(parents[np.argsort(-self.oc.size[parents], kind="stable")[::-1]])
+                self._run_combine(parents)
         self._maybe_compact()
         c = self.oc.counts - counts_before
         report = OpReport(int(leaves.shape[0]), int(c[S_MERGES]), int(c[S_RELABELS]), int(c[S_SPLITS]),
