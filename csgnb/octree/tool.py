@@ -126,7 +126,7 @@ def _exact_planes(planes, *, python_ints: bool = False) -> np.ndarray:
     array already holds Python ints (not numpy scalars), so it is not rebuilt."""
     p = planes if isinstance(planes, np.ndarray) else np.asarray(planes)
     if p.dtype == np.int64:
-        if p.size == 0 or int(np.abs(p).max()) < _SMALL:
+        if p.size == 0 or (int(p.max()) < _SMALL and int(p.min()) > -_SMALL):  # no |p| copy: two reductions
             return p.reshape(-1, 4)
         return p.astype(object).reshape(-1, 4)
     obj = p.reshape(-1, 4) if python_ints and p.dtype == object else _object_planes(p)
