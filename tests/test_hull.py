@@ -437,6 +437,18 @@ def test_unique_rows_is_numpys_row_unique(seed, n, k, extent):
     assert _unique_rows(M).dtype == np.int64
 
 
+def _local_points(seed: int, extent: int, n: int):
+    """Random distinct grid points in [-extent, extent]³, in coordinates local to the first, and four affinely
+    independent ones among them (``None`` when the set is flat)."""
+    from csgnb.mesh import hull as H
+
+    rng = np.random.default_rng(seed)
+    P = np.unique(rng.integers(-extent, extent + 1, (n, 3)), axis=0)
+    L = P - P[0]
+    basis = H._independent(L)
+    return None if basis is None else (L, basis)
+
+
 @settings(max_examples=60, deadline=None)
 @given(st.integers(0, 2**32 - 1), st.sampled_from([2 * 10**5, 10**7, 8 * 10**7]), st.integers(8, 80))
 def test_wide_qhull_path_equals_the_python_int_path(seed, extent, n):
@@ -445,12 +457,10 @@ def test_wide_qhull_path_equals_the_python_int_path(seed, extent, n):
     signs of points against its facets (_side_signs, offsets split in two int64 halves) are the exact ones."""
     from csgnb.mesh import hull as H
 
-    rng = np.random.default_rng(seed)
-    P = np.unique(rng.integers(-extent, extent + 1, (n, 3)), axis=0)
-    L = P - P[0]
-    basis = H._independent(L)
-    if basis is None:
+    found = _local_points(seed, extent, n)
+    if found is None:
         return
+    L, basis = found
     wide = H._qhull_facets(L, basis)
     slow = H._qhull_facets(L.astype(object), basis)  # object points: the Python-integer path throughout
     assert (wide is None) == (slow is None)
@@ -518,12 +528,10 @@ def test_incremental_hull_equals_the_python_int_path(seed, extent, n):
     points inside faces and edges) and on wide ones."""
     from csgnb.mesh import hull as H
 
-    rng = np.random.default_rng(seed)
-    P = np.unique(rng.integers(-extent, extent + 1, (n, 3)), axis=0)
-    L = P - P[0]
-    basis = H._independent(L)
-    if basis is None:
+    found = _local_points(seed, extent, n)
+    if found is None:
         return
+    L, basis = found
     fast = H._incremental_facets(L, basis)
     assert fast is not None  # exact signs: it never needs the fallback
     slow = H._qhull_facets(L.astype(object), basis)

@@ -14,7 +14,8 @@ import pathlib
 import csgnb
 
 PACKAGE = pathlib.Path(csgnb.__file__).parent
-SHARED = {"csgnb._jit", "csgnb._threads", "csgnb._unlinked", "csgnb._views", "csgnb._resumable", "csgnb._files"}
+SHARED = {"csgnb._jit", "csgnb._threads", "csgnb._unlinked", "csgnb._views", "csgnb._resumable", "csgnb._files",
+          "csgnb._shuffle"}
 
 
 def _subpackage(module: str) -> str:

@@ -335,7 +335,7 @@ def test_convex_tool_tree_is_the_linear_bsp():
 
 
 def test_int64_planes_are_stored_as_to_wide_stores_them():
-    """store_int64_rows writes int64 planes into a palette's limbs as to_wide converts them (sign extension at 128,
+    """store_int64_rows writes int64 planes into a palette as to_wide converts them (sign extension at 128,
     192 and 256 bits, the int64 extremes included); the hull's compiled global planes are the exact n, d - n·o."""
     from csgnb.exact.wide import wide_dtype
     from csgnb.octree.tool import store_int64_rows
@@ -345,7 +345,7 @@ def test_int64_planes_are_stored_as_to_wide_stores_them():
     values[0, 0], values[1, 1] = np.iinfo(np.int64).min, np.iinfo(np.int64).max
     for width in (128, 192, 256):
         palette = np.zeros((20, 4), wide_dtype(width))
-        store_int64_rows(palette["limbs"], 3, values, values.view(np.uint64))
+        store_int64_rows(palette, 3, values)
         assert palette[3:12].tobytes() == to_wide(values, width).tobytes()
         assert not palette[:3]["limbs"].any() and not palette[12:]["limbs"].any()
     h = convex_hull(rng.integers(-50, 51, (40, 3)) + [10**6, -(10**5), 7], width=256)

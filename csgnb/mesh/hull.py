@@ -37,6 +37,7 @@ from math import gcd
 import numpy as np
 
 from csgnb._jit import jit
+from csgnb._shuffle import shuffle_order
 from csgnb._unlinked import unlinked
 from csgnb.errors import GeometryError, InternalError
 from csgnb.exact.budgets import check_mesh_points
@@ -1037,7 +1038,7 @@ def _incremental_triangles(L, basis):
     from_vertex = np.full(n, -1, np.int64)  # per horizon vertex: the new face whose base edge starts there
     to_vertex = np.full(n, -1, np.int64)  # ... and the one whose base edge ends there
     order = np.empty(n, np.int64)
-    _shuffle_indices(order, n)
+    shuffle_order(order, n, np.int64(0))  # sorted points would see most faces at every step
     for r in range(n):
         p = order[r]
         if p == b[0] or p == b[1] or p == b[2] or p == b[3]:
@@ -1091,21 +1092,6 @@ def _incremental_triangles(L, basis):
         for c in range(3):
             out[t, c] = fv[faces[t], c]
     return out
-
-
-@jit(inline="always")
-def _shuffle_indices(order, n):
-    """``order[:n]`` := a fixed pseudo-random permutation of 0..n-1 (Fisher-Yates with a 64-bit LCG): an
-    incremental hull inserting points in sorted order would see most faces at every step."""
-    x = np.uint64(0x9E3779B97F4A7C15)
-    for i in range(n):
-        order[i] = i
-    for i in range(n - 1, 0, -1):
-        x = x * np.uint64(6364136223846793005) + np.uint64(1442695040888963407)
-        j = np.int64((x >> np.uint64(33)) % np.uint64(i + 1))
-        t = order[i]
-        order[i] = order[j]
-        order[j] = t
 
 
 def _wrap(A: np.ndarray, a: np.ndarray, b: np.ndarray, q: int) -> tuple[np.ndarray, object]:

@@ -42,6 +42,7 @@ import numpy as np
 
 from csgnb._jit import jit
 from csgnb._resumable import DONE, FAILED, NEED_ROOM
+from csgnb._shuffle import shuffle_order
 from csgnb._unlinked import unlinked
 from csgnb._views import unmanaged, unmanaged_tuple
 from csgnb.bsp.build import build_kernel
@@ -375,20 +376,6 @@ def clip_tool_polygons(pal, tool, cand, lo, size, brows, arena, bi, need):
 
 
 @jit(inline="always")
-def _shuffle(order, n, seed):
-    """Fisher-Yates with a 64-bit LCG: a reproducible random insertion order without numpy's generator."""
-    x = np.uint64(seed) * np.uint64(6364136223846793005) + np.uint64(1442695040888963407)
-    for i in range(n):
-        order[i] = i
-    for i in range(n - 1, 0, -1):
-        x = x * np.uint64(6364136223846793005) + np.uint64(1442695040888963407)
-        j = np.int64((x >> np.uint64(33)) % np.uint64(i + 1))
-        t = order[i]
-        order[i] = order[j]
-        order[j] = t
-
-
-@jit(inline="always")
 def pieces_to_import(out, bi, need):
     """Convert boundary pieces (edge i runs from vertex i to i + 1) into import polygons; count or -1."""
     n = out.counts[1]
@@ -413,7 +400,7 @@ def pieces_to_import(out, bi, need):
 @jit(inline="always")
 def import_polygons(pal, bi, n, bs, seed, t, need):
     """Build the BSP of ``n`` import polygons into ``t`` (label 1 inside); its node count or -1."""
-    _shuffle(bs.order, n, seed)
+    shuffle_order(bs.order, n, seed)
     count = build_kernel(pal, bi.support[:n], bi.offsets[: n + 1], bi.edges, bi.verts, bs.order[:n], np.int64(1),
                           t.plane, t.neg, t.pos, t.label, bs.a_edges, bs.a_verts, bs.sides,
                           bs.st_node, bs.st_start, bs.st_k)

@@ -23,6 +23,7 @@ from csgnb.bsp.build import bsp_from_polygons, validate_mesh
 from csgnb.bsp.polygon import PolygonSet, polygons_from_triangles
 from csgnb.errors import GeometryError
 from csgnb.exact.wide import from_wide, is_wide, to_wide, width_of
+from csgnb.exact.wide_store import store_int64_at
 
 __all__ = ["Tool"]
 
@@ -84,16 +85,13 @@ def convex_tool_tree(rows):
 
 
 @jit
-def store_int64_rows(limbs, start, values, bits):
-    """Write int64 ``values`` (k, c) into rows ``start:start + k`` of a wide array's ``limbs`` view (n, c, L) uint64:
-    the low limb (``bits``: ``values.view(np.uint64)``, the same two's complement bits), then the sign extended
-    over the others -- what ``to_wide`` does, in one compiled pass."""
+def store_int64_rows(palette, start, values):
+    """Write int64 ``values`` (k, c) into rows ``start:start + k`` of the wide array ``palette`` (sign-extended,
+    exact: :func:`csgnb.exact.wide_store.store_int64_at`) -- what ``to_wide`` and a slice assignment do, in one
+    compiled pass without the wide copy."""
     for j in range(values.shape[0]):
         for c in range(values.shape[1]):
-            limbs[start + j, c, 0] = bits[j, c]
-            fill = np.uint64(0xFFFFFFFFFFFFFFFF) if values[j, c] < 0 else np.uint64(0)
-            for q in range(1, limbs.shape[2]):
-                limbs[start + j, c, q] = fill
+            store_int64_at(palette, start + j, c, values[j, c])
 
 
 _SMALL = 1 << 62  # int64 planes stay below this, so a sum of two never overflows

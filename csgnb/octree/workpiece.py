@@ -325,8 +325,7 @@ class Workpiece:
         start = int(self.oc.counts[N_PAL])
         self._palette_room(k)
         if planes.dtype == np.int64 and k:
-            planes = np.ascontiguousarray(planes)
-            store_int64_rows(self.palette["limbs"], start, planes, planes.view(np.uint64))  # no wide copy
+            store_int64_rows(self.palette, start, planes)  # no wide copy of the tool's planes
         else:
             self.palette[start:start + k] = tool.planes_wide(self.width)
         self.oc.counts[N_PAL] = start + k
