@@ -554,3 +554,20 @@ def test_a_faulty_incremental_hull_falls_back(monkeypatch):
     L = P - P[0]
     assert H._incremental_facets(L, H._independent(L)) is None
     assert hull_planes(convex_hull(P)) == expect
+
+
+@settings(max_examples=100, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.integers(1, 40), st.integers(1, BRUTE_FORCE_POINTS), st.sampled_from([1, 3, 1000]))
+def test_unique_rows_per_set_is_unique_rows_of_each(seed, m, k, extent):
+    """small_hulls deduplicates all its sets in one compiled pass: each set's rows are _unique_rows' (np.unique's)
+    rows in their order, repeated points included, and each box is the set's min and max."""
+    from csgnb.mesh import hull as H
+
+    rng = np.random.default_rng(seed)
+    L = rng.integers(-extent, extent + 1, (m, k, 3))
+    L[:, -1] = L[:, 0]  # a repeated point in every set
+    points, first, lo, hi = H._unique_rows_per_set(L)
+    assert first[0] == 0 and first[-1] == points.shape[0]
+    for h in range(m):
+        assert points[first[h]:first[h + 1]].tolist() == np.unique(L[h], axis=0).tolist()
+        assert lo[h].tolist() == L[h].min(axis=0).tolist() and hi[h].tolist() == L[h].max(axis=0).tolist()

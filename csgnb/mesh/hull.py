@@ -383,15 +383,17 @@ class ConvexHull:
     __slots__ = ("_candidates", "_normals", "_d_local", "_origin", "lo", "hi", "width", "grid", "__dict__")
 
     def __init__(self, candidates: np.ndarray, origin: np.ndarray, normals: np.ndarray, d_local: np.ndarray, *,
-                 width: int, grid=None) -> None:
+                 width: int, grid=None, box: tuple[np.ndarray, np.ndarray] | None = None) -> None:
         # Internal constructor: ``candidates`` (local int64 points containing all vertices), ``normals`` and
-        # ``d_local`` the verified, reduced facet planes in coordinates local to ``origin``.
+        # ``d_local`` the verified, reduced facet planes in coordinates local to ``origin``; ``box`` the
+        # candidates' (lo, hi) in global coordinates when the caller has it.
         self._candidates = candidates
         self._origin = origin
         self._normals = normals
         self._d_local = d_local
-        self.lo = candidates.min(axis=0) + origin
-        self.hi = candidates.max(axis=0) + origin
+        if box is None:
+            box = (candidates.min(axis=0) + origin, candidates.max(axis=0) + origin)
+        self.lo, self.hi = box
         self.width = width
         self.grid = grid
 
@@ -1206,14 +1208,61 @@ def small_hulls(points, *, width: int = DEFAULT_WIDTH, grid=None) -> list[Convex
     rows = np.column_stack([mid, N[mid, tid], d[mid, tid]])
     rows = np.unique(rows, axis=0)
     starts = np.searchsorted(rows[:, 0], np.arange(m + 1))
+    points, first, lo, hi = _unique_rows_per_set(np.ascontiguousarray(L))
+    lo += origin
+    hi += origin
     out: list[ConvexHull | None] = []
     for h in range(m):
         r = rows[starts[h]:starts[h + 1]]
         if r.shape[0] < 4:  # flat: no supporting plane with a point strictly behind
             out.append(None)
             continue
-        out.append(ConvexHull(np.unique(L[h], axis=0), origin[h].copy(), np.ascontiguousarray(r[:, 1:4]),
-                              np.ascontiguousarray(r[:, 4]), width=width, grid=grid))
+        out.append(ConvexHull(points[first[h]:first[h + 1]], origin[h].copy(), np.ascontiguousarray(r[:, 1:4]),
+                              np.ascontiguousarray(r[:, 4]), width=width, grid=grid, box=(lo[h].copy(), hi[h].copy())))
     return out
+
+
+@jit
+def _unique_rows_per_set(L):
+    """The distinct rows of each set ``L[h]`` (``L`` (m, k, 3) int64) in lexicographic order, as :func:`_unique_rows`
+    gives them, for all sets in one compiled pass (an insertion sort of k <= 10 rows each): ``points`` (total, 3),
+    ``first`` (m + 1,) with set h's rows at ``points[first[h]:first[h + 1]]``, and each set's box ``lo``, ``hi``
+    (m, 3). A drill's 80,640 prisms took 0.95 s in per-set NumPy calls."""
+    m, k = L.shape[0], L.shape[1]
+    points = np.empty((m * k, 3), np.int64)
+    first = np.zeros(m + 1, np.int64)
+    lo = np.empty((m, 3), np.int64)
+    hi = np.empty((m, 3), np.int64)
+    at = 0
+    for h in range(m):
+        n = 0
+        for i in range(k):
+            x, y, z = L[h, i, 0], L[h, i, 1], L[h, i, 2]
+            j = n
+            duplicate = False
+            while j > 0:
+                p = at + j - 1
+                if points[p, 0] == x and points[p, 1] == y and points[p, 2] == z:
+                    duplicate = True
+                    break
+                if points[p, 0] < x or (points[p, 0] == x and (points[p, 1] < y or (points[p, 1] == y
+                                                                                      and points[p, 2] < z))):
+                    break
+                j -= 1
+            if duplicate:
+                continue
+            for q in range(at + n, at + j, -1):
+                points[q, 0], points[q, 1], points[q, 2] = points[q - 1, 0], points[q - 1, 1], points[q - 1, 2]
+            points[at + j, 0], points[at + j, 1], points[at + j, 2] = x, y, z
+            n += 1
+        for c in range(3):
+            lo[h, c] = L[h, 0, c]
+            hi[h, c] = L[h, 0, c]
+            for i in range(1, k):
+                lo[h, c] = min(lo[h, c], L[h, i, c])
+                hi[h, c] = max(hi[h, c], L[h, i, c])
+        at += n
+        first[h + 1] = at
+    return points[:at], first, lo, hi
 
 
