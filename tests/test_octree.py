@@ -352,3 +352,41 @@ def test_int64_planes_are_stored_as_to_wide_stores_them():
     exact = [[int(a), int(b), int(c), int(e) - sum(int(x) * int(y) for x, y in zip((a, b, c), h._origin, strict=True))]
              for (a, b, c), e in zip(h._normals, h._d_local, strict=True)]
     assert h.planes.dtype == np.int64 and h.planes.tolist() == exact
+
+
+def test_translated_mesh_tools_reuse_their_sources_boxes():
+    """A mesh tool's polygon boxes (one reduction per polygon) are the per-vertex minima and maxima, floored/ceiled
+    and grown by one; a translated tool takes its source's boxes moved by the translation, which hold its exact
+    vertices; subtracting it gives the workpiece that recomputed boxes give, and a pickled tool leaves its source
+    behind."""
+    import pickle
+
+    from csgnb.exact.predicates import to_double_position
+    from csgnb.exact.wide import from_wide
+    from csgnb.octree.workpiece import _polygon_geometry
+
+    tool = Tool.from_bsp(BSP.box([0, 0, 0], [6, 4, 4]) | BSP.box([2, 2, 2], [5, 9, 7]))  # an L-shaped mesh tool
+    verts, plo, phi = _polygon_geometry(tool, 128)
+    pos = to_double_position(verts)
+    owner = np.repeat(np.arange(len(tool.polygons)), tool.polygons.sizes)
+    lo, hi = np.full_like(pos[: len(tool.polygons)], np.inf), np.full_like(pos[: len(tool.polygons)], -np.inf)
+    np.minimum.at(lo, owner, pos)
+    np.maximum.at(hi, owner, pos)
+    assert plo.tolist() == (np.floor(lo) - 1).astype(np.int64).tolist()
+    assert phi.tolist() == (np.ceil(hi) + 1).astype(np.int64).tolist()
+    t = np.array([3, -2, 1])
+    moved = tool.translated(t).translated(t)
+    mverts, mlo, mhi = _polygon_geometry(moved, 128)
+    assert mlo.tolist() == (plo + 2 * t).tolist() and mhi.tolist() == (phi + 2 * t).tolist()
+    exact = [[Fraction(int(x), int(v[3])) for x in v[:3]] for v in from_wide(mverts).reshape(-1, 4)]
+    owner_m = np.repeat(np.arange(len(moved.polygons)), moved.polygons.sizes)
+    assert all(mlo[o, c] <= p[c] <= mhi[o, c] for o, p in zip(owner_m, exact, strict=True) for c in range(3))
+    fresh = pickle.loads(pickle.dumps(moved))  # no source: its boxes are computed from its own vertices
+    assert "_moved_from" not in fresh.__dict__
+    fresh._geometry = {}
+    results = []
+    for tl in (moved, fresh):
+        w = Workpiece.box([-20, -20, -20], [20, 20, 20], threshold=60)
+        w -= tl
+        results.append((w.volume(), w.n_cells, w.n_bsp_nodes))
+    assert results[0] == results[1]

@@ -235,7 +235,15 @@ class Tool:
         moved.offset = self.offset + t.astype(np.int64)
         moved._wide = {}
         moved._geometry = {}  # polygon vertices and boxes (csgnb.octree.workpiece): moved with the planes
+        source, shift = self.__dict__.get("_moved_from", (self, np.zeros(3, np.int64)))
+        moved._moved_from = (source, shift + t.astype(np.int64))  # its boxes, moved, are this tool's boxes
         return moved
+
+    def __getstate__(self) -> dict:
+        # A pickled tool (sent to a Dask worker) travels without the tool it was translated from.
+        state = dict(self.__dict__)
+        state.pop("_moved_from", None)
+        return state
 
     def planes_wide(self, width: int) -> np.ndarray:
         """The planes as a ``(k, 4)`` wide array (cached per width)."""
