@@ -22,10 +22,11 @@ hull falls back to qhull) an exact gift wrapping on faces runs instead.
 
 Exact arithmetic: all tests run in coordinates local to one input point, where every
 value is a polynomial in coordinate *differences* bounded by the extent E of the point
-set (a normal coefficient by 2E², a signed distance by 12E³). int64 is used while that
-bound is below 2**63, Python ints (object arrays) beyond. Inputs are checked against the
-mesh budget of the hull's width (eq. 8), so every facet plane fits that width's
-predicates.
+set (a normal coefficient by 8E², a signed distance by 48E³). The compiled kernels keep
+normals in int64 and take every sign as n·(p - anchor) in i128 (below 2**29 that is exact at
+every width's budget); the NumPy paths use int64 while the bound is below 2**63, Python ints
+(object arrays) beyond. Inputs are checked against the mesh budget of the hull's width
+(eq. 8), so every facet plane fits that width's predicates.
 """
 
 from __future__ import annotations
