@@ -317,6 +317,35 @@ def constant_labels(table: np.ndarray, labels_b: np.ndarray) -> np.ndarray:
     return constant
 
 
+def _walk_start(a: BSPTree, b: BSPTree, lo, hi):
+    """The checked start of a walk of A and B inside the box (:func:`merge`, :func:`merge_changes`): a mesh store over
+    both palettes holding the box, the walk's stack at the root of tree 0, and both trees as kernel arrays."""
+    check_tree(a, "a")
+    check_tree(b, "b")
+    lo, hi = check_box(lo, hi)
+    if width_of(a.palette) != width_of(b.palette):
+        raise GeometryError(f"cannot merge a {a.width}-bit BSP with a {b.width}-bit BSP: convert one first")
+    store = MeshStore(np.concatenate([a.palette, b.palette]), capacity=256 + 8 * (a.n_nodes + b.n_nodes))
+    box = store.add_box(lo, hi)
+    stack = np.zeros((max(64, 2 * (a.depth() + b.depth()) + 8), 6), np.int64)
+    stack[0] = (0, 0, 0, box, 6, 0)
+    return store, stack, tree_arrays(a), tree_arrays(b)
+
+
+def _grow_walk(store: MeshStore, arrays: dict, state: np.ndarray, *, boxes: bool, work: bool) -> None:
+    """Room for the next step of a walk that asked for it: the mesh store for the top cell's cuts, the stack (and
+    the float filter's boxes, one row more), the half-edge scratch as long as the store's half-edges."""
+    top = int(state[0]) - 1
+    bound = int(arrays["stack"][top, _BOUND]) + 2
+    store.m = grown_mesh_arrays(store.m, 2 * bound, 6 * bound + 2, bound + 2, loop=bound)
+    if top + 2 > arrays["stack"].shape[0]:
+        arrays["stack"] = grown(arrays["stack"])
+        if boxes:
+            arrays["boxes"] = grown(arrays["boxes"], arrays["stack"].shape[0] + 1)
+    if work and arrays["work"].shape[0] < store.he.shape[0]:
+        arrays["work"] = np.empty(store.he.shape[0], np.int32)
+
+
 def merge(a: BSPTree, b: BSPTree, fn, lo, hi, *, naive: bool = False, prefilter: bool = True) -> MergeResult:
     """Merge BSPs ``a`` and ``b`` with the leaf-label function ``fn(la, lb)`` inside the box ``[lo, hi]``.
 
@@ -333,30 +362,19 @@ def merge(a: BSPTree, b: BSPTree, fn, lo, hi, *, naive: bool = False, prefilter:
     MergeResult
         The output tree (palette = a's planes, then b's, then the box's) and its cells.
     """
-    check_tree(a, "a")
-    check_tree(b, "b")
     if not callable(fn):
         raise TypeError(f"the merge function must be callable fn(label_a, label_b) -> label (e.g. csgnb.bsp.UNION), "
                         f"got {fn!r}")
-    lo, hi = check_box(lo, hi)
-    if width_of(a.palette) != width_of(b.palette):
-        raise GeometryError(f"cannot merge a {a.width}-bit BSP with a {b.width}-bit BSP: convert one first")
-    palette = np.concatenate([a.palette, b.palette])
-    store = MeshStore(palette, capacity=256 + 8 * (a.n_nodes + b.n_nodes))
-    box = store.add_box(lo, hi)
-    la = a.label[a.plane < 0]
+    store, stack, ta, tb = _walk_start(a, b, lo, hi)
     lb = b.label[b.plane < 0]
-    table = merge_table(fn, la, lb)
+    table = merge_table(fn, a.label[a.plane < 0], lb)
     constant = constant_labels(table, lb)
-    stack = np.zeros((max(64, 2 * (a.depth() + b.depth()) + 8), 6), np.int64)
-    stack[0] = (0, 0, 0, box, 6, 0)
     state = np.array([1, 1, 0, 0, 0], np.int64)
     cap = 4 * (a.n_nodes + b.n_nodes) + 64
     filtering = prefilter and not naive
     arrays = {"o": TreeArrays(*(np.full(cap, -1, np.int32) for _ in range(4))), "cells": np.zeros((cap, 2), np.int64),
               "stack": stack, "work": np.empty(store.he.shape[0] if naive or filtering else 0, np.int32),
               "boxes": np.empty((stack.shape[0] + 1 if filtering else 0, BOX_COLUMNS))}
-    ta, tb = tree_arrays(a), tree_arrays(b)
     no_path = np.zeros(1, np.int64)
 
     def step():
@@ -364,19 +382,11 @@ def merge(a: BSPTree, b: BSPTree, fn, lo, hi, *, naive: bool = False, prefilter:
                              arrays["o"], arrays["cells"], no_path, arrays["work"], naive, arrays["boxes"])
 
     def grow():
-        top = int(state[0]) - 1
-        bound = int(arrays["stack"][top, _BOUND]) + 2
-        store.m = grown_mesh_arrays(store.m, 2 * bound, 6 * bound + 2, bound + 2, loop=bound)
-        if top + 2 > arrays["stack"].shape[0]:
-            arrays["stack"] = grown(arrays["stack"])
-            if filtering:
-                arrays["boxes"] = grown(arrays["boxes"], arrays["stack"].shape[0] + 1)
+        _grow_walk(store, arrays, state, boxes=filtering, work=naive or filtering)
         if state[1] + 2 > arrays["o"].plane.shape[0]:
             arrays["o"] = TreeArrays(*(grown(x, fill=-1) for x in arrays["o"]))
         if state[2] >= arrays["cells"].shape[0]:
             arrays["cells"] = grown(arrays["cells"])
-        if (naive or filtering) and arrays["work"].shape[0] < store.he.shape[0]:
-            arrays["work"] = np.empty(store.he.shape[0], np.int32)
 
     run_resumable(step, grow, "BSP merge")
     n = int(state[1])
@@ -400,20 +410,11 @@ def merge_changes(a: BSPTree, b: BSPTree, fn, lo, hi) -> bool:
     Walks B first and A only inside B's leaves that change a label of A (:func:`merge_changes_a`), stopping at the
     first change: what the octree asks before merging a cell (a tool that only touches the solid changes nothing).
     """
-    check_tree(a, "a")
-    check_tree(b, "b")
-    lo, hi = check_box(lo, hi)
-    if width_of(a.palette) != width_of(b.palette):
-        raise GeometryError(f"cannot merge a {a.width}-bit BSP with a {b.width}-bit BSP: convert one first")
-    store = MeshStore(np.concatenate([a.palette, b.palette]), capacity=256 + 8 * (a.n_nodes + b.n_nodes))
-    box = store.add_box(lo, hi)
+    store, stack, ta, tb = _walk_start(a, b, lo, hi)
     table = merge_table(fn, a.label[a.plane < 0], b.label[b.plane < 0])
-    stack = np.zeros((max(64, 2 * (a.depth() + b.depth()) + 8), 6), np.int64)
-    stack[0] = (0, 0, 0, box, 6, 0)
     state = np.array([1, 0, 0, 0, 0], np.int64)
     arrays = {"stack": stack, "boxes": np.empty((stack.shape[0] + 1, BOX_COLUMNS)),
               "work": np.empty(store.he.shape[0], np.int32)}
-    ta, tb = tree_arrays(a), tree_arrays(b)
     no_path = np.zeros(1, np.int64)
     changed = [False]
 
@@ -424,14 +425,7 @@ def merge_changes(a: BSPTree, b: BSPTree, fn, lo, hi) -> bool:
         return DONE if changed[0] else status
 
     def grow():
-        top = int(state[0]) - 1
-        bound = int(arrays["stack"][top, _BOUND]) + 2
-        store.m = grown_mesh_arrays(store.m, 2 * bound, 6 * bound + 2, bound + 2, loop=bound)
-        if top + 2 > arrays["stack"].shape[0]:
-            arrays["stack"] = grown(arrays["stack"])
-            arrays["boxes"] = grown(arrays["boxes"], arrays["stack"].shape[0] + 1)
-        if arrays["work"].shape[0] < store.he.shape[0]:
-            arrays["work"] = np.empty(store.he.shape[0], np.int32)
+        _grow_walk(store, arrays, state, boxes=True, work=True)
 
     run_resumable(step, grow, "BSP merge check")
     return changed[0]
