@@ -53,7 +53,8 @@ def calibrate(args) -> dict:
     """Fit ``tile_costs.COSTS`` on one thread: splat raster time against (rectangle pixels, binned splats), ray
     tracing time against (pixels, roots), least squares without negative coefficients, and the footprint and binning
     passes per splat, over every Table 2 model and splat size at two image sizes (so that the per-pixel and per-root
-    costs separate)."""
+    costs separate). Splat fragments are counted as the planner estimates them: the rectangle pixels that occlusion
+    culling leaves, judged from every tile's probe."""
     import numba
     import numpy as np
     from scipy.optimize import nnls
@@ -62,6 +63,7 @@ def calibrate(args) -> dict:
     from csgnb.render import Camera, SplatRenderer
     from csgnb.render.rays import quadric_rows, ray_polynomials
     from csgnb.render.raytracer import raytrace_tiles, tile_count
+    from csgnb.render.tile_costs import plan_tiles
     from csgnb.sampling import sample_csg
 
     numba.set_num_threads(1)
@@ -95,10 +97,14 @@ def calibrate(args) -> dict:
                 frames = [r.render(cam, fallback="never") for _ in range(max(1, args.repeat))]
                 raster = min(f.stats.timings["raster"] for f in frames)
                 passes = min(f.stats.timings["footprints"] + f.stats.timings["binning"] for f in frames)
-                plan = r.last_plan
+                # every tile's estimate as the planner makes it: the fragments occlusion culling leaves
+                start, tile, ntx_ = r.last_bins
+                plan = plan_tiles("auto", (cp, X, Y, ray_polynomials(cp, r.Q), r.term_start, r.max_term),
+                                  r.last_plan.fragments, start, tile, (H, W), nf.n_terms,
+                                  visible=r._visible(start, tile, ntx_), probe_all=True)
                 splat_rows.append((int(plan.fragments.sum()), int(plan.items.sum()), raster * 1e6))
                 pass_rows.append((len(cloud), passes * 1e6))
-                print(f"{name:18s} {splat:6s} {W}x{H}: raster {raster:7.1f} ms, {splat_rows[-1][0]:11d} rectangle px, "
+                print(f"{name:18s} {splat:6s} {W}x{H}: raster {raster:7.1f} ms, {splat_rows[-1][0]:11d} unculled px, "
                       f"{splat_rows[-1][1]:8d} binned splats; ray tracing {best * 1e3:7.1f} ms, "
                       f"{rt_rows[-1][1]:11d} roots", flush=True)
     s = np.array(splat_rows, dtype=float)

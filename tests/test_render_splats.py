@@ -85,12 +85,14 @@ def test_each_overdraw_reduction_keeps_the_image_and_lowers_overdraw(name):
     # the reduced radii may refine where the bound was loose, so the clouds need not share positions
     assert reduced.radii.max() <= bounds.radii.max() and np.mean(reduced.radii) <= np.mean(bounds.radii)
     cam = Camera.fit(bounds, *SIZE, azimuth=-50, elevation=35)
-    steps = [  # splats on every tile: the test is about them, not about the ray-traced fallback
-        render(worst, cam, footprint="sphere", backface_culling=False, fallback="never"),
-        render(worst, cam, footprint="box", backface_culling=False, fallback="never"),
-        render(worst, cam, footprint="box", backface_culling=True, fallback="never"),
-        render(bounds, cam, fallback="never"),
-        render(reduced, cam, fallback="never"),
+    paper = {"fallback": "never", "occlusion_culling": False}  # splats on every tile, every fragment counted
+    steps = [
+        render(worst, cam, footprint="sphere", backface_culling=False, **paper),
+        render(worst, cam, footprint="box", backface_culling=False, **paper),
+        render(worst, cam, footprint="box", backface_culling=True, **paper),
+        render(bounds, cam, **paper),
+        render(reduced, cam, **paper),
+        render(reduced, cam, fallback="never"),  # + occlusion culling: the default
     ]
     ref = raytrace(shape, cam)
     for k, frame in enumerate(steps):
@@ -101,6 +103,8 @@ def test_each_overdraw_reduction_keeps_the_image_and_lowers_overdraw(name):
     assert all(b < a for a, b in zip(fragments[:3], fragments[1:3], strict=False)), fragments
     assert fragments[3] < fragments[2] or len(bounds) >= len(worst), fragments
     assert fragments[4] < fragments[3] or np.all(reduced.radii == bounds.radii), fragments
+    assert fragments[5] <= fragments[4], fragments
+    assert fragments[5] < fragments[4] or name == "figure 15", fragments  # its views show no hidden layer
     assert steps[2].stats.splats_culled > 0.2 * len(worst)
 
 
@@ -213,6 +217,30 @@ def test_reduced_radii_leave_no_hole_on_the_80_quadric_plate_at_1080p():
     agreement = compare(render(cloud, cam), raytrace(shape, cam))
     assert agreement.holes == 0
     assert_pixel_perfect(agreement)
+
+
+OCCLUSION_VIEWS = [  # (model, relative radius, azimuth, elevation, projection, zoom): outside views, close-ups
+    ("block", 0.06, -60, 35, "perspective", 1.0), ("block", 0.02, 120, -30, "orthographic", 1.0),
+    ("tour", 0.04, -40, 30, "perspective", 4.0), ("figure 15", 0.03, 30, 60, "perspective", 1.0),
+    ("figure 2", 0.06, 200, 10, "perspective", 2.5),
+]
+
+
+@pytest.mark.parametrize(("name", "rel", "az", "el", "proj", "zoom"), OCCLUSION_VIEWS)
+@pytest.mark.parametrize("local", ["quadric", "disc"])
+def test_occlusion_culling_changes_the_fragment_count_not_the_picture(name, rel, az, el, proj, zoom, local):
+    """A splat behind every drawn pixel of the 8x8 blocks under its footprint is skipped whole: every buffer but the
+    overdraw count is bit for bit the one drawn with every fragment tested (a culled splat that could have won a pixel
+    would show here), and the fragments only drop."""
+    _, cloud = cloud_of(name, rel)
+    cam = Camera.fit(cloud, 200, 150, azimuth=az, elevation=el, projection=proj).orbited(zoom=zoom)
+    options = {"fallback": "never", "local": local}
+    culled, every = (render(cloud, cam, occlusion_culling=flag, **options) for flag in (True, False))
+    assert culled.stats.covered > 2000
+    for buffer in ("depth", "quadric", "sample", "clip_count", "normal", "rgb"):
+        assert np.array_equal(getattr(culled, buffer), getattr(every, buffer)), buffer
+    assert np.all(culled.overdraw <= every.overdraw)
+    assert culled.stats.fragments < every.stats.fragments
 
 
 def test_frames_are_bit_identical_on_one_and_two_threads():
@@ -455,3 +483,69 @@ def test_splat_boxes_hold_the_surface_within_the_radius():
                 assert heights[k, 0] - tol <= h <= heights[k, 1] + tol, (name, k, j, h, heights[k])
                 checked += 1
         assert checked > 1000, (name, checked)
+
+
+def test_hidden_splats_are_behind_every_pixel_of_their_rectangle():
+    """The raster's occlusion test against its definition on random tiles (partial ones at the image's edge
+    included): after random depth writes (each only nearer, ties too), a rectangle is reported hidden exactly when
+    every pixel of the 8x8 blocks it touches is drawn and lies nearer than the splat's nearest depth -- so no pixel
+    of the rectangle could pass the early depth test."""
+    from csgnb.render.splats import _BLOCK, _hidden, _open_blocks, _written
+
+    rng = np.random.default_rng(7)
+    hidden = 0
+    for case in range(60):
+        H, W, tile = int(rng.integers(20, 90)), int(rng.integers(20, 90)), int(rng.choice([16, 24, 32, 64]))
+        ti0, tj0 = (int(rng.integers(0, (H - 1) // tile + 1)) * tile, int(rng.integers(0, (W - 1) // tile + 1)) * tile)
+        rows, cols = min(tile, H - ti0), min(tile, W - tj0)
+        nb = (tile + _BLOCK - 1) // _BLOCK
+        bopen, bmax, bdirty = np.empty(nb * nb, np.int64), np.empty(nb * nb), np.empty(nb * nb, np.bool_)
+        blocks = (bopen, bmax, bdirty)
+        _open_blocks(rows, cols, nb, blocks)
+        depth = np.full((H, W), np.inf)
+        for step in range(300):
+            if rng.random() < 0.6:  # a splat's writes: pixels of a small rectangle, each nearer or equal
+                i0, j0 = int(rng.integers(0, rows)), int(rng.integers(0, cols))
+                for i in range(ti0 + i0, ti0 + min(rows, i0 + int(rng.integers(1, 12)))):
+                    for j in range(tj0 + j0, tj0 + min(cols, j0 + int(rng.integers(1, 12)))):
+                        old = depth[i, j]
+                        tie = np.isfinite(old) and rng.random() < 0.2
+                        _written(i - ti0, j - tj0, nb, old, blocks)
+                        depth[i, j] = old if tie else min(old, float(rng.uniform(1.0, 10.0)))
+                continue
+            r0, c0 = int(rng.integers(0, rows)), int(rng.integers(0, cols))
+            r1, c1 = int(rng.integers(r0, rows)), int(rng.integers(c0, cols))
+            zk = float(rng.choice([rng.uniform(0.5, 11.0), np.nan, np.inf]))
+            got = _hidden(zk, (r0, r1, c0, c1), (ti0, tj0), nb, blocks, depth)
+            under = depth[ti0 + (r0 // _BLOCK) * _BLOCK: ti0 + (r1 // _BLOCK + 1) * _BLOCK,
+                          tj0 + (c0 // _BLOCK) * _BLOCK: tj0 + (c1 // _BLOCK + 1) * _BLOCK]
+            expected = bool(np.isfinite(zk) and np.all(zk > under))
+            assert got == expected, (case, step, zk, r0, r1, c0, c1)
+            if got:
+                assert np.all(zk > depth[ti0 + r0: ti0 + r1 + 1, tj0 + c0: tj0 + c1 + 1])
+            hidden += got
+    assert hidden > 200, hidden  # the test saw both answers
+
+
+def test_the_planner_costs_only_the_fragments_occlusion_culling_leaves():
+    """The cost model's fragment estimate of a probed tile: every rectangle pixel where the probe saw nothing, fewer
+    where it saw the front layer (the hidden layers of the block model), never more than the rectangles."""
+    from csgnb.render.splats import _tile_fragments, _visible_fragments
+    from csgnb.render.tile_costs import PROBE_STEP
+
+    shape, cloud = cloud_of("block", 0.04)
+    renderer = SplatRenderer(cloud)
+    cam = Camera.fit(cloud, 320, 240, azimuth=-60, elevation=35)
+    frame = renderer.render(cam, fallback="never")
+    start, tile, ntx = renderer.last_bins
+    tiles = np.arange(len(start) - 1, dtype=np.int64)
+    rect = np.empty(len(tiles), np.int64)
+    _tile_fragments(renderer._bbox, start, renderer._items, tile, ntx, 240, 320, rect, 0, 1)
+    est = {}
+    for name, probe in (("nothing", np.full((240, 320), np.inf)), ("front", frame.depth)):
+        est[name] = np.empty(len(tiles), np.int64)
+        _visible_fragments(renderer._bbox, renderer._zmin, start, renderer._items, tiles, probe, tile, ntx,
+                           PROBE_STEP, est[name], 0, 1)
+    assert np.array_equal(est["nothing"], rect)
+    assert np.all(est["front"] <= rect) and est["front"].sum() < 0.8 * rect.sum(), (est["front"].sum(), rect.sum())
+    assert est["front"].sum() >= 0.5 * frame.stats.fragments  # about what the raster drew

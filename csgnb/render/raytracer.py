@@ -105,7 +105,7 @@ def trace_pixel(P, term_start, x, y, dd, hit_t, hit_k, inside):
 def _raytrace_tiles_kernel(cam, X, Y, P, term_start, max_term, grid, tiles, depth, qid, tid, work, part, parts):
     """The listed tiles ``part``, ``part + parts``, ... of :func:`raytrace_tiles`."""
     H, W = depth.shape
-    tile, step, write = grid[0], grid[1], grid[2] != 0
+    tile, step, write = grid[0], grid[1], grid[2]
     ntx = (W + tile - 1) // tile
     persp = cam[18] == 0.0
     hit_t = np.empty(2 * max_term)
@@ -121,8 +121,9 @@ def _raytrace_tiles_kernel(cam, X, Y, P, term_start, max_term, grid, tiles, dept
                 dd = 1.0 + (x * x + y * y) if persp else 1.0
                 best, bq, bt, r = trace_pixel(P, term_start, x, y, dd, hit_t, hit_k, inside)
                 roots += r
-                if write:
+                if write != 0:
                     depth[i, j] = best
+                if write == 1:
                     qid[i, j] = bq
                     tid[i, j] = bt
         work[n] = roots
@@ -134,7 +135,8 @@ def raytrace_tiles(cam, X, Y, P, term_start, max_term, grid, tiles, depth, qid, 
     grid : (tile, step, write) int64 — tile edge in pixels (tile t covers rows ``(t // ntx) · tile``
     on, columns ``(t % ntx) · tile`` on, ntx = ⌈W / tile⌉); every ``step``-th pixel of a tile's rows
     and columns is traced (1: all of them; more: a probe of the tile's cost); ``write`` 0 leaves
-    the buffers alone. tiles : (n,) int64. depth (view z), qid, tid : (H, W), written at the traced
+    the buffers alone, 2 writes the depth only (``qid`` and ``tid`` may then be (1, 1)). tiles : (n,) int64.
+    depth (view z), qid, tid : (H, W), written at the traced
     pixels. work : (n,) int64, set to the roots computed in ``tiles[n]``.
     """
     run_parts(_raytrace_tiles_kernel, cam, X, Y, P, term_start, max_term, grid, tiles, depth, qid, tid, work)

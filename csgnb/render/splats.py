@@ -40,7 +40,7 @@ from csgnb.render.rays import EPS, ray_direction, ray_point, ray_polynomials, ra
 from csgnb.render.raytracer import raytrace_tiles
 from csgnb.render.scene import check_camera, check_choice, check_cloud, check_precision, scene_box
 from csgnb.render.shading import COLOR_MODES, quadric_colors, shade, surface_normals
-from csgnb.render.tile_costs import FALLBACKS, plan_tiles, raytrace_is_cheaper
+from csgnb.render.tile_costs import FALLBACKS, PROBE_STEP, plan_tiles, raytrace_is_cheaper
 
 __all__ = [
     "SplatRenderer", "render", "renderer_for", "FOOTPRINTS", "LOCAL_MODES", "TILE", "FOOTPRINT_MARGIN",
@@ -68,6 +68,10 @@ FOOTPRINT_MARGIN = 1e-7
 CLIP_TOLERANCE = 64.0 * EPS
 
 _CHUNK = 1024
+
+#: Edge in pixels of the raster's occlusion blocks: a splat behind every pixel of the blocks it touches is skipped
+#: whole (its fragments would all fail the early depth test; the image is the same, the fragment count lower).
+_BLOCK = 8
 
 
 @jit(error_model="numpy")
@@ -374,8 +378,105 @@ def _tile_fragments(bbox, start, items, tile, ntx, H, W, fragments, part, parts)
 
 
 @jit(error_model="numpy")
+def _visible_fragments(bbox, zmin, start, items, tiles, probe, tile, ntx, step, fragments, part, parts):
+    """Per listed tile, the pixels of its splats' rectangles inside it that occlusion culling would not skip, judged
+    from the probe's depths (``probe`` (H, W): the visible depth at the pixels ``step // 2 + k · step`` of the
+    tile's rows and columns): a splat counts unless its nearest depth lies behind the largest probed depth of every
+    _BLOCK-pixel block its rectangle touches (a block without a probed pixel counts as open). An estimate of the
+    raster's fragments for the cost model (the raster judges with every pixel, as they are drawn)."""
+    H, W = probe.shape
+    nb = (tile + _BLOCK - 1) // _BLOCK
+    pmax = np.empty(nb * nb)
+    for n in range(part, tiles.shape[0], parts):
+        t = tiles[n]
+        ti0 = (t // ntx) * tile
+        tj0 = (t % ntx) * tile
+        ti1 = min(ti0 + tile, H) - 1
+        tj1 = min(tj0 + tile, W) - 1
+        for blk in range(nb * nb):
+            pmax[blk] = -math.inf
+        for i in range(ti0 + step // 2, ti1 + 1, step):
+            for j in range(tj0 + step // 2, tj1 + 1, step):
+                blk = ((i - ti0) // _BLOCK) * nb + (j - tj0) // _BLOCK
+                pmax[blk] = max(pmax[blk], probe[i, j])
+        for blk in range(nb * nb):
+            if pmax[blk] == -math.inf:
+                pmax[blk] = math.inf  # nothing probed there: open
+        f = 0
+        for b in range(start[t], start[t + 1]):
+            k = items[b]
+            i0, i1 = max(bbox[k, 1], ti0), min(bbox[k, 3], ti1)
+            j0, j1 = max(bbox[k, 0], tj0), min(bbox[k, 2], tj1)
+            zk = zmin[k]
+            hidden = zk < math.inf
+            for bi in range((i0 - ti0) // _BLOCK, (i1 - ti0) // _BLOCK + 1):
+                for bj in range((j0 - tj0) // _BLOCK, (j1 - tj0) // _BLOCK + 1):
+                    if not zk > pmax[bi * nb + bj]:
+                        hidden = False
+            if not hidden:
+                f += (i1 - i0 + 1) * (j1 - j0 + 1)
+        fragments[n] = f
+
+
+@jit(error_model="numpy")
+def _open_blocks(rows, cols, nb, blocks):
+    """Start a tile of ``rows`` × ``cols`` pixels (all at depth ∞): every block open, its pixels in the image."""
+    bopen, bmax, bdirty = blocks
+    for bi in range(nb):
+        for bj in range(nb):
+            h = min((bi + 1) * _BLOCK, rows) - bi * _BLOCK
+            w = min((bj + 1) * _BLOCK, cols) - bj * _BLOCK
+            bopen[bi * nb + bj] = max(h, 0) * max(w, 0)
+            bmax[bi * nb + bj] = math.inf
+            bdirty[bi * nb + bj] = False
+
+
+@jit(error_model="numpy")
+def _hidden(zk, rect, origin, nb, blocks, depth):
+    """Whether a splat whose nearest depth is ``zk`` is behind every pixel of the tile-local rectangle
+    ``rect = (r0, r1, c0, c1)`` (rows r0..r1, columns c0..c1 of the tile at pixel ``origin = (ti0, tj0)``), so that
+    each of its fragments would fail the early depth test. ``blocks = (bopen, bmax, bdirty)``: per block of the tile
+    (``nb`` across), its pixels still at ∞, an upper bound on its depths, whether that bound is stale. Every block
+    the rectangle touches is
+    covered and its largest depth is below zk. A block's ``bmax`` only goes stale upwards (depths only decrease), so
+    a stale bound that already rejects needs no recount; a dirty block is recounted when it decides."""
+    if not zk < math.inf:  # NaN or infinite: leave it to the per-pixel test
+        return False
+    r0, r1, c0, c1 = rect
+    ti0, tj0 = origin
+    bopen, bmax, bdirty = blocks
+    for bi in range(r0 // _BLOCK, r1 // _BLOCK + 1):
+        for bj in range(c0 // _BLOCK, c1 // _BLOCK + 1):
+            blk = bi * nb + bj
+            if bopen[blk] > 0:
+                return False
+            if zk > bmax[blk]:
+                continue
+            if not bdirty[blk]:
+                return False
+            top = -math.inf
+            for i in range(ti0 + bi * _BLOCK, min(ti0 + (bi + 1) * _BLOCK, depth.shape[0])):
+                for j in range(tj0 + bj * _BLOCK, min(tj0 + (bj + 1) * _BLOCK, depth.shape[1])):
+                    top = max(top, depth[i, j])
+            bmax[blk] = top
+            bdirty[blk] = False
+            if not zk > top:
+                return False
+    return True
+
+
+@jit(error_model="numpy")
+def _written(li, lj, nb, old, blocks):
+    """Book a depth write at tile-local pixel (li, lj) whose depth was ``old``: its block's bound is stale."""
+    blk = (li // _BLOCK) * nb + lj // _BLOCK
+    if old == math.inf:
+        blocks[0][blk] -= 1
+    blocks[2][blk] = True
+
+
+@jit(error_model="numpy")
 def _raster_kernel(cam, X, Y, P, Q, ctol, SD, SI, cidx, bbox, hull, nh, zmin, start, items, tile, ntx, skip, local,
-                   clip, rtol, depth, winner, qwin, qclip, qlast, zr1, zr2, od, part, parts):
+                   clip, occlusion, rtol, depth, winner, qwin, qclip, qlast, zr1, zr2, od, part, parts):
     """Rasterize the binned footprints tile by tile: fragments, local ray-tracing, clipping, depth test.
 
     Two per-pixel memos skip fragments before any arithmetic without changing the image. A
@@ -386,7 +487,10 @@ def _raster_kernel(cam, X, Y, P, Q, ctol, SD, SI, cidx, bbox, hull, nh, zmin, st
     (its earlier root, if any, is clipped — for a hole's far wall, the second root, the near wall
     is); ``qclip[i, j]``: a quadric all of whose roots in (0, depth) are clipped there. And
     ``qlast``, ``zr1``, ``zr2`` keep the roots of the last quadric computed at each pixel: the
-    overlapping splats of one surface reuse them. Tiles with ``skip[t]`` are left alone (ray traced instead).
+    overlapping splats of one surface reuse them. With ``occlusion``, a splat behind every pixel of the
+    _BLOCK-pixel blocks its rectangle touches is skipped before any of its fragments (:func:`_hidden`; the splats come
+    front to back, so the hidden layers of a tile mostly cost one test each). Tiles with ``skip[t]`` are left alone
+    (ray traced instead).
     This call draws the tiles ``part``, ``part + parts``, ... (a stride spreads a crowded region over the threads).
     """
     H, W = depth.shape
@@ -397,6 +501,12 @@ def _raster_kernel(cam, X, Y, P, Q, ctol, SD, SI, cidx, bbox, hull, nh, zmin, st
     ey1 = np.empty(6)
     ex0 = np.empty(6)
     esl = np.empty(6)
+    # the tile's blocks of _BLOCK × _BLOCK pixels: uncovered pixels, an upper bound on the depth, stale or not
+    nb = (tile + _BLOCK - 1) // _BLOCK
+    bopen = np.empty(nb * nb, dtype=np.int64)
+    bmax = np.empty(nb * nb)
+    bdirty = np.empty(nb * nb, dtype=np.bool_)
+    blocks = (bopen, bmax, bdirty)
     for t in range(part, ntx * nty, parts):
         if skip[t]:
             continue
@@ -404,12 +514,17 @@ def _raster_kernel(cam, X, Y, P, Q, ctol, SD, SI, cidx, bbox, hull, nh, zmin, st
         tj0 = (t % ntx) * tile
         ti1 = min(ti0 + tile, H) - 1
         tj1 = min(tj0 + tile, W) - 1
+        _open_blocks(ti1 - ti0 + 1, tj1 - tj0 + 1, nb, blocks)
         for b in range(start[t], start[t + 1]):
             k = items[b]
+            zk = zmin[k]
+            i0, i1 = max(bbox[k, 1], ti0), min(bbox[k, 3], ti1)
+            j0, j1 = max(bbox[k, 0], tj0), min(bbox[k, 2], tj1)
+            if occlusion and _hidden(zk, (i0 - ti0, i1 - ti0, j0 - tj0, j1 - tj0), (ti0, tj0), nb, blocks, depth):
+                continue
             sx, sy, sz, r = SD[k, 0], SD[k, 1], SD[k, 2], SD[k, 3]
             rr = (r + rtol) * (r + rtol)
             q, c0, cn = SI[k, 0], SI[k, 1], SI[k, 2]
-            zk = zmin[k]
             m = nh[k]
             ne = 0
             for e in range(m):
@@ -423,7 +538,7 @@ def _raster_kernel(cam, X, Y, P, Q, ctol, SD, SI, cidx, bbox, hull, nh, zmin, st
                 ey0[ne], ey1[ne], ex0[ne] = ya, yb, xa
                 esl[ne] = (xb - xa) / (yb - ya)
                 ne += 1
-            for i in range(max(bbox[k, 1], ti0), min(bbox[k, 3], ti1) + 1):
+            for i in range(i0, i1 + 1):
                 ja, jb = bbox[k, 0], bbox[k, 2]
                 if m > 0:
                     # the hull's span on this row: min / max over the edges that straddle it
@@ -458,6 +573,7 @@ def _raster_kernel(cam, X, Y, P, Q, ctol, SD, SI, cidx, bbox, hull, nh, zmin, st
                         px, py, pz = ray_point(cam, x, y, zz)
                         ex, ey, ez = px - sx, py - sy, pz - sz
                         if ex * ex + ey * ey + ez * ez <= rr:
+                            _written(i - ti0, j - tj0, nb, best, blocks)
                             depth[i, j] = zz
                             winner[i, j] = k
                         continue
@@ -493,6 +609,7 @@ def _raster_kernel(cam, X, Y, P, Q, ctol, SD, SI, cidx, bbox, hull, nh, zmin, st
                                     ok = False
                                     break
                         if ok:
+                            _written(i - ti0, j - tj0, nb, best, blocks)
                             depth[i, j] = zz
                             winner[i, j] = k
                             won = True
@@ -565,6 +682,7 @@ class SplatRenderer:
         self._items = np.empty(2 * n + 1024, dtype=np.int32)
         self._memo = None
         self.last_plan = None
+        self.last_bins = None
 
     def splat_boxes(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Return each splat's surface-aligned box (§6.1, eq. 23): centres (n, 3), unit normals (n, 3), radii (n,)
@@ -573,6 +691,17 @@ class SplatRenderer:
         ``s + a t₁ + b t₂ + h n`` with |a|, |b| ≤ r and h in that range, t₁, t₂ any tangent frame."""
         sd = self.SD
         return sd[:, 0:3].copy(), sd[:, 4:7].copy(), sd[:, 3].copy(), sd[:, 8:10].copy()
+
+    def _visible(self, start: np.ndarray, tile: int, ntx: int):
+        """The cost model's estimate of the fragments occlusion culling leaves (:func:`_visible_fragments`)."""
+
+        def visible(probe: np.ndarray, tiles: np.ndarray) -> np.ndarray:
+            out = np.empty(len(tiles), dtype=np.int64)
+            run_parts(_visible_fragments, self._bbox, self._zmin, start, self._items, tiles, probe, tile, ntx,
+                      PROBE_STEP, out)
+            return out
+
+        return visible
 
     def _scratch(self, H: int, W: int):
         """Per-pixel memo buffers of the raster kernel, kept between frames of one size."""
@@ -593,7 +722,7 @@ class SplatRenderer:
 
     def render(self, camera: Camera, *, footprint: str = "box", backface_culling: bool = True,
                local: str = "quadric", clip: bool = True, color_by: str = "quadric", lit: bool = True,
-               tile: int = TILE, fallback: str = "auto") -> Frame:
+               tile: int = TILE, fallback: str = "auto", occlusion_culling: bool = True) -> Frame:
         """Return the splat render of the cloud (§6).
 
         Parameters
@@ -617,6 +746,10 @@ class SplatRenderer:
             less than the splats' footprint and binning passes alone), never, or everywhere. Only with local
             quadric ray-tracing and clipping (the exact picture) and a colouring that is not about
             the splats (``overdraw``, ``clip_count``); otherwise splats draw every tile.
+        occlusion_culling : bool
+            Skip a splat whose nearest depth lies behind every pixel already drawn under its footprint (blocks of
+            8 × 8 pixels): the same picture with fewer fragments (``False`` counts every fragment of every footprint,
+            as the paper's overdraw figures do).
 
         Returns
         -------
@@ -633,6 +766,7 @@ class SplatRenderer:
         check_choice(fallback, FALLBACKS, "fallback")
         backface_culling, clip, lit = (as_flag(backface_culling, "backface_culling"), as_flag(clip, "clip"),
                                        as_flag(lit, "lit"))
+        occlusion_culling = as_flag(occlusion_culling, "occlusion_culling")
         tile = as_count(tile, "tile", 4)
         if not 4 <= tile <= 1024:
             raise CsgnbError(f"tile must be in [4, 1024] pixels, got {tile}")
@@ -665,8 +799,10 @@ class SplatRenderer:
         if not whole:
             run_parts(_tile_fragments, self._bbox, start, self._items, tile, ntx, H, W, fragments_est)
         mode = "always" if whole else (fallback if exact else "never")
-        plan = plan_tiles(mode, trace_args, fragments_est, start, tile, (H, W), n_terms)
+        plan = plan_tiles(mode, trace_args, fragments_est, start, tile, (H, W), n_terms,
+                          visible=self._visible(start, tile, ntx) if occlusion_culling else None)
         self.last_plan = plan  # the cost model's inputs and choice (benchmarks calibrate it from these)
+        self.last_bins = (start, tile, ntx)
         skip = np.zeros(ntx * nty, dtype=np.uint8)
         skip[plan.raytraced] = 1
         t2b = time.perf_counter()
@@ -675,7 +811,8 @@ class SplatRenderer:
         qwin, qclip, qlast, zr1, zr2 = self._scratch(H, W)
         od = np.zeros((H, W), dtype=np.int32)
         run_parts(_raster_kernel, cam, X, Y, P, self.Q, ctol, self.SD, self.SI, self.cidx, self._bbox, self._hull,
-                  self._nh, self._zmin, start, self._items, tile, ntx, skip, li, bool(clip), rtol, depth, winner, qwin,
+                  self._nh, self._zmin, start, self._items, tile, ntx, skip, li, bool(clip), occlusion_culling, rtol,
+                  depth, winner, qwin,
                   qclip, qlast, zr1, zr2, od)
         t3 = time.perf_counter()
         qid = np.empty((H, W), dtype=np.int32)

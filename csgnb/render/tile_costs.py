@@ -6,7 +6,9 @@ renderer's binning both costs are estimated before the raster runs, and the chea
 the tile:
 
 * splats: ``fragment`` ns per pixel of a binned splat's rectangle inside the tile (an upper bound
-  on its fragments, summed by ``splats._tile_fragments``) plus ``item`` ns per binned splat;
+  on its fragments, summed by ``splats._tile_fragments``) plus ``item`` ns per binned splat; for a probed tile,
+  only the rectangles that the raster's occlusion culling would not skip count, judged from the probe's depths
+  (``splats._visible_fragments``: hidden layers cost the raster one test per splat);
 * ray tracing: ``ray`` ns per pixel plus ``root`` ns per quadric root the reference ray tracer
   computes (:func:`csgnb.render.raytracer.trace_pixel` counts them), estimated by tracing every
   ``PROBE_STEP``-th pixel of the tile's rows and columns. Only tiles whose splat cost exceeds the
@@ -59,8 +61,9 @@ class TileCosts:
     splat: float
 
 
-#: Measured on this project's 2-core VM, one thread (``bench_render.py --calibrate``).
-COSTS = TileCosts(fragment=3.5, item=250.0, ray=0.64, root=6.6, splat=100.0)
+#: Measured on this project's 2-core VM, one thread (``bench_render.py --calibrate``; splat fragments as the planner
+#: counts them, after occlusion culling).
+COSTS = TileCosts(fragment=5.3, item=267.0, ray=8.0, root=7.75, splat=125.0)
 
 
 @dataclass(frozen=True)
@@ -83,7 +86,8 @@ class TilePlan:
 
 
 def plan_tiles(mode: str, trace_args: tuple, fragments: np.ndarray, start: np.ndarray, tile: int,
-               shape: tuple[int, int], n_terms: int, costs: TileCosts = COSTS) -> TilePlan:
+               shape: tuple[int, int], n_terms: int, costs: TileCosts = COSTS, visible=None,
+               probe_all: bool = False) -> TilePlan:
     """Return the tiles the splat renderer ray traces instead of splatting.
 
     Parameters
@@ -99,6 +103,14 @@ def plan_tiles(mode: str, trace_args: tuple, fragments: np.ndarray, start: np.nd
         Tile edge in pixels; ``shape`` (H, W) the image.
     n_terms : int
         Intersection terms of the normal form (every ray computes at least one root per term).
+    visible : callable, optional
+        ``visible(probe_depth, tiles) -> (len(tiles),) int64``: the splat-rectangle pixels of the listed tiles that
+        the raster's occlusion culling would not skip, given the probe's depths (an (H, W) float64 buffer holding
+        the visible depth at every probed pixel, ∞ where the ray missed). Probed tiles are then costed with these
+        instead of ``fragments`` (hidden layers cost the raster one test per splat, not a test per pixel).
+    probe_all : bool
+        Probe every tile (not only those whose splats could cost more than ray tracing) and choose nothing:
+        the estimates of every tile, for calibration.
     """
     ntiles = len(start) - 1
     t = np.arange(ntiles)
@@ -112,12 +124,19 @@ def plan_tiles(mode: str, trace_args: tuple, fragments: np.ndarray, start: np.nd
     if mode == "always":
         return TilePlan(t.astype(np.int64), fragments, items, splat_ns, raytrace_ns, 0)
     floor = (costs.ray + costs.root * max(n_terms, 1)) * pixels
-    candidates = np.flatnonzero(splat_ns > floor).astype(np.int64)
+    candidates = t.astype(np.int64) if probe_all else np.flatnonzero(splat_ns > floor).astype(np.int64)
     if len(candidates) == 0:
         return TilePlan(candidates, fragments, items, splat_ns, raytrace_ns, 0)
-    per_px = costs.ray + costs.root * _roots_per_pixel(trace_args, shape, tile, candidates, PROBE_STEP)
+    probe_depth = np.empty(shape) if visible is not None else None
+    per_px = costs.ray + costs.root * _roots_per_pixel(trace_args, shape, tile, candidates, PROBE_STEP, probe_depth)
     raytrace_ns[candidates] = per_px * pixels[candidates]
+    if visible is not None:
+        fragments = fragments.copy()
+        fragments[candidates] = visible(probe_depth, candidates)
+        splat_ns = costs.fragment * fragments + costs.item * items
     chosen = candidates[raytrace_ns[candidates] < splat_ns[candidates]]
+    if probe_all:
+        chosen = chosen[:0]
     return TilePlan(chosen, fragments, items, splat_ns, raytrace_ns, len(candidates))
 
 
@@ -138,13 +157,16 @@ def raytrace_is_cheaper(trace_args: tuple, shape: tuple[int, int], tile: int, n_
     return costs.ray * H * W + costs.root * roots < budget
 
 
-def _roots_per_pixel(trace_args: tuple, shape: tuple[int, int], tile: int, tiles: np.ndarray, step: int) -> np.ndarray:
-    """Trace one pixel in step² of each listed tile (writing nothing); return the mean roots per traced pixel."""
+def _roots_per_pixel(trace_args: tuple, shape: tuple[int, int], tile: int, tiles: np.ndarray, step: int,
+                     depth: np.ndarray | None = None) -> np.ndarray:
+    """Trace one pixel in step² of each listed tile (writing its visible depth into ``depth`` (H, W) if given,
+    nothing else); return the mean roots per traced pixel."""
     work = np.empty(len(tiles), dtype=np.int64)
     rows, cols = _tile_sides(shape, tile)
-    no_image = np.empty((1, 1), dtype=np.int32)  # write = 0: the buffers are only read for the image size
-    raytrace_tiles(*trace_args, np.array([tile, step, 0], dtype=np.int64), tiles, np.empty(shape), no_image,
-                   no_image, work)
+    write = 2 if depth is not None else 0  # 2: the depth only
+    no_image = np.empty((1, 1), dtype=np.int32)  # only read for nothing: qid and tid are never written here
+    raytrace_tiles(*trace_args, np.array([tile, step, write], dtype=np.int64), tiles,
+                   depth if depth is not None else np.empty(shape), no_image, no_image, work)
     return work / np.maximum(_probe_count(rows[tiles], step) * _probe_count(cols[tiles], step), 1)
 
 
