@@ -233,7 +233,7 @@ def main(argv=None) -> None:
                     entry["render_ms" + key] = renders[times.index(min(times))]  # of the fastest frame
                     entry["cpu_ms" + key] = cpus[times.index(min(times))]
                     if lod:
-                        level = v.levels.level_for(v.frame.camera)
+                        level = v.level  # the level the viewer's chooser drew last
                         entry.update(level=level, drawn_samples=len(v.drawn), drawn_radius=v.drawn.radius,
                                      level_sampling_ms=1e3 * v.levels.seconds[level])
                 viewer.append(entry)

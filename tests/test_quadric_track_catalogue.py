@@ -167,6 +167,7 @@ def _render_calls():
     cam = cr.Camera.look_at((4, 0, 0), (0, 0, 0), (0, 0, 1), 16, 12)
     fr = cr.raytrace(shape, cam)
     lod = cr.LevelsOfDetail(cloud)
+    chooser = cr.LevelChooser(lod)
     box = ((-1.0, -1, -1), (1.0, 1, 1))
     return {
         "Camera": (cr.Camera, dict(eye=(4.0, 0, 0), target=(0.0, 0, 0), up=(0.0, 0, 1), width=16, height=12,
@@ -183,7 +184,8 @@ def _render_calls():
         "Camera.project": (cam.project, dict(points=np.zeros((2, 3)))),
         "raytrace": (cr.raytrace, dict(shape=shape, camera=cam, color_by="quadric", lit=True)),
         "render": (cr.render, dict(cloud=cloud, camera=cam, footprint="box", backface_culling=True, local="quadric",
-                                   clip=True, color_by="quadric", lit=True, tile=16)),
+                                   clip=True, color_by="quadric", lit=True, tile=16, fallback="auto",
+                                   occlusion_culling=True)),
         "SplatRenderer": (cr.SplatRenderer, dict(cloud=cloud)),
         "renderer_for": (cr.renderer_for, dict(cloud=cloud)),
         "compare": (cr.compare, dict(frame=fr, reference=fr, rel=1e-9)),
@@ -200,6 +202,9 @@ def _render_calls():
         "LevelsOfDetail.level_for": (lod.level_for, dict(camera=cam)),
         "LevelsOfDetail.cloud_at": (lod.cloud_at, dict(level=1)),
         "LevelsOfDetail.cloud_for": (lod.cloud_for, dict(camera=cam)),
+        "LevelChooser": (cr.LevelChooser, dict(levels=lod, trials=2, keep=3)),
+        "LevelChooser.choose": (chooser.choose, dict(camera=cam)),
+        "LevelChooser.record": (chooser.record, dict(level=0, ms=5.0)),
         "footprint_pixels": (cr.footprint_pixels, dict(camera=cam, radius=0.5, point=(0.0, 0.0, 0.0))),
         "sample_csg": (cs.sample_csg, dict(shape=shape, radius=0.5, bounds=None, distortion="bounds", min_size=0.0,
                                            reduce_radius=False, refine=True, trace=False, max_terms=4096,
@@ -212,7 +217,8 @@ RENDER_CALLS = ["Camera", "Camera.look_at", "Camera.orbit", "Camera.fit", "Camer
                 "Camera.rays", "Camera.project", "raytrace", "render", "SplatRenderer", "renderer_for", "compare",
                 "verify", "edge_mask", "overdraw_colors", "quadric_colors", "Lighting", "Frame.shaded",
                 "Frame.difference", "Frame.png_bytes", "Frame.to_pyvista", "LevelsOfDetail", "LevelsOfDetail.level_for",
-                "LevelsOfDetail.cloud_at", "LevelsOfDetail.cloud_for", "footprint_pixels", "sample_csg",
+                "LevelsOfDetail.cloud_at", "LevelsOfDetail.cloud_for", "LevelChooser", "LevelChooser.choose",
+                "LevelChooser.record", "footprint_pixels", "sample_csg",
                 "estimate_samples"]
 
 

@@ -141,3 +141,57 @@ def test_a_viewer_with_a_reference_checks_the_cloud_itself():
     assert v.levels is None and v.drawn is thin
     assert "holes 0" not in v.label.value  # the thinned cloud's holes are shown
     assert "holes 0" in Viewer(thin, shape=shape, size=(160, 120), lod=True).label.value  # a level would hide them
+
+
+def test_the_chooser_measures_where_the_size_rule_asks_for_finer_splats():
+    """Where the size rule wants a level finer than the cloud, the chooser draws each candidate ``trials`` times
+    (the cloud first), then the one with the lower median of its recent frame times; a zoom that changes the
+    candidates starts the measurement afresh. Times are booked by hand here, so the test is deterministic."""
+    from csgnb.render import LevelChooser
+
+    _, cloud = tour_cloud()
+    cam = Camera.fit(cloud, 320, 240)
+    lod = LevelsOfDetail(cloud, finer=True)
+    close = cam.orbited(zoom=32.0)
+    fine = lod.level_for(close)
+    assert fine < 0 and lod.level_for(cam) > 0
+    chooser = LevelChooser(lod, trials=2, keep=3)
+    drawn = []
+    for ms in (10.0, 10.0, 4.0, 4.0):  # two trials each: the cloud, then the finer level
+        drawn.append(chooser.choose(close))
+        chooser.record(drawn[-1], ms)
+    assert drawn == [0, 0, fine, fine] and chooser.candidates == (0, fine)
+    assert chooser.choose(close) == fine  # faster
+    for _ in range(3):  # it became slower (the view changed): the cloud's older times win
+        chooser.record(fine, 30.0)
+    assert chooser.choose(close) == 0
+    chooser.record(7, 1.0)  # not a candidate: ignored
+    assert chooser.choose(cam) == lod.level_for(cam) and chooser.times == {lod.level_for(cam): []}
+    assert chooser.choose(close) == 0 and chooser.times == {0: [], fine: []}  # measured afresh
+    with pytest.raises(GeometryError, match="ms"):
+        chooser.record(0, -1.0)
+    with pytest.raises(TypeError, match="level"):
+        chooser.record(0.5, 1.0)
+    with pytest.raises(TypeError, match="levels"):
+        LevelChooser(cloud)
+
+
+def test_the_viewer_draws_the_faster_candidate_and_the_same_picture():
+    """Zoomed in on the tour part, the viewer's chooser tries the cloud and the finer level and keeps drawing one of
+    them; both draw the same picture (colour, visible quadric and term at every pixel: a level is sampled from the
+    cloud's normal form afresh, so depths may differ in the last bit)."""
+    _, cloud = tour_cloud()
+    # splats on every tile (a close-up of this dense cloud is otherwise ray traced whole, whatever the level), the
+    # eye outside the part
+    v = Viewer(cloud, Camera.fit(cloud, 640, 480, azimuth=-50, elevation=30).orbited(zoom=6.0), size=(640, 480),
+               fallback="never")
+    frames = {}
+    for _ in range(6):
+        v.update()
+        frames[v.level] = v.frame
+    assert set(frames) == set(v.chooser.candidates) and len(frames) == 2
+    a, b = frames.values()
+    assert a.covered.sum() > 1000 and a.stats.fragments > 0 and b.stats.fragments > 0
+    for buffer in ("rgb", "quadric", "term"):
+        assert np.array_equal(getattr(a, buffer), getattr(b, buffer)), buffer
+    assert "measured" in v.label.value

@@ -14,7 +14,7 @@ the level of detail whose splats are about a target size on screen (:class:`Leve
 from csgnb.render.agreement import Agreement, compare, edge_mask, verify
 from csgnb.render.camera import PROJECTIONS, Camera
 from csgnb.render.frame import Frame, RenderStats
-from csgnb.render.level_of_detail import LevelsOfDetail, footprint_pixels
+from csgnb.render.level_of_detail import LevelChooser, LevelsOfDetail, footprint_pixels
 from csgnb.render.raytracer import raytrace
 from csgnb.render.shading import CLIP_COLORS, COLOR_MODES, Lighting, overdraw_colors, quadric_colors
 from csgnb.render.splats import FOOTPRINTS, LOCAL_MODES, SplatRenderer, render, renderer_for
@@ -41,6 +41,7 @@ __all__ = [
     "overdraw_colors",
     "quadric_colors",
     "Viewer",
+    "LevelChooser",
     "LevelsOfDetail",
     "footprint_pixels",
 ]

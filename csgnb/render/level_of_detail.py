@@ -19,6 +19,12 @@ The levels sampled on the way are kept, the given cloud and the :data:`KEPT_LEVE
 measured (``bench_render.py``'s viewer rows; chapter 08): on the 80-quadric
 plate at 640×480 the frame time against the splat radius on screen is flat from ~8 to ~20 px and grows on both
 sides -- below, the per-splat passes; above, fragments and ray-traced tiles.
+
+Where the size rule asks for a finer level than the cloud, which one draws faster depends on the model: a coarse
+cloud whose large splats are mostly clipped (the 80-quadric plate's "large", 229 -> 103 ms at 1920×1080 with the
+finer level) against one whose splats are used whole (the 31-quadric block's "large", 70 -> 89 ms). The pictures
+are the same, so :class:`LevelChooser` (the notebook viewer's) decides by measurement: it draws each candidate
+(the given cloud and the finer level) for a few frames and keeps the faster.
 """
 
 from __future__ import annotations
@@ -30,11 +36,12 @@ import time
 import numpy as np
 
 from csgnb.errors import CsgnbError, GeometryError
-from csgnb.quadric.arguments import as_finite_array, as_flag, as_positive
+from csgnb.quadric.arguments import as_count, as_finite_array, as_flag, as_instance, as_positive
 from csgnb.render.camera import Camera
 from csgnb.render.scene import check_camera
 
-__all__ = ["FINER_MAX_SAMPLES", "LEVEL_STEP", "TARGET_FOOTPRINT_PX", "LevelsOfDetail", "footprint_pixels"]
+__all__ = ["FINER_MAX_SAMPLES", "LEVEL_STEP", "TARGET_FOOTPRINT_PX", "LevelChooser", "LevelsOfDetail",
+           "footprint_pixels"]
 
 #: Splat radius on screen (pixels, at the depth of the cloud's centre) that levels are chosen for.
 TARGET_FOOTPRINT_PX = 12.0
@@ -148,3 +155,53 @@ class LevelsOfDetail:
     def cloud_for(self, camera: Camera):
         """The cloud to draw for ``camera``: ``cloud_at(level_for(camera))``."""
         return self.cloud_at(self.level_for(camera))
+
+
+class LevelChooser:
+    """The level of detail to draw per view, measured where the size rule leaves a choice.
+
+    For a camera, ``levels.level_for(camera)`` is the size rule's level; when it is finer than the given cloud
+    (k < 0), the given cloud (k = 0) is the other candidate. Each candidate is drawn ``trials`` times (coarser
+    first), then the one with the lower median of its last ``keep`` recorded frame times is drawn, and keeps being
+    measured. The measurements start afresh when the candidates change (a zoom). Every level draws the same
+    picture (see the module docstring), so the choice changes the frame time only.
+
+    Parameters
+    ----------
+    levels : LevelsOfDetail
+        Usually with ``finer=True`` (otherwise there is never a choice to measure).
+    trials : int
+        Frames per candidate before choosing (default 2).
+    keep : int
+        Frame times kept per level (default 3).
+    """
+
+    def __init__(self, levels: LevelsOfDetail, *, trials: int = 2, keep: int = 3) -> None:
+        self.levels = as_instance(levels, LevelsOfDetail, "levels", "a csgnb.render.LevelsOfDetail")
+        self.trials = as_count(trials, "trials", 1)
+        self.keep = max(as_count(keep, "keep", 1), self.trials)
+        self.candidates: tuple[int, ...] = ()
+        self.times: dict[int, list[float]] = {}
+
+    def choose(self, camera: Camera) -> int:
+        """The level to draw for ``camera`` (record its frame time with :meth:`record`)."""
+        level = self.levels.level_for(camera)
+        candidates = (0, level) if level < 0 else (level,)
+        if candidates != self.candidates:
+            self.candidates, self.times = candidates, {k: [] for k in candidates}
+        if len(candidates) == 1:
+            return level
+        for k in candidates:
+            if len(self.times[k]) < self.trials:
+                return k
+        return min(candidates, key=lambda k: (float(np.median(self.times[k])), -k))
+
+    def record(self, level: int, ms: float) -> None:
+        """Book a frame of ``level`` drawn in ``ms`` milliseconds (ignored for a level that is not a candidate)."""
+        ms = as_positive(ms, "ms")
+        if isinstance(level, bool | np.bool_) or not isinstance(level, numbers.Integral):
+            raise TypeError(f"level must be an integer, got {type(level).__name__} {level!r:.40}")
+        times = self.times.get(int(level))
+        if times is not None:
+            times.append(ms)
+            del times[: max(0, len(times) - self.keep)]

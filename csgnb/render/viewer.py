@@ -14,7 +14,7 @@ import time
 from csgnb.render.agreement import compare
 from csgnb.render.camera import Camera
 from csgnb.render.frame import Frame
-from csgnb.render.level_of_detail import LevelsOfDetail
+from csgnb.render.level_of_detail import LevelChooser, LevelsOfDetail
 from csgnb.render.raytracer import raytrace
 from csgnb.render.scene import check_same_shape
 from csgnb.render.splats import renderer_for
@@ -40,8 +40,10 @@ class Viewer:
     size : (width, height) of each image.
     lod : bool or None — draw, per view, the level of detail whose splats are about ``TARGET_FOOTPRINT_PX`` (12)
         pixels on screen (:class:`~csgnb.render.level_of_detail.LevelsOfDetail`: clouds of the same surface at radii
-        ``cloud.radius · √2^k``, sampled on first use and kept). Every level draws the reference picture pixel for
-        pixel, in less time where ``cloud``'s splats are small on screen. Default (None): on without a reference,
+        ``cloud.radius · √2^k``, sampled on first use and kept); where that is finer than ``cloud``, the faster of
+        the two as measured over the first frames (:class:`~csgnb.render.level_of_detail.LevelChooser`). Every
+        level draws the reference picture pixel for pixel, in less time where ``cloud``'s splats are small on screen
+        or mostly clipped. Default (None): on without a reference,
         off with one -- the difference then checks ``cloud`` itself (a cloud with holes, e.g. thinned, must show
         them, not a resampled level's picture). True / False force it.
     render options (``footprint``, ``backface_culling``, ``color_by``, ``fallback``, ...) go to ``render``; with a
@@ -50,7 +52,7 @@ class Viewer:
 
     ``viewer.widget`` is the ipywidgets box; displaying the viewer shows it. ``viewer.frame`` is
     the last splat frame, ``viewer.frame_ms`` its render time, ``viewer.drawn`` the cloud it drew (``cloud`` or a
-    level of detail, ``viewer.levels``).
+    level of detail, ``viewer.levels``; ``viewer.level`` its level, ``viewer.chooser`` what chose it).
     """
 
     def __init__(self, cloud, camera: Camera | None = None, *, shape=None, reference: bool = False,
@@ -66,7 +68,9 @@ class Viewer:
             self.reference_shape = cloud.normal_form
         if lod is None:
             lod = self.reference_shape is None
-        self.levels = LevelsOfDetail(cloud) if lod else None
+        self.levels = LevelsOfDetail(cloud, finer=True) if lod else None
+        self.chooser = LevelChooser(self.levels) if lod else None
+        self.level = 0
         w, h = size
         self.camera = camera.with_size(w, h) if camera is not None else Camera.fit(cloud, w, h)
         self.options = options if self.reference_shape is None else {"fallback": "never", **options}
@@ -128,17 +132,22 @@ class Viewer:
     def update(self, reference: bool = False) -> None:
         """Re-render the splats (and the reference and difference when ``reference``)."""
         level = 0
-        if self.levels is not None:
-            level = self.levels.level_for(self.camera)
+        if self.chooser is not None:
+            level = self.chooser.choose(self.camera)
             self.drawn = self.levels.cloud_at(level)  # sampled once, on the first view that needs it
+        self.level = level
         t0 = time.perf_counter()
         self.frame = renderer_for(self.drawn).render(self.camera, **self.options)
         self.frame_ms = 1e3 * (time.perf_counter() - t0)
+        if self.chooser is not None:
+            self.chooser.record(level, max(self.frame.stats.ms, 1e-3))
         self.image.value = self.frame.png_bytes(fmt="jpeg")
         stats = self.frame.stats
         text = f"splats: {self.frame_ms:.1f} ms per frame ({len(self.drawn):,} splats of radius {self.drawn.radius:.3g}"
         if self.levels is not None:
             text += f", level of detail {level}" if level else ", the cloud itself"
+            if len(self.chooser.candidates) > 1:
+                text += " (the faster of levels " + " and ".join(map(str, self.chooser.candidates)) + ", measured)"
         text += f"; {stats.covered} pixels, overdraw {stats.overdraw:.1f}"
         if stats.raytraced_tiles:
             text += f", {stats.raytraced_tiles} of {stats.tiles} tiles ray traced: cheaper there"
