@@ -549,3 +549,31 @@ def test_the_planner_costs_only_the_fragments_occlusion_culling_leaves():
     assert np.array_equal(est["nothing"], rect)
     assert np.all(est["front"] <= rect) and est["front"].sum() < 0.8 * rect.sum(), (est["front"].sum(), rect.sum())
     assert est["front"].sum() >= 0.5 * frame.stats.fragments  # about what the raster drew
+
+
+@pytest.mark.parametrize("projection", ["perspective", "orthographic"])
+def test_a_camera_inside_the_solid_is_ray_traced_or_refused(projection):
+    """Zoomed until the rays start inside the tour part, every-tile splats drew a picture with thousands of holes
+    against the reference and no error (back-face culling drops the walls seen from inside). Now the default
+    ray traces such a view (the reference's picture) and splats on every tile refuse it with the reason; the viewer
+    says so instead of drawing."""
+    from csgnb.render.scene import eye_inside
+
+    shape, cloud = cloud_of("tour", 0.02)
+    cam = Camera.fit(cloud, 320, 240, azimuth=-50, elevation=30, projection=projection)
+    outside = cam.orbited(zoom=2.0)
+    inside = cam.orbited(zoom=24.0)
+    assert not eye_inside(cloud.normal_form, outside) and eye_inside(cloud.normal_form, inside)
+    frame = render(cloud, inside)
+    assert frame.stats.raytraced_tiles == frame.stats.tiles and frame.stats.fragments == 0
+    agreement = compare(frame, raytrace(shape, inside))
+    assert agreement.covered > 1000 and agreement.holes == 0 and agreement.disagree == 0
+    for options in ({"fallback": "never"}, {"color_by": "overdraw"}, {"local": "disc"}):
+        with pytest.raises(GeometryError, match="inside the solid"):
+            render(cloud, inside, **options)
+    with pytest.raises(GeometryError, match="inside the solid"):
+        verify(cloud, inside, shape)
+    v = Viewer(cloud, outside.with_size(160, 120), shape=shape, size=(160, 120))
+    v.camera = inside.with_size(160, 120)
+    v.update()
+    assert "not drawn" in v.label.value and "inside the solid" in v.label.value

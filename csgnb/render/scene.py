@@ -12,7 +12,7 @@ from csgnb.render.camera import Camera
 from csgnb.render.rays import quadric_rows
 
 __all__ = ["as_normal_form", "check_camera", "check_cloud", "check_same_shape", "check_precision", "scene_box",
-           "check_choice", "check_frame", "ON_QUADRIC"]
+           "check_choice", "check_frame", "eye_inside", "ON_QUADRIC", "EYE_GRID"]
 
 #: A sample is on its quadric when |Q(s)| ≤ ON_QUADRIC · (|∇Q(s)| · scale + |Q|-scale) — far
 #: above rounding, far below any offset between different surfaces.
@@ -20,6 +20,8 @@ ON_QUADRIC = 1e-7
 #: Relative difference under which two normal forms' quadric coefficients are the same shape: the sampler
 #: maps its quadrics back from a normalised frame, which leaves rounding noise of a few ulps.
 SAME_QUADRIC = 1e-12
+#: An orthographic camera's ray origins fill a rectangle: :func:`eye_inside` checks EYE_GRID × EYE_GRID of them.
+EYE_GRID = 33
 
 
 def as_normal_form(shape) -> NormalForm:
@@ -178,3 +180,17 @@ def check_precision(camera: Camera, center, size: float) -> None:
             f"of size {size:.3g} is only placed to {error:.3g}, more than {tol.RENDER_ROUNDING:g} pixel "
             f"({pixel:.3g}) at {camera.shape[1]}×{camera.shape[0]}; build the model (and camera) nearer the origin"
         )
+
+
+def eye_inside(normal_form: NormalForm, camera: Camera) -> bool:
+    """Whether ``camera`` looks from inside the solid (or from its surface), where its rays start: the eye of a
+    perspective camera; for an orthographic one, its ray origins at ``EYE_GRID`` × ``EYE_GRID`` pixels spread over
+    the image (corners included). The splat renderer draws views from outside only (back-face culling, §6.1)."""
+    if camera.projection == "perspective":
+        points = np.asarray(camera.eye, dtype=np.float64)[None]
+    else:
+        rows = np.unique(np.linspace(0, camera.height - 1, EYE_GRID).round().astype(np.int64))
+        cols = np.unique(np.linspace(0, camera.width - 1, EYE_GRID).round().astype(np.int64))
+        r, c = (a.ravel() for a in np.meshgrid(rows, cols, indexing="ij"))
+        points = camera.rays(r, c)[0]
+    return bool(np.any(normal_form.classify(points) <= 0))

@@ -32,13 +32,13 @@ import numpy as np
 
 from csgnb._jit import jit
 from csgnb._threads import run_parts, threads
-from csgnb.errors import CsgnbError
+from csgnb.errors import CsgnbError, GeometryError
 from csgnb.quadric.arguments import as_count, as_flag
 from csgnb.render.camera import Camera
 from csgnb.render.frame import Frame, RenderStats
 from csgnb.render.rays import EPS, ray_direction, ray_point, ray_polynomials, ray_roots, row_gradient, row_value
 from csgnb.render.raytracer import raytrace_tiles
-from csgnb.render.scene import check_camera, check_choice, check_cloud, check_precision, scene_box
+from csgnb.render.scene import check_camera, check_choice, check_cloud, check_precision, eye_inside, scene_box
 from csgnb.render.shading import COLOR_MODES, quadric_colors, shade, surface_normals
 from csgnb.render.tile_costs import FALLBACKS, PROBE_STEP, plan_tiles, raytrace_is_cheaper
 
@@ -756,6 +756,13 @@ class SplatRenderer:
         Frame
             With the overdraw buffer and counts (``stats.fragments``, ``stats.overdraw``); ray-traced
             tiles have no fragments, clip counts or samples (-1).
+
+        Raises
+        ------
+        GeometryError
+            For a camera inside the solid (:func:`csgnb.render.scene.eye_inside`) unless the frame can be ray traced
+            instead (``fallback="auto"`` or ``"always"`` with the exact options): from inside, back-face culling
+            drops the walls the eye sees, so the splats would not draw the surface's picture.
         """
         t0 = time.perf_counter()
         check_camera(camera)
@@ -782,8 +789,15 @@ class SplatRenderer:
         ntx, nty = (W + tile - 1) // tile, (H + tile - 1) // tile
         start = np.zeros(ntx * nty + 1, dtype=np.int64)
         n_terms = self.normal_form.n_terms
-        # the whole frame ray traced when that costs less than the splats' per-splat passes alone
-        whole = exact and (fallback == "always" or (
+        inside = eye_inside(self.normal_form, camera)
+        if inside and not (exact and fallback != "never"):
+            raise GeometryError(
+                "the camera looks from inside the solid (its eye, or an orthographic camera's ray origins): splats "
+                "draw views from outside only (back-face culling, §6.1), so this picture would not be the surface's; "
+                "move the camera out (zoom out), or render with fallback='auto' and the default local quadric "
+                "ray-tracing, clipping and colouring, which ray trace such a view")
+        # the whole frame ray traced when that costs less than the splats' per-splat passes alone, or from inside
+        whole = exact and (inside or fallback == "always" or (
             fallback == "auto" and raytrace_is_cheaper(trace_args, (H, W), tile, len(self.SD), n_terms)))
         if not whole:
             run_parts(_footprint_kernel, cam, self.SD, FOOTPRINTS.index(footprint), bool(backface_culling),

@@ -9,8 +9,10 @@ is re-rendered when the drag ends.
 
 from __future__ import annotations
 
+import html
 import time
 
+from csgnb.errors import GeometryError
 from csgnb.render.agreement import compare
 from csgnb.render.camera import Camera
 from csgnb.render.frame import Frame
@@ -137,7 +139,11 @@ class Viewer:
             self.drawn = self.levels.cloud_at(level)  # sampled once, on the first view that needs it
         self.level = level
         t0 = time.perf_counter()
-        self.frame = renderer_for(self.drawn).render(self.camera, **self.options)
+        try:
+            self.frame = renderer_for(self.drawn).render(self.camera, **self.options)
+        except GeometryError as exc:  # e.g. zoomed into the solid with every tile splatted: say so, keep the image
+            self.label.value = f"not drawn: {html.escape(str(exc))}"
+            return
         self.frame_ms = 1e3 * (time.perf_counter() - t0)
         if self.chooser is not None:
             self.chooser.record(level, max(self.frame.stats.ms, 1e-3))
