@@ -223,3 +223,107 @@ def test_an_empty_workpiece_is_a_no_op_tool():
     report = w.difference(empty.to_bsp(), track_volume=True)
     assert report.volume_change == 0 and w.volume() == 512
     assert w.union(empty.to_bsp(), track_volume=True).volume_change == 0
+
+
+def _check_volume_cache(w):
+    """The volume cache names only present cells, each with its own exact volume (checked right after a palette
+    compaction: not re-keyed, the cache kept keys that name other rows, possibly another cell's content)."""
+    from csgnb.octree.layout import BSP as BSP_KIND
+    from csgnb.octree.volume import bsp_volume, cell_key
+
+    cells = {cell_key(w, c): c for c in w._leaves().tolist() if w.oc.kind[c] == BSP_KIND}
+    assert set(w._volumes._cache) <= set(cells)
+    for key, v in w._volumes._cache.items():
+        c = cells[key]
+        lo = np.asarray(w.oc.lo[c], np.int64)
+        assert v == bsp_volume(w, c, lo, lo + int(w.oc.size[c]))
+
+
+def _watch_compactions(monkeypatch, w) -> list:
+    """Check the volume cache after every palette compaction of ``w``; return the palette sizes seen after each
+    check for compaction (the list fills as ``w`` runs)."""
+    from csgnb.octree.layout import N_PAL
+
+    sizes, compact, maybe = [], w._compact_palette, w._maybe_compact_palette
+
+    def compacted():
+        before = int(w.oc.counts[N_PAL])
+        compact()
+        if int(w.oc.counts[N_PAL]) < before:
+            sizes.append(-1)  # a marker: a compaction that renumbered
+            _check_volume_cache(w)
+
+    def checked():
+        maybe()
+        sizes.append(int(w.oc.counts[N_PAL]))
+
+    monkeypatch.setattr(w, "_compact_palette", compacted)
+    monkeypatch.setattr(w, "_maybe_compact_palette", checked)
+    return sizes
+
+
+def _same_run(plain, compacted, changes_plain, changes_compacted):
+    """The two runs of one sequence, with and without palette compaction, are the same workpiece."""
+    assert changes_compacted == changes_plain
+    assert compacted._state_digest() == plain._state_digest()
+    assert compacted.volume() == plain.volume()
+    lo, hi = plain.oc.lo[0], plain.oc.lo[0] + plain.oc.size[0]
+    pts = np.random.default_rng(1).integers(lo, hi, size=(3000, 3))
+    X = to_wide(np.column_stack([pts, np.ones(len(pts), np.int64)]), plain.width)
+    assert np.array_equal(compacted.classify(X), plain.classify(X))
+
+
+def test_palette_compaction_of_a_real_milling_run(monkeypatch):
+    """Every tool appends its planes to the palette (~150 rows a move here; 7,192 a drill step) and nothing dropped
+    them: a long run's palette grew without bound (the shipped relief program: 18,141 rows after 121 moves, 1,753
+    in use). Compacting it (the planes no cell and no wall map entry uses dropped, the rest renumbered in order)
+    keeps it small and leaves the run the same: canonical arrays (hence digest and saved file), every move's exact
+    removed volume, the classification, and the volume cache, whose keys name palette rows, re-keyed."""
+    import sys
+    from pathlib import Path
+
+    import csgnb.octree.workpiece as wp_module
+    from csgnb.apps import milling
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+    from bench_milling import program_setup
+
+    program, lo, hi, grid, tool = program_setup("relief.nc", None, None)
+    runs = {}
+    for rows in (1 << 40, 1024):
+        monkeypatch.setattr(wp_module, "PALETTE_COMPACT_ROWS", rows)
+        w = Workpiece.box(lo, hi, grid=grid)
+        sizes = _watch_compactions(monkeypatch, w)
+        result = milling.simulate(w, program, tool, progress=False)
+        runs[rows] = (w, [r.removed for r in result.records], sizes)
+    (plain, plain_removed, plain_sizes), (small, small_removed, small_sizes) = runs[1 << 40], runs[1024]
+    assert -1 not in plain_sizes and small_sizes.count(-1) >= 3
+    assert max(plain_sizes) > 15_000 and max(small_sizes) < max(plain_sizes) // 3, (small_sizes, max(plain_sizes))
+    _same_run(plain, small, plain_removed, small_removed)
+
+
+def test_palette_compaction_fuzz(monkeypatch):
+    """Random convex cuts and unions, the palette compacted whenever it doubles (whatever its live share), against
+    the same sequence never compacted."""
+    import csgnb.octree.workpiece as wp_module
+
+    def run(compact):
+        monkeypatch.setattr(wp_module, "PALETTE_COMPACT_ROWS", 1 if compact else 1 << 40)
+        monkeypatch.setattr(wp_module, "PALETTE_COMPACT_LIVE", 1.0)
+        rng = np.random.default_rng(5)
+        w = Workpiece.box([0, 0, 0], [40, 40, 40], threshold=int(rng.choice([12, 24])))
+        sizes = _watch_compactions(monkeypatch, w)
+        changes = []
+        for k in range(80):
+            centre = rng.integers(8, 33, size=3)
+            tool = convex_hull(centre + rng.integers(-7, 8, size=(10, 3)))
+            fn = (lambda a, b: a & ~b) if k % 4 else (lambda a, b: a | b)
+            changes.append(w.boolean(tool, fn, track_volume=True).volume_change)
+            if k % 9 == 0:
+                w.volume()  # fill the cache between operations
+        return w, changes, sizes
+
+    plain, plain_changes, plain_sizes = run(False)
+    compacted, compacted_changes, sizes = run(True)
+    assert -1 not in plain_sizes and sizes.count(-1) >= 4, sizes
+    _same_run(plain, compacted, plain_changes, compacted_changes)

@@ -88,6 +88,11 @@ class CellVolumes:
             self._cache[key] = v
         return v
 
+    def rekey(self, renamed: dict) -> None:
+        """Keep only the entries whose key is in ``renamed`` (old key -> new key), under their new keys: after the
+        palette is renumbered, a cell's key names other rows, and an old key could name another cell's content."""
+        self._cache = {new: self._cache[old] for old, new in renamed.items() if old in self._cache}
+
     def forget(self, key) -> None:
         if key is not None:
             self._cache.pop(key, None)

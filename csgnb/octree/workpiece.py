@@ -80,7 +80,7 @@ from csgnb.octree.layout import (
     new_tree_arrays,
 )
 from csgnb.octree.tool import Tool, _as_int64, convex_tool_tree, store_int64_rows
-from csgnb.octree.volume import CellVolumes, LocalChange, convex_change
+from csgnb.octree.volume import CellVolumes, LocalChange, cell_key, convex_change
 from csgnb.octree.workspace import ToolArrays, grow, new_workspace, with_palette
 
 __all__ = ["DEFAULT_THRESHOLD", "OpReport", "Workpiece"]
@@ -92,6 +92,26 @@ DEFAULT_THRESHOLD = 150
 """Maximum BSP nodes per octree cell (the paper found 100-200 best; ``benchmarks/bench_iterated.py --sweep``)."""
 
 _MAX_RESUMPTIONS = 100
+
+PALETTE_COMPACT_ROWS = 1 << 16
+"""The palette (every tool's planes are appended: ~150 rows a milling move, 7,192 a drill step) is compacted when it
+holds at least this many rows and twice the rows the last compaction kept: planes no cell's BSP and no wall map entry
+uses are dropped and the rest renumbered in their order (:meth:`Workpiece._compact_palette`)."""
+
+PALETTE_COMPACT_LIVE = 0.5
+"""... if at most this fraction of its rows is live (otherwise the next check waits for twice as many rows)."""
+
+
+def _live_planes(plane: np.ndarray, amap: AxisMap) -> np.ndarray:
+    """The palette rows in use : sorted (k,) int64 -- by BSP nodes ``plane`` (-1 at leaves) and the wall map."""
+    return np.unique(np.concatenate([plane[plane >= 0], amap.rows[amap.keys >= 0]]).astype(np.int64))
+
+
+def _renumbering(live: np.ndarray, used: int) -> np.ndarray:
+    """Old palette row -> new row, keeping the order of the ``live`` rows : (used,) int32 (-1 for a dropped row)."""
+    remap = np.full(max(used, 1), -1, np.int32)
+    remap[live] = np.arange(live.shape[0], dtype=np.int32)
+    return remap
 
 
 def identity_grid(width: int = DEFAULT_WIDTH) -> Grid:
@@ -235,6 +255,7 @@ class Workpiece:
         self.ws = new_workspace(self.palette, self.threshold)
         self._max_normal, self._max_offset = 1, self.root_size
         self._volumes = CellVolumes()
+        self._palette_kept = 0  # rows the last palette compaction kept (or found live)
         self._meta: dict = {}
         self._tables: dict = {}
         self._prepared_fns: dict = {}  # fn -> (table, constant labels, keeps labels outside the tool)
@@ -443,6 +464,7 @@ class Workpiece:
             elif measure is not None:
                 change = measure.finish()
             report.volume_change = change
+        self._maybe_compact_palette()  # after the volume measurement, whose cache keys name palette rows
         report.seconds = time.perf_counter() - t0
         s = self.stats
         s.operations += 1
@@ -464,7 +486,8 @@ class Workpiece:
         if not outside_identity:
             fresh = Workpiece(self.grid, threshold=self.threshold, min_cell=self.min_cell,
                               max_tool_polygons=self.max_tool_polygons, seed=self.seed)
-            for name in ("oc", "pool", "palette", "amap", "ws", "_max_normal", "_max_offset", "_volumes"):
+            for name in ("oc", "pool", "palette", "amap", "ws", "_max_normal", "_max_offset", "_volumes",
+                         "_palette_kept"):
                 setattr(self, name, getattr(fresh, name))
         report = OpReport(0, 0, 0, 0, 0, time.perf_counter() - t0,
                           volume_change=-before if track_volume else None)
@@ -624,7 +647,8 @@ class Workpiece:
 
         Rows in use only; the fields no query reads are zeroed (free octree nodes entirely; the kind, label,
         start and length of inner nodes; the start of uniform cells and the label of BSP cells); the BSP pool
-        is compacted (the cells' BSPs back to back in node order, no garbage).
+        is compacted (the cells' BSPs back to back in node order, no garbage), and so is the palette (the planes
+        the cells and the wall map use, in their order).
         """
         from csgnb.octree.layout import N_FREE_BLOCKS
 
@@ -656,13 +680,21 @@ class Workpiece:
         a["oc_label"][cells] = 0
         for name in ("plane", "neg", "pos", "label"):
             a[f"pool_{name}"] = getattr(self.pool, name)[rows]
-        counts = oc.counts.copy()
-        counts[N_POOL] = counts[POOL_LIVE] = rows.shape[0]
-        a["oc_counts"] = counts
-        a["oc_free_blocks"] = free
-        a["palette_limbs"] = np.array(self.palette[: int(oc.counts[N_PAL])]["limbs"])
+        # the palette's live rows only, in their order (so compaction in memory, whenever it ran, changes nothing)
+        live = _live_planes(a["pool_plane"], self.amap)
+        remap = _renumbering(live, int(oc.counts[N_PAL]))
+        inner = a["pool_plane"] >= 0
+        a["pool_plane"][inner] = remap[a["pool_plane"][inner]]
         a["axis_keys"] = self.amap.keys.copy()
         a["axis_rows"] = self.amap.rows.copy()
+        walls = a["axis_keys"] >= 0
+        a["axis_rows"][walls] = remap[a["axis_rows"][walls]]
+        counts = oc.counts.copy()
+        counts[N_POOL] = counts[POOL_LIVE] = rows.shape[0]
+        counts[N_PAL] = live.shape[0]
+        a["oc_counts"] = counts
+        a["oc_free_blocks"] = free
+        a["palette_limbs"] = np.array(self.palette[live]["limbs"])
         return a
 
     def _state_digest(self) -> str:
@@ -724,6 +756,7 @@ class Workpiece:
         w.root_lo = ok["root_lo"]
         w.root_size = ok["root_size"]
         w._max_normal, w._max_offset = ok["max_normal"], ok["max_offset"]
+        w._palette_kept = limbs.shape[0]
         w._meta = header
         return w
 
@@ -814,6 +847,44 @@ class Workpiece:
         live = int(self.oc.counts[POOL_LIVE])
         if used > 4096 and live < used // 2:
             self._compact_pool()
+
+    def _maybe_compact_palette(self) -> None:
+        used = int(self.oc.counts[N_PAL])
+        if used >= max(PALETTE_COMPACT_ROWS, 2 * self._palette_kept):
+            self._compact_palette()
+
+    def _compact_palette(self) -> None:
+        """Drop the palette rows no cell's BSP and no wall map entry uses; renumber the rest in their order.
+
+        Rows keep their relative order, so every decision a kernel makes by comparing rows is unchanged and the
+        workpiece stays the same solid with the same canonical arrays (:meth:`_arrays` drops the same rows). Only
+        done when at most ``PALETTE_COMPACT_LIVE`` of the rows are live; otherwise the next check waits for twice as
+        many rows. The volume cache, whose keys name palette rows, is re-keyed.
+        """
+        used = int(self.oc.counts[N_PAL])
+        self._compact_pool()  # every pool row then belongs to a live cell
+        n = int(self.oc.counts[N_POOL])
+        live = _live_planes(self.pool.plane[:n], self.amap)
+        if live.shape[0] > PALETTE_COMPACT_LIVE * used:
+            self._palette_kept = used
+            return
+        remap = _renumbering(live, used)
+        leaves = self._leaves()
+        cells = leaves[self.oc.kind[leaves] == BSP].tolist()
+        old_keys = [cell_key(self, c) for c in cells]  # the volume cache's keys name palette rows
+        plane = self.pool.plane[:n]
+        inner = plane >= 0
+        plane[inner] = remap[plane[inner]]
+        self._volumes.rekey({k: cell_key(self, c) for k, c in zip(old_keys, cells, strict=True)})
+        walls = self.amap.keys >= 0
+        self.amap.rows[walls] = remap[self.amap.rows[walls]]
+        k = live.shape[0]
+        palette = np.zeros((max(256, k + max(k // 2, 1024)), 4), self.palette.dtype)
+        palette[:k] = self.palette[live]
+        self.palette = palette
+        self.ws = with_palette(self.ws, palette)
+        self.oc.counts[N_PAL] = k
+        self._palette_kept = k
 
     def _compact_pool(self) -> None:
         leaves = self._leaves()
