@@ -9,7 +9,8 @@ elevation 35° (about screen filling). In one process per model: the reference r
 first call. Threads: numba's default (all cores) unless ``--threads``. Also the 640×480 viewer
 frame (render and JPEG encoding, as the notebook viewer does) of the 80-quadric model, orbiting 2° per frame: with
 its default level of detail (``csgnb.render.level_of_detail``: the coarsest cloud of the same surface whose splats are
-about 12 px on screen, sampled once -- that one-off time is reported apart) and drawing the cloud itself, each frame
+about 12 px on screen, sampled once -- that one-off time is reported apart; where that is finer than the cloud, the
+faster of the two as measured by ``LevelChooser``) and drawing the cloud itself, each frame
 checked pixel for pixel against the ray tracer.
 
     python benchmarks/bench_render.py --json /tmp/bench_render.json
@@ -20,7 +21,7 @@ more; "only splats" times every tile splatted. ``--calibrate`` fits that model's
 ``--json PATH`` writes ``{"models": [{"name", "quadrics", "splat", "samples", "splat_ms",
 "raytrace_ms", "speedup", "splats_only_ms", "raytraced_tiles", "tiles", "fragments", "overdraw", "covered",
 "disagree_fraction", "disagree", "holes", "off_edge", "stages_ms", "lod_level", "lod_samples", "lod_ms",
-"lod_speedup", "lod_sampling_ms", "lod_holes", "lod_disagree"}], "viewer_640x480_ms": ...,
+"lod_speedup", "lod_sampling_ms", "lod_holes", "lod_disagree", "lod_overdraw"}], "viewer_640x480_ms": ...,
 "viewer_640x480": [{"splat", "samples", "ms", "render_ms", "level", "drawn_samples", "drawn_radius",
 "level_sampling_ms", "cpu_ms", "ms_cloud_itself", "render_ms_cloud_itself", "cpu_ms_cloud_itself"}], "threads": ...}``.
 """
@@ -149,7 +150,7 @@ def main(argv=None) -> None:
     threads = numba.get_num_threads()
     import csgnb.csg as csg
     from csgnb.csg.gallery import TABLE2
-    from csgnb.render import Camera, LevelsOfDetail, SplatRenderer, Viewer, compare, raytrace
+    from csgnb.render import Camera, LevelChooser, LevelsOfDetail, SplatRenderer, Viewer, compare, raytrace
     from csgnb.sampling import sample_csg
 
     W, H = args.width, args.height
@@ -162,7 +163,7 @@ def main(argv=None) -> None:
     print(f"{'model':18s} {'q':>3s} {'splat':6s} {'samples':>8s} {'splats ms':>9s} {'only spl':>8s} {'rt tiles':>8s} "
           f"{'rt ms':>8s} {'ratio':>6s} "
           f"{'fragments':>10s} {'overdraw':>8s} {'disagree':>8s} {'holes':>5s} {'paper ms':>9s} "
-          f"{'paper rt':>8s} {'lod':>4s} {'lod ms':>7s} {'ratio':>6s} {'wrong':>5s}")
+          f"{'paper rt':>8s} {'lod':>4s} {'lod ms':>7s} {'ratio':>6s} {'lod od':>6s} {'wrong':>5s}")
     for name, (build, radii) in TABLE2.items():
         if args.only and name not in args.only:
             continue
@@ -187,12 +188,20 @@ def main(argv=None) -> None:
                     best, stages = frame.stats.ms, dict(frame.stats.timings)
                 only_splats = min(only_splats, renderer.render(cam, fallback="never").stats.ms)
             a = compare(frame, ref)
-            # the level of detail a viewer of this cloud would draw for this view (sampled once, not timed)
-            lod = LevelsOfDetail(cloud)
-            level = lod.level_for(cam)
-            lod_renderer = SplatRenderer(lod.cloud_at(level))
-            lod_renderer.render(cam.with_size(32, 18))
-            lod_frame = min((lod_renderer.render(cam) for _ in range(max(1, args.repeat))), key=lambda f: f.stats.ms)
+            # the level of detail a viewer of this cloud draws for this view: the size rule's level, measured
+            # against the cloud itself where that level is finer (LevelChooser; levels sampled once, not timed)
+            lod = LevelsOfDetail(cloud, finer=True)
+            chooser = LevelChooser(lod)
+            renderers = {}
+            for _ in range(2 * chooser.trials + max(1, args.repeat)):
+                level = chooser.choose(cam)
+                if level not in renderers:
+                    renderers[level] = SplatRenderer(lod.cloud_at(level))
+                    renderers[level].render(cam.with_size(32, 18))
+                chooser.record(level, renderers[level].render(cam).stats.ms)
+            level = chooser.choose(cam)
+            lod_frame = min((renderers[level].render(cam) for _ in range(max(1, args.repeat))),
+                            key=lambda f: f.stats.ms)
             lod_a = compare(lod_frame, ref)
             paper = PAPER_RENDER.get((n_quadrics, splat), (float("nan"), float("nan")))
             row = {
@@ -205,14 +214,15 @@ def main(argv=None) -> None:
                 "stages_ms": {k: round(v, 2) for k, v in stages.items()},
                 "lod_level": level, "lod_samples": len(lod.cloud_at(level)), "lod_ms": lod_frame.stats.ms,
                 "lod_speedup": rt_ms / lod_frame.stats.ms, "lod_sampling_ms": 1e3 * lod.seconds[level],
-                "lod_holes": lod_a.holes, "lod_disagree": lod_a.disagree,
+                "lod_holes": lod_a.holes, "lod_disagree": lod_a.disagree, "lod_overdraw": lod_frame.stats.overdraw,
             }
             rows.append(row)
             print(f"{name:18s} {n_quadrics:3d} {splat:6s} {len(cloud):8d} {best:9.1f} {only_splats:8.1f} "
                   f"{frame.stats.raytraced_tiles:4d}/{frame.stats.tiles:<3d} {rt_ms:8.0f} {rt_ms / best:6.1f} "
                   f"{frame.stats.fragments:10d} {frame.stats.overdraw:8.2f} {a.disagree:8d} {a.holes:5d} "
                   f"{paper[0]:9.2f} {paper[1]:8.2f} {level:4d} {lod_frame.stats.ms:7.1f} "
-                  f"{rt_ms / lod_frame.stats.ms:6.1f} {lod_a.holes + lod_a.disagree:5d}")
+                  f"{rt_ms / lod_frame.stats.ms:6.1f} {lod_frame.stats.overdraw:6.1f} "
+                  f"{lod_a.holes + lod_a.disagree:5d}")
             if n_quadrics == max(q for q, _ in PAPER_RENDER):
                 entry = {"splat": splat, "samples": len(cloud)}
                 for lod in (True, False):  # the viewer's default (a level of detail per view), and the cloud itself
