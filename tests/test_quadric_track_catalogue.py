@@ -185,7 +185,7 @@ def _render_calls():
         "raytrace": (cr.raytrace, dict(shape=shape, camera=cam, color_by="quadric", lit=True)),
         "render": (cr.render, dict(cloud=cloud, camera=cam, footprint="box", backface_culling=True, local="quadric",
                                    clip=True, color_by="quadric", lit=True, tile=16, fallback="auto",
-                                   occlusion_culling=True)),
+                                   occlusion_culling=True, device="cpu")),
         "SplatRenderer": (cr.SplatRenderer, dict(cloud=cloud)),
         "renderer_for": (cr.renderer_for, dict(cloud=cloud)),
         "compare": (cr.compare, dict(frame=fr, reference=fr, rel=1e-9)),

@@ -199,3 +199,24 @@ def ray_roots(P, k, x, y, dd):
     if t1 <= t2:
         return t1, t2, gamma
     return t2, t1, gamma
+
+
+@inline_jit
+def disc_hit(cam, SD, k, x, y, best, rr):
+    """The depth where the ray of (x, y) meets splat k's flat disc (centre ``SD[k, 0:3]``, unit normal ``SD[k, 4:7]``)
+    within squared radius ``rr`` in front of ``best``; ∞ where it does not (classical splats, Figure 11a)."""
+    nx, ny, nz = SD[k, 4], SD[k, 5], SD[k, 6]
+    dx, dy, dz, _ = ray_direction(cam, x, y)
+    den = nx * dx + ny * dy + nz * dz
+    if den == 0.0:
+        return math.inf
+    ox, oy, oz = ray_point(cam, x, y, 0.0)
+    sx, sy, sz = SD[k, 0], SD[k, 1], SD[k, 2]
+    zz = (nx * (sx - ox) + ny * (sy - oy) + nz * (sz - oz)) / den
+    if not (zz > 0.0 and zz < best):
+        return math.inf
+    px, py, pz = ray_point(cam, x, y, zz)
+    ex, ey, ez = px - sx, py - sy, pz - sz
+    if ex * ex + ey * ey + ez * ez <= rr:
+        return zz
+    return math.inf

@@ -35,8 +35,11 @@ from csgnb._threads import run_parts, threads
 from csgnb.errors import CsgnbError, GeometryError
 from csgnb.quadric.arguments import as_count, as_flag
 from csgnb.render.camera import Camera
+from csgnb.render.cuda import DEVICES, check_against_cpu
+from csgnb.render.cuda import available as cuda_available
+from csgnb.render.cuda import raster as cuda_raster
 from csgnb.render.frame import Frame, RenderStats
-from csgnb.render.rays import EPS, ray_direction, ray_point, ray_polynomials, ray_roots, row_gradient, row_value
+from csgnb.render.rays import EPS, disc_hit, ray_point, ray_polynomials, ray_roots, row_gradient, row_value
 from csgnb.render.raytracer import raytrace_tiles
 from csgnb.render.scene import check_camera, check_choice, check_cloud, check_precision, eye_inside, scene_box
 from csgnb.render.shading import COLOR_MODES, quadric_colors, shade, surface_normals
@@ -561,18 +564,8 @@ def _raster_kernel(cam, X, Y, P, Q, ctol, SD, SI, cidx, bbox, hull, nh, zmin, st
                         continue  # early depth test; this quadric is resolved at this pixel
                     x = X[j]
                     if local == 0:  # a flat disc on the tangent plane
-                        nx, ny, nz = SD[k, 4], SD[k, 5], SD[k, 6]
-                        dx, dy, dz, _ = ray_direction(cam, x, y)
-                        den = nx * dx + ny * dy + nz * dz
-                        if den == 0.0:
-                            continue
-                        ox, oy, oz = ray_point(cam, x, y, 0.0)
-                        zz = (nx * (sx - ox) + ny * (sy - oy) + nz * (sz - oz)) / den
-                        if not (zz > 0.0 and zz < best):
-                            continue
-                        px, py, pz = ray_point(cam, x, y, zz)
-                        ex, ey, ez = px - sx, py - sy, pz - sz
-                        if ex * ex + ey * ey + ez * ez <= rr:
+                        zz = disc_hit(cam, SD, k, x, y, best, rr)
+                        if zz < math.inf:
                             _written(i - ti0, j - tj0, nb, best, blocks)
                             depth[i, j] = zz
                             winner[i, j] = k
@@ -683,6 +676,7 @@ class SplatRenderer:
         self._memo = None
         self.last_plan = None
         self.last_bins = None
+        self._device_checked = False  # the first GPU frame is checked against the CPU's
 
     def splat_boxes(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Return each splat's surface-aligned box (§6.1, eq. 23): centres (n, 3), unit normals (n, 3), radii (n,)
@@ -722,7 +716,8 @@ class SplatRenderer:
 
     def render(self, camera: Camera, *, footprint: str = "box", backface_culling: bool = True,
                local: str = "quadric", clip: bool = True, color_by: str = "quadric", lit: bool = True,
-               tile: int = TILE, fallback: str = "auto", occlusion_culling: bool = True) -> Frame:
+               tile: int = TILE, fallback: str = "auto", occlusion_culling: bool = True,
+               device: str = "cpu") -> Frame:
         """Return the splat render of the cloud (§6).
 
         Parameters
@@ -750,6 +745,10 @@ class SplatRenderer:
             Skip a splat whose nearest depth lies behind every pixel already drawn under its footprint (blocks of
             8 × 8 pixels): the same picture with fewer fragments (``False`` counts every fragment of every footprint,
             as the paper's overdraw figures do).
+        device : "cpu" or "cuda"
+            Where the raster runs (:mod:`csgnb.render.cuda`: one GPU thread per pixel, the CPU's arithmetic; every
+            fragment tested, as with ``occlusion_culling=False``). The first frame a renderer draws on the GPU is
+            also drawn on the CPU and compared bit for bit (a difference raises). Without a GPU, "cuda" raises.
 
         Returns
         -------
@@ -774,6 +773,11 @@ class SplatRenderer:
         backface_culling, clip, lit = (as_flag(backface_culling, "backface_culling"), as_flag(clip, "clip"),
                                        as_flag(lit, "lit"))
         occlusion_culling = as_flag(occlusion_culling, "occlusion_culling")
+        check_choice(device, DEVICES, "device")
+        if device == "cuda":
+            if not cuda_available():
+                raise CsgnbError("device='cuda' needs a CUDA GPU, and numba.cuda finds none here; use device='cpu'")
+            occlusion_culling = False  # a tile-serial decision: the GPU tests every fragment
         tile = as_count(tile, "tile", 4)
         if not 4 <= tile <= 1024:
             raise CsgnbError(f"tile must be in [4, 1024] pixels, got {tile}")
@@ -824,10 +828,14 @@ class SplatRenderer:
         winner = np.full((H, W), -1, dtype=np.int32)
         qwin, qclip, qlast, zr1, zr2 = self._scratch(H, W)
         od = np.zeros((H, W), dtype=np.int32)
-        run_parts(_raster_kernel, cam, X, Y, P, self.Q, ctol, self.SD, self.SI, self.cidx, self._bbox, self._hull,
-                  self._nh, self._zmin, start, self._items, tile, ntx, skip, li, bool(clip), occlusion_culling, rtol,
-                  depth, winner, qwin,
-                  qclip, qlast, zr1, zr2, od)
+        if device == "cuda":
+            frame_args = (cam, X, Y, P, self.Q, ctol, self.SD, self.SI, self.cidx, self._bbox, self._hull, self._nh,
+                          self._zmin)
+            cuda_raster(frame_args, (start, self._items, tile, ntx), skip, (li, bool(clip)), rtol, (depth, winner, od))
+        else:
+            run_parts(_raster_kernel, cam, X, Y, P, self.Q, ctol, self.SD, self.SI, self.cidx, self._bbox,
+                      self._hull, self._nh, self._zmin, start, self._items, tile, ntx, skip, li, bool(clip),
+                      occlusion_culling, rtol, depth, winner, qwin, qclip, qlast, zr1, zr2, od)
         t3 = time.perf_counter()
         qid = np.empty((H, W), dtype=np.int32)
         tid = np.empty((H, W), dtype=np.int32)
@@ -865,7 +873,14 @@ class SplatRenderer:
              "shade": 1e3 * (t5 - t4)},
             raytraced_tiles=len(plan.raytraced), tiles=ntx * nty,
         )
-        return Frame(camera, depth, normal, qid, tid, rgb, od, ccount, winner, stats, self.normal_form, self.palette)
+        out = Frame(camera, depth, normal, qid, tid, rgb, od, ccount, winner, stats, self.normal_form, self.palette)
+        if device == "cuda" and not self._device_checked:
+            # the device's rounding must be the CPU's: the first frame drawn there is drawn here too
+            check_against_cpu(out, self.render(camera, footprint=footprint, backface_culling=backface_culling,
+                                               local=local, clip=clip, color_by=color_by, lit=lit, tile=tile,
+                                               fallback=fallback, occlusion_culling=False))
+            self._device_checked = True
+        return out
 
 
 def _covered_in(qid: np.ndarray, tiles: np.ndarray, tile: int, ntx: int) -> int:
