@@ -228,13 +228,14 @@ OCCLUSION_VIEWS = [  # (model, relative radius, azimuth, elevation, projection, 
 
 @pytest.mark.parametrize(("name", "rel", "az", "el", "proj", "zoom"), OCCLUSION_VIEWS)
 @pytest.mark.parametrize("local", ["quadric", "disc"])
-def test_occlusion_culling_changes_the_fragment_count_not_the_picture(name, rel, az, el, proj, zoom, local):
+@pytest.mark.parametrize("tile", [64, 12])
+def test_occlusion_culling_changes_the_fragment_count_not_the_picture(name, rel, az, el, proj, zoom, local, tile):
     """A splat behind every drawn pixel of the 8x8 blocks under its footprint is skipped whole: every buffer but the
     overdraw count is bit for bit the one drawn with every fragment tested (a culled splat that could have won a pixel
     would show here), and the fragments only drop."""
     _, cloud = cloud_of(name, rel)
     cam = Camera.fit(cloud, 200, 150, azimuth=az, elevation=el, projection=proj).orbited(zoom=zoom)
-    options = {"fallback": "never", "local": local}
+    options = {"fallback": "never", "local": local, "tile": tile}  # 12: blocks cut by the tile's edge
     culled, every = (render(cloud, cam, occlusion_culling=flag, **options) for flag in (True, False))
     assert culled.stats.covered > 2000
     for buffer in ("depth", "quadric", "sample", "clip_count", "normal", "rgb"):
