@@ -352,6 +352,10 @@ def test_fallback_tiles_show_the_ray_tracer_and_the_rest_the_splats():
         assert np.array_equal(a[~traced], s[~traced]), name
     assert np.all(auto.sample[traced] == -1) and np.all(auto.overdraw[traced] == 0)
     assert auto.stats.fragments < splats.stats.fragments
+    # the frame's statistics (counted in one compiled pass) against their definitions
+    covered = auto.quadric >= 0
+    assert auto.stats.covered == int(covered.sum()) and auto.stats.fragments == int(auto.overdraw.sum())
+    assert auto.stats.overdraw == auto.stats.fragments / int((covered & ~traced).sum())
     # the choice: probed tiles whose estimated ray tracing is cheaper, and only those
     probed = ~np.isnan(plan.raytrace_ns)
     cheaper = np.flatnonzero(probed & (plan.raytrace_ns < plan.splat_ns))
