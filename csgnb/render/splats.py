@@ -861,10 +861,9 @@ class SplatRenderer:
         else:
             rgb = frame.shaded(color_by, lit=lit)
         t5 = time.perf_counter()
-        counts = np.zeros((threads(), 3), dtype=np.int64)
-        run_parts(_frame_counts, qid, od, skip, tile, ntx, counts, parts=counts.shape[0])
-        covered, traced, fragments = (int(c) for c in counts.sum(axis=0))
-        splatted = covered - traced
+        covered = int(np.count_nonzero(qid >= 0))
+        splatted = covered - _covered_in(qid, plan.raytraced, tile, ntx)
+        fragments = int(od.sum(dtype=np.int64))
         flags = np.zeros(3, dtype=np.int64) if whole else np.bincount(self._flag, minlength=3)
         stats = RenderStats(
             "splats", covered, fragments, fragments / splatted if splatted else 0.0,
@@ -884,23 +883,13 @@ class SplatRenderer:
         return out
 
 
-@jit(error_model="numpy")
-def _frame_counts(qid, od, skip, tile, ntx, counts, part, parts):
-    """A frame's statistics over the rows of block ``part``: ``counts[part] = (covered pixels, covered pixels in
-    ray-traced tiles (``skip``), fragments)``."""
-    H, W = qid.shape
-    covered, traced, fragments = 0, 0, 0
-    for i in range(H * part // parts, H * (part + 1) // parts):
-        row = (i // tile) * ntx
-        for j in range(W):
-            fragments += od[i, j]
-            if qid[i, j] >= 0:
-                covered += 1
-                if skip[row + j // tile]:
-                    traced += 1
-    counts[part, 0] = covered
-    counts[part, 1] = traced
-    counts[part, 2] = fragments
+def _covered_in(qid: np.ndarray, tiles: np.ndarray, tile: int, ntx: int) -> int:
+    """Covered pixels (qid ≥ 0) inside the listed tiles."""
+    n = 0
+    for t in tiles.tolist():
+        i0, j0 = (t // ntx) * tile, (t % ntx) * tile
+        n += int(np.count_nonzero(qid[i0 : i0 + tile, j0 : j0 + tile] >= 0))
+    return n
 
 
 _RENDERERS: dict[int, tuple[weakref.ref, SplatRenderer]] = {}
