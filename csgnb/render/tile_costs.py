@@ -164,7 +164,7 @@ def _roots_per_pixel(trace_args: tuple, shape: tuple[int, int], tile: int, tiles
     work = np.empty(len(tiles), dtype=np.int64)
     rows, cols = _tile_sides(shape, tile)
     write = 2 if depth is not None else 0  # 2: the depth only
-    no_image = np.empty((1, 1), dtype=np.int32)  # only read for nothing: qid and tid are never written here
+    no_image = np.empty((1, 1), dtype=np.int32)  # a probe never writes the quadric and term buffers
     raytrace_tiles(*trace_args, np.array([tile, step, write], dtype=np.int64), tiles,
                    depth if depth is not None else np.empty(shape), no_image, no_image, work)
     return work / np.maximum(_probe_count(rows[tiles], step) * _probe_count(cols[tiles], step), 1)
