@@ -40,8 +40,8 @@ def test_every_notebook_chapter_present_is_numbered():
     assert all(re.match(r"^\d\d_[a-z0-9_]+$", n) for n in names)
 
 
-def _locked() -> dict[str, str]:
-    text = (ROOT / "requirements.lock").read_text()
+def _locked(name: str = "requirements.lock") -> dict[str, str]:
+    text = (ROOT / name).read_text()
     return {m.group(1).lower().replace("_", "-"): m.group(2)
             for m in re.finditer(r"^([A-Za-z0-9_.\-]+)==(\S+)", text, re.MULTILINE)}
 
@@ -56,6 +56,24 @@ def test_the_lock_pins_every_dependency_with_hashes_and_the_setup_installs_it():
     assert all("--hash=sha256:" in b for b in blocks if "==" in b)
     setup = (ROOT / "scripts" / "setup.sh").read_text()
     assert "--require-hashes -r requirements.lock" in setup and 'CSGNB_DEPS:-lock' in setup
+
+
+def test_the_bench_lock_is_the_lock_plus_the_baselines_and_bench_sh_installs_it():
+    """The benchmarks' baselines are pinned too (requirements-bench.lock, hashes included), at versions that agree
+    with requirements.lock for every package both pin: a benchmark runs on the tested packages and a known
+    manifold3d, whose figures the documents quote."""
+    project = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]
+    main, bench = _locked(), _locked("requirements-bench.lock")
+    baselines = {_name(r) for r in project["optional-dependencies"]["bench"]}
+    missing = baselines - set(bench)
+    assert not missing, f"not in requirements-bench.lock (run bash scripts/lock.sh): {missing}"
+    differ = {k: (v, bench[k]) for k, v in main.items() if k in bench and bench[k] != v}
+    assert not differ, f"requirements-bench.lock disagrees with requirements.lock (run bash scripts/lock.sh): {differ}"
+    assert set(main) <= set(bench), f"requirements-bench.lock lacks {set(main) - set(bench)}"
+    text = (ROOT / "requirements-bench.lock").read_text()
+    blocks = re.split(r"\n(?=[A-Za-z0-9_.\-]+==)", text.split("\n", 2)[2])
+    assert all("--hash=sha256:" in b for b in blocks if "==" in b)
+    assert "--require-hashes -r requirements-bench.lock" in (ROOT / "scripts" / "bench.sh").read_text()
 
 
 def test_the_installed_versions_are_the_locked_ones():
