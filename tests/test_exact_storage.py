@@ -310,3 +310,37 @@ def test_the_fast_path_settles_random_points():
     assert stats["exact"] == 0
     rows = exact.from_wide(x).tolist()
     assert got.tolist() == [[float(Fraction(v, r[3])) for v in r[:3]] for r in rows]
+
+
+@given(width=widths, data=st.data())
+def test_python_ints_become_limbs_as_their_bytes_say(width, data):
+    """``to_wide`` of an object array of Python ints (a 256-bit tool's planes) takes numpy's object loops; every limb
+    is checked against the value's own two's-complement bytes, the signed range's ends included."""
+    from csgnb.exact.wide import _python_ints_to_wide, to_wide
+
+    top = (1 << (width - 1)) - 1
+    values = data.draw(st.lists(st.integers(-top - 1, top), min_size=1, max_size=12))
+    values += [-top - 1, top, 0, -1]
+    arr = np.array(values, dtype=object).reshape(-1, 4) if len(values) % 4 == 0 else np.array(values, dtype=object)
+    got = to_wide(arr, width)
+    assert got.shape == arr.shape
+    expected = np.frombuffer(b"".join(int(v).to_bytes(width // 8, "little", signed=True) for v in arr.reshape(-1)),
+                             dtype=got.dtype).reshape(arr.shape)
+    assert got.tobytes() == expected.tobytes()
+    assert _python_ints_to_wide(arr, width).tobytes() == expected.tobytes()
+    for bad in (top + 1, -top - 2):
+        with pytest.raises(PrecisionError, match=f"does not fit in {width} bits"):
+            to_wide(np.array([1, bad], dtype=object), width)
+
+
+def test_object_arrays_of_other_things_take_the_checked_path():
+    """Only plain Python ints take the fast object path: numpy scalars are converted exactly, bools and floats that
+    are not integers refused, as before."""
+    from csgnb.exact.wide import from_wide, to_wide
+
+    mixed = np.array([np.int64(-5), 7, 1 << 100], dtype=object)
+    assert [int(v) for v in from_wide(to_wide(mixed, 256))] == [-5, 7, 1 << 100]
+    with pytest.raises(TypeError):
+        to_wide(np.array([True, 1 << 70], dtype=object), 128)
+    with pytest.raises(PrecisionError):
+        to_wide(np.array([0.5, 1 << 70], dtype=object), 128)

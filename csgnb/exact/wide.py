@@ -122,6 +122,8 @@ def to_wide(values, width: int) -> np.ndarray:
                 ..., None
             ]
         return out
+    if arr is not None and arr.dtype == object and arr.size and _only_python_ints(arr):
+        return _python_ints_to_wide(arr, width)
     # Everything else goes through exact Python ints (numpy would turn ints beyond 64 bits into floats).
     ints = python_int_array(values, "values")
     lo, hi = -(1 << (width - 1)), (1 << (width - 1)) - 1
@@ -135,6 +137,34 @@ def to_wide(values, width: int) -> np.ndarray:
         chunks.append(v.to_bytes(8 * k, "little", signed=True))
     out = np.frombuffer(b"".join(chunks), dtype=dtype).copy()
     return out.reshape(ints.shape)
+
+
+_LIMB = (1 << 64) - 1
+
+
+def _only_python_ints(arr: np.ndarray) -> bool:
+    """Whether every element of the object array ``arr`` is a Python ``int`` (not a bool, not a numpy scalar)."""
+    return set(map(type, arr.reshape(-1).tolist())) <= {int}
+
+
+def _python_ints_to_wide(arr: np.ndarray, width: int) -> np.ndarray:
+    """An object array of Python ints as a wide array, limb by limb in numpy's object loops (a tool's planes at
+    256 bits: int64 normals and offsets beyond int64 -- the per-element ``to_bytes`` loop cost ~1 ms per tool).
+    Python's ``>>`` and ``&`` act on the infinite two's complement, so each limb of a negative value is its
+    two's-complement limb."""
+    lo, hi = -(1 << (width - 1)), (1 << (width - 1)) - 1
+    least, most = int(arr.min()), int(arr.max())
+    if least < lo or most > hi:
+        v = least if least < lo else most
+        raise PrecisionError(
+            f"integer {v} does not fit in {width} bits: the signed range is "
+            f"[-2**{width - 1}, 2**{width - 1} - 1]; choose a wider width or smaller inputs"
+        )
+    out = np.zeros(arr.shape, wide_dtype(width))
+    limbs = out["limbs"]
+    for j in range(width // 64):
+        limbs[..., j] = ((arr >> (64 * j)) & _LIMB).astype(np.uint64)
+    return out
 
 
 def to_width(arr: np.ndarray, width: int) -> np.ndarray:

@@ -64,7 +64,7 @@ def _maybe_int64(a: np.ndarray) -> np.ndarray:
         return a.astype(np.int64)
     if a.size == 0:
         return np.zeros(a.shape, np.int64)
-    big = max(abs(int(x)) for x in a.reshape(-1))
+    big = max(int(a.max()), -int(a.min()))  # numpy's object loops: exact on Python ints, no generator
     return a.astype(np.int64) if big < (1 << 63) else a
 
 

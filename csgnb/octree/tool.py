@@ -112,6 +112,8 @@ def _object_planes(planes) -> np.ndarray:
         return from_wide(planes).astype(object).reshape(-1, 4)
     p = np.asarray(planes)
     if p.dtype == object:
+        if p.size and set(map(type, p.reshape(-1).tolist())) <= {int}:  # Python ints already: one pass over types
+            return p.reshape(-1, 4).copy()
         return np.array([[int(x) for x in row] for row in p], dtype=object).reshape(-1, 4)
     if p.dtype.kind not in "iu":
         raise TypeError(f"planes must be integers, got dtype {p.dtype}")

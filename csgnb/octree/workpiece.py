@@ -344,8 +344,9 @@ class Workpiece:
                 N = max(self._max_normal, int(np.abs(small[:, :3]).max()))
                 D = max(self._max_offset, int(np.abs(small[:, 3]).max()))
             else:
-                N = max(self._max_normal, max(abs(int(x)) for x in planes[:, :3].reshape(-1)))
-                D = max(self._max_offset, max(abs(int(x)) for x in planes[:, 3]))
+                # Python ints (Tool keeps them so): abs and max in numpy's object loops, exact
+                N = max(self._max_normal, int(np.abs(planes[:, :3]).max()))
+                D = max(self._max_offset, int(np.abs(planes[:, 3]).max()))
             problems = budget(self.width).plane_violations(N, D)
             if problems:
                 raise PrecisionError(f"the tool's planes break the {self.width}-bit budget together with the "
