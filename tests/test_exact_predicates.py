@@ -10,7 +10,7 @@ from hypothesis import strategies as st
 from csgnb import GeometryError, PrecisionError, exact
 from csgnb._jit import jit
 from csgnb.exact import budget, integer_root
-from csgnb.exact.intrinsics import cross_sign, plane_side_sign
+from csgnb.exact.intrinsics import compare_cached_values_at, cross_sign, plane_side_sign
 from tests.exact_reference import cross, det3, side, solve_3_planes
 
 WIDTHS = exact.WIDTHS
@@ -362,3 +362,56 @@ def test_plane_side_sign_is_exact_within_its_bounds(nx, offset, on_plane):
         offset = -sum(a * b for a, b in zip(n, x, strict=True))
     value = sum(a * b for a, b in zip(n, x, strict=True)) + offset
     assert _plane_side_sign_of(*n, *x, offset >> 62, offset & ((1 << 62) - 1)) == (value > 0) - (value < 0)
+
+
+# ---------------------------------------------------------------------------
+# the cut's distance comparison (doubles first, the products at twice the width for close calls)
+
+
+@jit
+def _compare_all(D, X, iu, iv, out):
+    for k in range(iu.shape[0]):
+        out[k] = compare_cached_values_at(D, iu[k], iv[k], X)
+
+
+def _reference_compare(du, wu, dv, wv) -> int:
+    """sign(du/wu - dv/wv) as the exact products define it (0 where a denominator is 0)."""
+    def sign(v):
+        return (v > 0) - (v < 0)
+
+    return sign(du * wv - dv * wu) * sign(wu) * sign(wv)
+
+
+@st.composite
+def quotient_pairs(draw, width):
+    """(du, wu, dv, wv) over the whole signed width: random, equal quotients in other terms, and off by one unit."""
+    top = (1 << (width - 1)) - 1
+    value = st.one_of(st.integers(-top - 1, top), st.integers(-3, 3), st.just(top), st.just(-top - 1),
+                      st.integers(-(1 << 64), 1 << 64))
+    kind = draw(st.sampled_from(["random", "equal", "near"]))
+    if kind == "random":
+        return tuple(draw(value) for _ in range(4))
+    p, q = draw(value), draw(value.filter(bool))
+    bound = top // max(abs(p), abs(q), 1)
+    k1 = draw(st.integers(-bound, bound).filter(bool)) if bound else 1
+    k2 = draw(st.integers(-bound, bound).filter(bool)) if bound else 1
+    du, wu, dv, wv = p * k1, q * k1, p * k2, q * k2
+    if kind == "near":
+        dv += draw(st.sampled_from([-1, 1]))
+        assume(-top - 1 <= dv <= top)
+    return du, wu, dv, wv
+
+
+@settings(max_examples=300)
+@given(width=widths, data=st.data())
+def test_distance_comparison_is_the_sign_of_the_exact_difference(width, data):
+    """``compare_cached_values_at`` (doubles decide where certain) against Python ints, over the whole width, with
+    equal quotients written with other terms, quotients one unit apart, zero and negative denominators."""
+    cases = data.draw(st.lists(quotient_pairs(width), min_size=1, max_size=16))
+    n = len(cases)
+    D = exact.to_wide([c[0] for c in cases] + [c[2] for c in cases], width)
+    rows = [[0, 0, 0, c[1]] for c in cases] + [[0, 0, 0, c[3]] for c in cases]
+    X = exact.to_wide(rows, width)
+    out = np.zeros(n, np.int8)
+    _compare_all(D, X, np.arange(n), np.arange(n) + n, out)
+    assert out.tolist() == [_reference_compare(*c) for c in cases]

@@ -350,6 +350,10 @@ def plane_value_into(typingctx, X, i, S, j, out, io):
     return types.int8(X, i, S, j, out, io), codegen
 
 
+#: Widths from which :func:`compare_cached_values_at` asks doubles first (:func:`lowering.quotient_difference_sign`).
+FILTER_COMPARISONS_FROM_BITS = 128
+
+
 @intrinsic
 def compare_cached_values_at(typingctx, D, iu, iv, X):
     """Sign of D[iu]/X[iu, 3] - D[iv]/X[iv, 3]: :func:`compare_plane_values_at` from stored dot products.
@@ -367,8 +371,16 @@ def compare_cached_values_at(typingctx, D, iu, iv, X):
         base_v = lw.row_pointer(context, builder, sig.args[3], args[3], args[2], sig.args[2])
         wu = lw.load(builder, base_u, 3, T)
         wv = lw.load(builder, base_v, 3, T)
-        diff = builder.sub(lw.mul_exact(builder, du, wv, T2), lw.mul_exact(builder, dv, wu, T2))
-        return builder.mul(builder.mul(lw.sign(builder, diff), lw.sign(builder, wu)), lw.sign(builder, wv))
+
+        def exact(builder):
+            diff = builder.sub(lw.mul_exact(builder, du, wv, T2), lw.mul_exact(builder, dv, wu, T2))
+            return builder.mul(builder.mul(lw.sign(builder, diff), lw.sign(builder, wu)), lw.sign(builder, wv))
+
+        if bits < FILTER_COMPARISONS_FROM_BITS:
+            return exact(builder)
+        # The cut's edge descent compares neighbours that are rarely close: doubles decide almost all of them, the
+        # products at twice the width (i512 at 256 bits) only the close calls.
+        return lw.quotient_difference_sign(builder, du, wu, dv, wv, exact)
 
     return types.int8(D, iu, iv, X), codegen
 

@@ -263,6 +263,42 @@ def to_double(builder, v):
     return builder.select(builder.icmp_signed("==", v, ir.Constant(T, 0)), ir.Constant(F64, 0.0), f)
 
 
+#: Relative bound for deciding sign(a/b - c/d) from doubles (:func:`quotient_difference_sign`): each quotient of
+#: two correctly rounded conversions is within 3 units of 2**-53 of its true value, the difference one more rounding;
+#: 2**-50 is eight units (sound with room), and a closer call goes to the exact products.
+QUOTIENT_FILTER_BOUND = 2.0**-50
+
+
+def fabs(builder, x):
+    """|x| of a double (``llvm.fabs``)."""
+    f = builder.module.declare_intrinsic("llvm.fabs", [F64], ir.FunctionType(F64, [F64]))
+    return builder.call(f, [x])
+
+
+def quotient_difference_sign(builder, a, b, c, d, exact):
+    """int8 sign(a/b - c/d) of four signed integers of one width, decided by doubles where that is certain.
+
+    a/b and c/d are formed from the correctly rounded doubles of a, b, c, d (:func:`to_double`); where the difference
+    exceeds :data:`QUOTIENT_FILTER_BOUND` times |a/b| + |c/d| its sign is the exact one. Otherwise -- a close call, a
+    zero denominator (infinities and NaNs fail the ordered comparison) -- ``exact(builder)`` emits the exact sign.
+    Doubles never overflow here (|v| < 2**256) and a non-zero quotient of integers of at most 256 bits is at least
+    2**-256 in magnitude, far above the subnormals, so the relative bounds hold.
+    """
+    ru = builder.fdiv(to_double(builder, a), to_double(builder, b))
+    rv = builder.fdiv(to_double(builder, c), to_double(builder, d))
+    diff = builder.fsub(ru, rv)
+    bound = builder.fmul(builder.fadd(fabs(builder, ru), fabs(builder, rv)), ir.Constant(F64, QUOTIENT_FILTER_BOUND))
+    decided = builder.fcmp_ordered(">", fabs(builder, diff), bound)
+    result = cgutils.alloca_once(builder, I8)
+    with builder.if_else(decided, likely=True) as (then, otherwise):
+        with then:
+            positive = builder.fcmp_ordered(">", diff, ir.Constant(F64, 0.0))
+            builder.store(builder.select(positive, ir.Constant(I8, 1), ir.Constant(I8, -1)), result)
+        with otherwise:
+            builder.store(exact(builder), result)
+    return builder.load(result)
+
+
 def power_of_two(builder, exponent):
     """2.0**exponent for an i64 exponent in the normal range, built from its IEEE bits."""
     biased = builder.add(exponent, ir.Constant(I64, 1023))

@@ -5,7 +5,8 @@ in place, each closed by a new face on the cutting plane (Figure 3):
 
 1. *Edge descent* from the handle's vertex: move to the neighbour that is strictly
    closer to the plane (exact comparison of (x·s)/x4 from the dot products cached by the
-   classification, :func:`compare_cached_values_at`)
+   classification, :func:`compare_cached_values_at`: doubles decide where they certainly can,
+   the products at twice the width the close calls)
    until a vertex on the far side of the plane is seen. A linear function on a convex
    polytope has no local minima, so a vertex without a closer neighbour is the global
    minimum: the plane then has no *proper* intersection (one part would have zero
