@@ -231,3 +231,51 @@ def test_drill_step_tools_are_the_union_of_their_prisms_on_any_thread_count():
         assert w.volume() == sweep.union_hulls(ds.steps[k], width=grid.width).volume()
     with pytest.raises(TypeError, match="threads"):
         ds.tools(grid, threads=0)
+
+
+@pytest.mark.parametrize("width", [128, 256])
+def test_a_tools_turn_symmetry_is_found_exactly_on_the_grid(width):
+    """GridTool.spin_symmetry: the two-flute drill turns into itself every 180°, a 12-tooth gear every 30°; each
+    vertex turned lands exactly on the grid offset the permutation names; a drill with one vertex moved has none."""
+    grid = Grid.fit([-12, -12, -16], [12, 12, 8], width=width)
+    for shape, order in [(tools.twist_drill(), 2), (tools.spur_gear(teeth=12), 12)]:
+        t = shape.on(grid)
+        sym = t.spin_symmetry
+        assert sym.order == order
+        turned = t.design_vertices() @ sweep.rotation_about((0, 0, 1), 360 / order).T
+        np.testing.assert_array_equal(t.offsets[sym.permutation], np.rint(turned * grid.scale).astype(np.int64))
+        assert sorted(sym.permutation.tolist()) == list(range(len(t.offsets)))
+        np.testing.assert_array_equal(sym.turns(order), np.arange(len(t.offsets)))
+    shape = tools.twist_drill(profile_points=8, layers=4)
+    moved = shape.vertices.copy()
+    moved[np.argmax(np.linalg.norm(moved[:, :2], axis=1))] *= [0.97, 0.97, 1.0]  # one land vertex pulled in
+    lopsided = tools.ToolShape("lopsided drill", moved, shape.faces, convex=False).on(grid)
+    assert lopsided.spin_symmetry.order == 1
+    flipped = shape.faces.copy()
+    flipped[:2] = [[0, 3, 1], [3, 2, 1]]  # the vertices still symmetric, one quad's diagonal not
+    assert tools.ToolShape("flipped", shape.vertices, flipped, convex=False).on(grid).spin_symmetry.order == 1
+    assert sweep.drill_sweeps(lopsided, steps=90, step_degrees=4).period == 90
+
+
+def test_a_symmetric_drill_sweeps_each_distinct_step_once_with_the_same_prisms_as_posing_every_step():
+    """Pose k + 45 of the two-flute drill is pose k renamed by its 180° symmetry: every vertex within half a grid
+    unit of its true turned position, and every step's prisms the same set of hulls as posing each step directly."""
+    grid = Grid.from_resolution(1 / 32)
+    t = tools.twist_drill(profile_points=8, layers=4).on(grid)
+    ds = sweep.drill_sweeps(t, (0.25, 0, 0), steps=90, step_degrees=4, feed_per_turn=1.0)
+    direct = sweep.drill_sweeps(t, (0.25, 0, 0), steps=90, step_degrees=4, feed_per_turn=1.0, symmetry=False)
+    assert (ds.period, direct.period, len(ds), ds.skipped) == (45, 90, 90, direct.skipped)
+    assert all(ds.steps[k] is ds.steps[k - 45] for k in range(45, 90))
+    poses = sweep.drill_poses((0.25, 0, 0), steps=90, step_degrees=4)
+
+    def prism_set(hulls):
+        return sorted(tuple(sorted(map(tuple, np.asarray(h.points).tolist()))) for h in hulls)
+
+    for k in range(90):
+        exact = (t.design_vertices() @ poses[k].rotation.T + poses[k].position - grid.origin) * grid.scale
+        assert np.abs(ds.poses[k] - exact).max() <= 0.5 + 1e-9
+        assert prism_set(ds.steps[k]) == prism_set(direct.steps[k])
+    # a turn that is not a whole number of steps: every step posed
+    assert sweep.drill_sweeps(t, steps=30, step_degrees=7).period == 30
+    with pytest.raises(GeometryError, match="period"):
+        sweep.DrillSweeps([ds.steps[0], ds.steps[1]], ds.feed, 0, period=1)

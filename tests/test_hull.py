@@ -599,3 +599,52 @@ def test_hulls_of_public_meshes(name, width):
     h = convex_hull(Q, width=width)
     assert h.contains(Q).all()
     assert float(h.volume()) == pytest.approx(scipy.spatial.ConvexHull(Q.astype(float)).volume, rel=1e-9)
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.integers(0, 2**32 - 1))
+def test_small_hulls_at_256_bit_extents_equal_the_exact_hull(seed):
+    """Prisms too large for int64 distances (a 256-bit drill's: local extents of 2**20-2**29) take small_hulls'
+    double-filtered path: translated triangles (quads exactly planar: exact zeros the doubles cannot see), triangles
+    moved within their plane (flat: None), one vertex a unit off a quad's plane, a point one unit beside a plane
+    with a ~2**44 normal far from the set's first point, and random ones -- each with the
+    general exact hull's planes (and the Python-integer brute force's) and volume."""
+    from csgnb.mesh import hull as H
+
+    rng = np.random.default_rng(seed)
+    big = int(rng.integers(2**20, 2**22))  # the 256-bit mesh budget: |coordinate| <= 87,298,202 (~2**26.4)
+    sets = []
+    for _ in range(12):
+        tri = rng.integers(-big, big + 1, (3, 3))
+        kind = rng.integers(0, 4)
+        if kind == 0:  # a translation: the prism's three quads planar
+            moved = tri + rng.integers(-big, big + 1, 3)
+        elif kind == 1:  # moved within the triangle's own plane: flat
+            moved = tri + (tri[1] - tri[0]) * int(rng.integers(-3, 4)) + (tri[2] - tri[0]) * int(rng.integers(-3, 4))
+        elif kind == 2:  # a translation with one vertex one unit off the quad's plane
+            moved = tri + rng.integers(-big, big + 1, 3)
+            moved[int(rng.integers(0, 3)), int(rng.integers(0, 3))] += 1
+        else:
+            moved = rng.integers(-big, big + 1, (3, 3))
+        sets.append(np.vstack([tri, moved]))
+    for _ in range(6):  # a point one unit beside a plane whose normal is ~2**44 long, seen from a far set origin:
+        # the distance is 1, its double terms ~2**67 (a bound of 2**-70 instead of 2**-48 fails here)
+        X, Y = (int(v) for v in rng.integers(big // 2, big, 2))
+        a = rng.integers(-big // 4, big // 4 + 1, 3)
+        q = a - rng.integers(big // 2, big, 3)
+        n = np.array([1, -X, X * Y], object)  # (X, 1, 0) x (0, Y, 1)
+        side = 1 if int(n @ (q - a).astype(object)) < 0 else -1  # the unit step away from q's side
+        r = a - rng.integers(big // 2, big, 3)
+        sets.append(np.vstack([q, a, a + [X, 1, 0], a + [0, Y, 1], a + [side, Y, 1], r]))
+    P = np.array(sets, np.int64)
+    E = int(np.abs(P - P[:, :1]).max())
+    assert H._arith(E) is object and E <= H.SMALL_HULLS_FILTERED_EXTENT  # the filtered path, not int64's
+    for h, S in zip(small_hulls(P, width=256), P, strict=True):
+        try:
+            ref = convex_hull(S, width=256)
+        except GeometryError:
+            assert h is None
+            continue
+        assert h is not None and hull_planes(h) == hull_planes(ref) == reference_planes(S)
+        assert h.volume() == ref.volume()
+        assert h.contains(S).all()

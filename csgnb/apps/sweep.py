@@ -257,6 +257,10 @@ class DrillSweeps:
         feed jump moves the drill into material, subtract the posed drill itself too
         (``BSP.from_mesh(pose + turn * feed, faces)``) so no material is left inside it.
     faces : (m, 3) int64
+    period : int
+        The sweeps repeat every ``period`` steps: ``steps[k]`` is the very list ``steps[k % period]``
+        (a drill with a turn symmetry of order n spins into itself every 360/n degrees;
+        :func:`drill_sweeps`). :meth:`tools` builds ``period`` tools, not ``len(self)``.
     """
 
     steps: list[list[ConvexHull]]
@@ -264,6 +268,16 @@ class DrillSweeps:
     skipped: int
     poses: list[np.ndarray] = field(default_factory=list)
     faces: np.ndarray | None = None
+    period: int | None = None
+
+    def __post_init__(self) -> None:
+        n = len(self.steps)
+        if self.period is None:
+            self.period = n
+        if (n and not 1 <= self.period <= n) or any(self.steps[k] is not self.steps[k % self.period]
+                                                       for k in range(n)):
+            raise GeometryError(f"period {self.period} must divide the steps into repeats of the first "
+                                f"{self.period} (steps[k] is steps[k % period])")
 
     def __len__(self) -> int:
         return len(self.steps)
@@ -272,7 +286,8 @@ class DrillSweeps:
         """Prepare each step's sweep as one :class:`csgnb.octree.Tool` (the union of its prisms), once.
 
         Step k's tool is what ``work -= tool.translated(turn * feed)`` subtracts at global step
-        ``turn * len(self) + k`` (Figure 13's drill: 90 tools replayed turn after turn). The steps are
+        ``turn * len(self) + k`` (Figure 13's drill: 90 tools replayed turn after turn). Steps that
+        repeat (:attr:`period`) share one tool: the paper's two-flute drill builds 45. The steps are
         independent: they are built on ``threads`` threads (default: every core numba uses; the
         Boolean kernels release the GIL), each tool the one a single thread builds.
 
@@ -288,7 +303,7 @@ class DrillSweeps:
 
         Returns
         -------
-        list of csgnb.octree.Tool, one per step
+        list of csgnb.octree.Tool, one per step (repeating steps: the same object)
         """
         if threads is None:
             threads = numba.get_num_threads()
@@ -300,7 +315,7 @@ class DrillSweeps:
         if progress:
             from tqdm.auto import tqdm
 
-            bar = tqdm(total=len(self.steps), desc="drill sweeps", unit="step")
+            bar = tqdm(total=self.period, desc="drill sweeps", unit="step")
 
         def build(k: int):
             swept = Workpiece.empty(grid, **options)
@@ -312,9 +327,11 @@ class DrillSweeps:
 
         try:
             if threads == 1:
-                return [build(k) for k in range(len(self.steps))]
-            with ThreadPoolExecutor(int(threads)) as pool:
-                return list(pool.map(build, range(len(self.steps))))
+                distinct = [build(k) for k in range(self.period)]
+            else:
+                with ThreadPoolExecutor(int(threads)) as pool:
+                    distinct = list(pool.map(build, range(self.period)))
+            return [distinct[k % self.period] for k in range(len(self.steps))]
         finally:
             if bar is not None:
                 bar.close()
@@ -329,22 +346,51 @@ class DrillSweeps:
 
 
 def drill_sweeps(tool: GridTool, position=(0.0, 0.0, 0.0), *, tilt_degrees: float = 30.0, steps: int = 90,
-                 step_degrees: float = 4.0, feed_per_turn: float = 0.5) -> DrillSweeps:
+                 step_degrees: float = 4.0, feed_per_turn: float = 0.5, symmetry: bool = True) -> DrillSweeps:
     """Precompute the per-step prism sweeps of ``tool`` spinning at ``position`` (Figure 13's set-up).
 
     ``feed_per_turn`` (mm) moves the drill along its tilted axis towards the tip each turn,
     rounded once to a grid vector, so every later turn is an exact translation.
+
+    With ``symmetry`` (default), a tool that turns into itself every 360/n degrees
+    (:attr:`csgnb.apps.tools.GridTool.spin_symmetry`, found exactly on the grid) is posed
+    directly for the first ``period = 360 / (n * step_degrees)`` poses only (when that is a
+    whole number of steps), and pose ``k + period`` is pose ``k`` with its vertices renamed by
+    the symmetry: the same grid points, each still the rounding of its vertex's true position,
+    so step ``k + period`` has step k's prisms and the very same sweep (``DrillSweeps.period``).
+    The paper's two-flute drill: 45 sweeps to build instead of 90, the same volumes.
+    ``symmetry=False`` poses every step directly.
     """
-    poses = drill_poses(position, tilt_degrees=tilt_degrees, steps=steps, step_degrees=step_degrees)
-    verts = [pose_vertices(tool, p) for p in poses]
+    steps = int(steps)
+    if steps < 0:
+        raise GeometryError(f"steps must be a count of poses to sweep between, got {steps}")
+    period, perm = steps, None
+    if symmetry and steps > 1:
+        sym = tool.spin_symmetry
+        for d in range(sym.order, 1, -1):  # the largest usable turn: the shortest period
+            p = 360.0 / (d * float(step_degrees))
+            if sym.order % d == 0 and abs(p - round(p)) < 1e-9 and 1 <= round(p) < steps:
+                period, perm = int(round(p)), sym.turns(sym.order // d)
+                break
+    poses = drill_poses(position, tilt_degrees=tilt_degrees, steps=period, step_degrees=step_degrees)
+    verts = [pose_vertices(tool, p) for p in poses[:period]]
+    if perm is None:
+        verts.append(pose_vertices(tool, poses[period]))
+    else:
+        for k in range(period, steps + 1):
+            verts.append(verts[k - period][perm])
     out, skipped = [], 0
-    for a, b in zip(verts[:-1], verts[1:], strict=True):
-        hulls, s = prisms(a, b, tool.faces, width=tool.grid.width, grid=tool.grid)
-        out.append(hulls)
-        skipped += s
+    for k in range(steps):
+        if k < period:
+            hulls, s = prisms(verts[k], verts[k + 1], tool.faces, width=tool.grid.width, grid=tool.grid)
+            out.append(hulls)
+            skipped += s
+        else:
+            out.append(out[k - period])
+            skipped += len(tool.faces) - len(out[k])
     axis = rotation_about((1, 0, 0), tilt_degrees) @ np.array([0.0, 0.0, -1.0])  # towards the tip
     feed = np.rint(axis * float(feed_per_turn) * tool.grid.scale).astype(np.int64)
-    return DrillSweeps(out, feed, skipped, verts[:-1], tool.faces)
+    return DrillSweeps(out, feed, skipped, verts[:steps], tool.faces, period)
 
 
 def union_hulls(hulls: list[ConvexHull], *, width: int | None = None):

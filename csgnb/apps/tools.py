@@ -33,6 +33,7 @@ from csgnb.mesh.hull import ConvexHull, convex_hull
 
 __all__ = [
     "GridTool",
+    "SpinSymmetry",
     "ToolShape",
     "ball_end_mill",
     "bull_nose",
@@ -158,6 +159,60 @@ class ToolShape:
         return f"ToolShape({self.name!r}, {self.n_triangles} triangles, {kind}, {self.params})"
 
 
+MAX_SPIN_ORDER = 64  # the largest turn symmetry GridTool.spin_symmetry looks for (360/64 = 5.6 degrees)
+
+
+@dataclass(frozen=True)
+class SpinSymmetry:
+    """Turns by 360/``order`` degrees about a tool's axis that map its grid mesh onto itself.
+
+    Attributes
+    ----------
+    order : int
+        1 when the tool has no such symmetry.
+    permutation : (n,) int64
+        Vertex ``i`` turned by 360/order degrees lands on vertex ``permutation[i]`` (grid offsets,
+        exactly); the identity when ``order`` is 1.
+    """
+
+    order: int
+    permutation: np.ndarray
+
+    def turns(self, k: int) -> np.ndarray:
+        """``(n,) int64``: where vertex i lands after ``k`` turns of 360/order degrees."""
+        out = np.arange(len(self.permutation))
+        for _ in range(int(k) % self.order):
+            out = self.permutation[out]
+        return out
+
+
+def _canonical_triangles(faces: np.ndarray) -> np.ndarray:
+    """Triangles ``(m, 3)`` each rolled to start at its smallest index (orientation kept), rows sorted."""
+    F = np.asarray(faces, np.int64)
+    k = np.argmin(F, axis=1)
+    rolled = F[np.arange(len(F))[:, None], (k[:, None] + np.arange(3)[None, :]) % 3]
+    return rolled[np.lexsort(rolled.T[::-1])]
+
+
+def _spin_symmetry(design: np.ndarray, offsets: np.ndarray, faces: np.ndarray, scale: float) -> SpinSymmetry:
+    """The largest n <= MAX_SPIN_ORDER whose turn maps the quantized mesh onto itself (see GridTool.spin_symmetry)."""
+    index = {tuple(row): i for i, row in enumerate(offsets.tolist())}
+    triangles = _canonical_triangles(faces)
+    for order in range(MAX_SPIN_ORDER, 1, -1):
+        t = 2 * np.pi / order
+        c, s = np.cos(t), np.sin(t)
+        turned = design @ np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]).T
+        landed = [index.get(tuple(row)) for row in np.rint(turned * scale).astype(np.int64).tolist()]
+        if None in landed:
+            continue
+        perm = np.array(landed, np.int64)
+        if len(np.unique(perm)) != len(perm):
+            continue
+        if np.array_equal(_canonical_triangles(perm[faces]), triangles):
+            return SpinSymmetry(order, perm)
+    return SpinSymmetry(1, np.arange(len(offsets), dtype=np.int64))
+
+
 class GridTool:
     """A tool quantized on a grid: integer offsets from the tip, a valid closed mesh.
 
@@ -245,6 +300,19 @@ class GridTool:
             return self.hull.swept(self.tip(positions[1]) - a, offset=a)
         pts = np.vstack([self.at(p) for p in positions])
         return convex_hull(pts, width=self.grid.width, grid=self.grid, name="tool vertices")
+
+    @cached_property
+    def spin_symmetry(self) -> SpinSymmetry:
+        """The turns about the tool's axis (+z through the tip) that map its grid mesh exactly onto itself.
+
+        Found, not assumed: for each order n from :data:`MAX_SPIN_ORDER` down to 2, the design
+        turned by 360/n degrees is quantized again and must land on the grid offsets vertex for
+        vertex (a bijection of integer points), and the permuted triangles, orientation kept,
+        must be the tool's triangles. The first order found is the largest (a two-flute drill:
+        2; a spur gear of 12 teeth: 12); :attr:`SpinSymmetry.order` 1 when there is none.
+        A spinning tool's sweeps then repeat every 360/n degrees (:func:`csgnb.apps.sweep.drill_sweeps`).
+        """
+        return _spin_symmetry(self.design_vertices(), self.offsets, self.faces, self.grid.scale)
 
     def __repr__(self) -> str:
         kind = "convex" if self.convex else "non-convex"

@@ -1182,6 +1182,12 @@ def small_hulls(points, *, width: int = DEFAULT_WIDTH, grid=None) -> list[Convex
     origin = P[:, 0, :]
     L = P - origin[:, None, :]
     E = int(np.abs(L).max(initial=0))
+    if _arith(E) is not np.int64 and E <= SMALL_HULLS_FILTERED_EXTENT:
+        # 256-bit grids: normals still fit int64, the distances do not -- signs from doubles where certified
+        out = []
+        for at in range(0, m, SMALL_HULLS_CHUNK):
+            out += _small_hulls_filtered(P[at:at + SMALL_HULLS_CHUNK], width=width, grid=grid)
+        return out
     if _arith(E) is not np.int64:  # enormous pieces: the general exact path, one by one
         out = []
         for S in P:
@@ -1220,6 +1226,80 @@ def small_hulls(points, *, width: int = DEFAULT_WIDTH, grid=None) -> list[Convex
             continue
         out.append(ConvexHull(points[first[h]:first[h + 1]], origin[h].copy(), np.ascontiguousarray(r[:, 1:4]),
                               np.ascontiguousarray(r[:, 4]), width=width, grid=grid, box=(lo[h].copy(), hi[h].copy())))
+    return out
+
+
+SMALL_HULLS_FILTERED_EXTENT = 1 << 29  # cross products of local differences (<= 2**30) stay below 2**61
+SMALL_HULLS_CHUNK = 8192  # sets per pass of the filtered path: (chunk, 20, 6) arrays of a few MB
+# A double evaluation of N . p - N . a (N rounded once to a double, three products and sums a side, one difference)
+# is within ~6 units of 2**-53 of the sum of its terms' magnitudes; 2**-48 is five times that.
+SMALL_HULL_SIGN_BOUND = 2.0**-48
+
+
+def _small_hulls_filtered(P: np.ndarray, *, width: int, grid) -> list[ConvexHull | None]:
+    """:func:`small_hulls` for sets whose local extent E fits ``SMALL_HULLS_FILTERED_EXTENT`` but not int64 distances.
+
+    Every candidate plane through three of a set's points has an exact int64 normal N (|N| <= 2 (2E)^2 < 2**62);
+    the signed distances N . (p - a) of the set's points (up to ~2**91) are evaluated in doubles with a certified
+    bound (:data:`SMALL_HULL_SIGN_BOUND` x the sum of the terms' magnitudes) and exactly, in
+    Python integers, only where the double is within its bound (and set to zero, exactly, for the plane's own three
+    points). The kept facets' offsets are exact Python integers; the planes and points are those the int64 path
+    (and :func:`convex_hull`) gives.
+    """
+    m, k = P.shape[0], P.shape[1]
+    if m == 0:
+        return []
+    origin = P[:, 0, :]
+    L = P - origin[:, None, :]
+    tri = np.array([(a, b, c) for a in range(k) for b in range(a + 1, k) for c in range(b + 1, k)])
+    t = tri.shape[0]
+    Ai, Aj, Ak = L[:, tri[:, 0]], L[:, tri[:, 1]], L[:, tri[:, 2]]  # (m, t, 3), |.| <= E
+    N = _cross(Aj - Ai, Ak - Ai)  # exact int64
+    Nf, Lf, Af = N.astype(np.float64), L.astype(np.float64), Ai.astype(np.float64)
+    Sf = np.einsum("mtc,mpc->mtp", Nf, Lf) - np.einsum("mtc,mtc->mt", Nf, Af)[:, :, None]
+    bound = SMALL_HULL_SIGN_BOUND * (np.einsum("mtc,mpc->mtp", np.abs(Nf), np.abs(Lf))
+                                     + np.einsum("mtc,mtc->mt", np.abs(Nf), np.abs(Af))[:, :, None])
+    sign = np.sign(Sf).astype(np.int8)
+    unsure = np.abs(Sf) <= bound
+    own = np.zeros((t, k), bool)
+    own[np.arange(t)[:, None], tri] = True  # a plane's own three points: distance zero by construction
+    sign[:, own] = 0
+    unsure[:, own] = False
+    hm, ht, hp = np.nonzero(unsure)
+    if hm.size:  # exact: Python integers for the close calls only
+        Nh = N[hm, ht].astype(object)
+        Dh = (L[hm, hp] - Ai[hm, ht]).astype(object)
+        exact = (Nh * Dh).sum(axis=1)
+        sign[hm, ht, hp] = np.array([(v > 0) - (v < 0) for v in exact.tolist()], np.int8)
+    below = np.all(sign <= 0, axis=2)
+    above = np.all(sign >= 0, axis=2)
+    real = np.any(N != 0, axis=2) & ~np.all(sign == 0, axis=2)
+    keep = real & (below | above)
+    N = N * np.where(below, 1, -1)[:, :, None]
+    g = np.gcd.reduce(np.abs(N), axis=2)
+    N = N // np.where(g == 0, 1, g)[:, :, None]
+    mid, tid = np.nonzero(keep)
+    # one supporting plane per outward normal: dedupe on (set, normal), the offsets follow
+    key = np.column_stack([mid, N[mid, tid]])
+    key, first_row = np.unique(key, axis=0, return_index=True)
+    mid, tid = mid[first_row], tid[first_row]
+    Nk, Ak_ = N[mid, tid], Ai[mid, tid]  # |N| < 2**62, |A| <= 2**29
+    hi_part, lo_part = Nk >> 31, Nk & ((1 << 31) - 1)  # N = hi 2**31 + lo, each product below 2**61
+    d_hi = -(hi_part * Ak_).sum(axis=1)
+    d_lo = -(lo_part * Ak_).sum(axis=1)
+    d = d_hi.astype(object) * (1 << 31) + d_lo.astype(object)
+    starts = np.searchsorted(mid, np.arange(m + 1))
+    points, first, lo, hi = _unique_rows_per_set(np.ascontiguousarray(L))
+    lo += origin
+    hi += origin
+    out: list[ConvexHull | None] = []
+    for h in range(m):
+        a, b = starts[h], starts[h + 1]
+        if b - a < 4:  # flat: no supporting plane with a point strictly behind
+            out.append(None)
+            continue
+        out.append(ConvexHull(points[first[h]:first[h + 1]], origin[h].copy(), np.ascontiguousarray(Nk[a:b]),
+                              _maybe_int64(d[a:b]), width=width, grid=grid, box=(lo[h].copy(), hi[h].copy())))
     return out
 
 
