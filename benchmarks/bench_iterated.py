@@ -75,10 +75,18 @@ def _drill_steps(work, step_tools, feed, total: int, verbose: bool = False) -> l
     return ts
 
 
+def _drill_grid(args) -> Grid:
+    """The drill's grid: the finest that holds its box at ``--width`` bits, or ``--resolution`` mm at that width."""
+    fitted = Grid.fit([-12, -12, -16], [12, 12, 8], width=args.width)
+    if args.resolution is None:
+        return fitted
+    return Grid.from_resolution(args.resolution, origin=fitted.origin, width=args.width)
+
+
 def drill_workload(args) -> dict:
     import manifold3d as m3
 
-    grid = Grid.fit([-12, -12, -16], [12, 12, 8], width=args.width)
+    grid = _drill_grid(args)
     drill = tools.twist_drill().on(grid)
     # -- precompute: the poses' prisms (exact hulls, both libraries use their points), then the 90 sweep volumes
     # (timed apart from the steps; the volumes on every core) ----------------
@@ -160,7 +168,7 @@ def drill_mesh_workload(args) -> dict:
     same translated steps. Tool preparation is timed with the steps on both sides."""
     import manifold3d as m3
 
-    grid = Grid.fit([-12, -12, -16], [12, 12, 8], width=args.width)
+    grid = _drill_grid(args)
     drill = tools.twist_drill().on(grid)
     ds = sweep.drill_sweeps(drill, feed_per_turn=args.feed)
     n_steps = len(ds)
@@ -394,6 +402,9 @@ def main() -> None:
                         choices=["drill", "drill_mesh", "gear_sweep", "dome", "lattice"])
     parser.add_argument("--width", type=int, default=128)
     parser.add_argument("--threshold", type=int, default=150)
+    parser.add_argument("--resolution", type=float, default=None,
+                        help="the drill's grid step in mm (default: the finest its box allows at --width bits; "
+                             "2**-8 = 0.00390625 is the 128-bit one)")
     parser.add_argument("--turns", type=int, default=3)
     parser.add_argument("--feed", type=float, default=1.0, help="drill feed per turn (mm)")
     parser.add_argument("--shards", type=int, default=None,
@@ -414,7 +425,8 @@ def main() -> None:
 
     print(f"csgnb iterated CSG, {args.width}-bit, threshold {args.threshold}, one core (the drill also on every "
           f"core), clock {nominal_clock_label()}")
-    result = {"clock": nominal_clock_label(), "width": args.width, "threshold": args.threshold, "workloads": {}}
+    result = {"clock": nominal_clock_label(), "width": args.width, "threshold": args.threshold,
+              "resolution": args.resolution, "workloads": {}}
     if "drill" in args.workloads:
         d = drill_workload(args)
         result["workloads"]["drill"] = d
