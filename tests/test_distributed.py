@@ -463,6 +463,29 @@ def test_shards_on_threads_refuse_a_bad_tool_at_once_and_stay_usable():
         assert s.volume() == 16**3 - 6 * 2 * 2
 
 
+def test_shards_on_threads_measure_a_256_bit_workpiece():
+    """The shards' volumes at 256 bits (each clips its solid by a box at the workpiece's width: a 128-bit box was
+    refused beyond the 128-bit budget), equal to the single workpiece's, on a fine grid and on the identity grid."""
+    import numpy as np
+
+    from csgnb.distributed.sharded import ShardedWorkpiece
+    from csgnb.exact import Grid
+    from csgnb.mesh.hull import convex_hull
+    from csgnb.octree import Workpiece
+
+    for grid in (Grid.fit([-12] * 3, [12] * 3, width=256), Grid.fit([-12] * 3, [12] * 3, width=192), None):
+        kw = {"grid": grid} if grid is not None else {"width": 256}
+        g = grid if grid is not None else Workpiece(width=256).grid
+        lo, hi = g.to_grid(np.array([[-3.0, -1.0, -1.0], [3.0, 1.0, 1.0]])) if grid else ([-3] * 3, [3] * 3)
+        corners = [[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])]
+        hull = convex_hull(np.array(corners), width=g.width)
+        single = Workpiece.box([-8] * 3, [8] * 3, **kw)
+        single -= hull
+        with ShardedWorkpiece(Workpiece.box([-8] * 3, [8] * 3, **kw), None, 2) as s:
+            s.difference(hull)
+            assert s.volume() == single.volume() > 0
+
+
 def test_a_shard_reads_points_on_its_walls_from_its_own_side():
     """A workpiece changed only inside a box (``within=``) is stale beyond it: points on the box's faces read with
     ``box_face_sides`` get the labels of the workpiece that saw every change; read both ways, some do not."""

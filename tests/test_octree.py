@@ -390,3 +390,50 @@ def test_translated_mesh_tools_reuse_their_sources_boxes():
         w -= tl
         results.append((w.volume(), w.n_cells, w.n_bsp_nodes))
     assert results[0] == results[1]
+
+
+def _needles(grid, apex, n, seed):
+    """Thin tetrahedra from one apex in random directions: n x 3 planes through one point."""
+    rng = np.random.default_rng(seed)
+    hulls = []
+    for _ in range(n):
+        u = rng.normal(size=3)
+        u /= np.linalg.norm(u)
+        pts = np.vstack([apex, apex + 6 * (u + 0.08 * rng.normal(size=(3, 3)))])
+        hulls.append(convex_hull(grid.to_grid(pts), width=grid.width))
+    return hulls
+
+
+def test_a_stock_workpiece_stops_splitting_at_its_share_of_the_stock(tmp_path):
+    """Where surfaces meet at one point no split separates them: cells of a workpiece made from a stock end at the
+    stock's side over 2**STOCK_CELL_DEPTH instead of a chain of cells down to one grid unit; the solid is the same."""
+    from csgnb.octree import STOCK_CELL_DEPTH
+
+    grid = Grid.fit([-8] * 3, [8] * 3, width=128)
+    needles = _needles(grid, np.array([0.3, 0.2, 0.1]), 80, seed=5)
+    deep = Workpiece.box([-7] * 3, [7] * 3, grid=grid, min_cell=1)
+    capped = Workpiece.box([-7] * 3, [7] * 3, grid=grid)
+    side = int(np.ptp(grid.to_grid(np.array([[-7.0] * 3, [7.0] * 3])), axis=0).max())
+    assert capped.min_cell == 1 << ((side >> STOCK_CELL_DEPTH).bit_length() - 1) > 1
+    for h in needles:
+        deep -= h
+        capped -= h
+    d, c = deep.cells(), capped.cells()
+    assert d["size"].min() == 1  # the needles' apex made a chain of cells down to one grid unit
+    assert c["size"].min() >= capped.min_cell  # the stock's workpiece stopped at its minimum cell
+    assert capped.n_cells < deep.n_cells
+    over = c["nodes"] > capped.threshold
+    assert over.any() and np.all(c["size"][over] == capped.min_cell)  # left whole there, as min_cell promises
+    assert capped.volume() == deep.volume()
+    rng = np.random.default_rng(0)
+    X = grid.to_grid(np.array([0.3, 0.2, 0.1]) + rng.normal(scale=0.05, size=(3000, 3)))
+    assert np.array_equal(capped.classify(X), deep.classify(X))
+    # the minimum cell is saved with the workpiece, and its cells over the threshold load
+    capped.save(tmp_path / "capped.npz")
+    r = Workpiece.load(tmp_path / "capped.npz")
+    assert r.min_cell == capped.min_cell and r.volume() == capped.volume()
+    # an explicit min_cell is kept; a workpiece made from a mesh gets its stock's default too
+    assert Workpiece.box([-7] * 3, [7] * 3, grid=grid, min_cell=4).min_cell == 4
+    V = np.array([[0, 0, 0], [4096, 0, 0], [0, 4096, 0], [0, 0, 4096]], np.int64)
+    F = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])
+    assert Workpiece.from_mesh(V, F).min_cell == 4096 >> STOCK_CELL_DEPTH

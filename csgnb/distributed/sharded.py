@@ -202,7 +202,7 @@ class Shard:
         clipped = _from_bytes(_to_bytes(self.w))  # a copy: the shard keeps its (stale) solid beyond its box
         corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])],
                            np.int64)
-        clipped.boolean(convex_hull(corners), INTERSECTION)
+        clipped.boolean(convex_hull(corners, width=self.w.width), INTERSECTION)
         return fraction_text(clipped.volume())
 
     def classify(self, points: np.ndarray) -> np.ndarray:

@@ -9,6 +9,6 @@ of a Boolean, :mod:`~csgnb.octree.persist` saving and loading.
 """
 
 from csgnb.octree.tool import Tool
-from csgnb.octree.workpiece import DEFAULT_THRESHOLD, OpReport, Workpiece
+from csgnb.octree.workpiece import DEFAULT_THRESHOLD, STOCK_CELL_DEPTH, OpReport, Workpiece
 
-__all__ = ["DEFAULT_THRESHOLD", "OpReport", "Tool", "Workpiece"]
+__all__ = ["DEFAULT_THRESHOLD", "STOCK_CELL_DEPTH", "OpReport", "Tool", "Workpiece"]
