@@ -226,7 +226,7 @@ def _stock_min_cell(points) -> int:
     >>> _stock_min_cell([[0, 0, 0], [140, 20, 20]]), _stock_min_cell([[-10**6] * 3, [10**6] * 3])
     (1, 8192)
     """
-    P = np.asarray(points, dtype=object) if not isinstance(points, np.ndarray) else points
+    P = np.asarray(points)
     extent = max(int(P[:, c].max()) - int(P[:, c].min()) for c in range(3))
     return 1 << max(0, (extent >> STOCK_CELL_DEPTH).bit_length() - 1)
 
@@ -298,7 +298,7 @@ class Workpiece:
         scaled grid corners are quantized like every model point (rounded to the nearest grid
         point, at most half of ``grid.resolution`` away).
         """
-        w = cls(grid, **{"min_cell": 1, **kw})
+        w = cls(grid, **kw)
         if w.grid.exponent == 0 and not np.any(w.grid.origin):
             g = np.stack([np.asarray(check_corner(lo, "lo"), np.int64), np.asarray(check_corner(hi, "hi"), np.int64)])
         else:
@@ -326,13 +326,12 @@ class Workpiece:
         V, F = _mesh_arrays(vertices, faces)
         if grid is None and V.dtype.kind == "f":
             grid = Grid.fit(V.min(axis=0), V.max(axis=0), width=kw.pop("width", DEFAULT_WIDTH))
-        w = cls(grid, **{"min_cell": 1, **kw})
+        w = cls(grid, **kw)
         if V.dtype.kind == "f":
             V = w.grid.to_grid(V)
-        tool = Tool.from_mesh(V, F, width=w.width, grid=w.grid)
         if "min_cell" not in kw:
             w.min_cell = _stock_min_cell(V)
-        w.union(tool)
+        w.union(Tool.from_mesh(V, F, width=w.width, grid=w.grid))
         return w
 
     # -- tools ------------------------------------------------------------------------
