@@ -14,6 +14,8 @@ from __future__ import annotations
 import numba
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from scipy.spatial import cKDTree
 
 import csgnb.csg as csg
@@ -357,6 +359,30 @@ def test_clip_set_hash_wraps_explicitly_and_the_same_jitted_or_not():
         deduplicate_clip_sets(np.array([0, 2]), np.array([3, 2**40]))  # would not fit the int32 buffer
 
 
+@settings(max_examples=150, deadline=None)
+@given(st.lists(st.lists(st.integers(0, 4), max_size=3), max_size=40))
+def test_clip_sets_deduplicated_like_a_dictionary_of_first_occurrences(sets):
+    """Each distinct clip set stored once, at its first occurrence, every sample pointing at its own set: runs of
+    equal sets (a leaf's samples, taken without a lookup) broken by empty sets and by other sets included."""
+    from csgnb.sampling.cloud import deduplicate_clip_sets
+
+    sets = [sorted(set(x)) for x in sets]
+    ptr = np.concatenate([[0], np.cumsum([len(x) for x in sets])]).astype(np.int64)
+    idx = np.array([v for x in sets for v in x], dtype=np.int64)
+    start, count, buf = deduplicate_clip_sets(ptr, idx)
+    first, want = {}, []
+    for x in sets:
+        if x and tuple(x) not in first:
+            first[tuple(x)] = len(want)
+            want.extend(x)
+    assert buf.tolist() == want
+    for i, x in enumerate(sets):
+        assert count[i] == len(x)
+        if x:
+            assert start[i] == first[tuple(x)]
+            assert buf[start[i] : start[i] + count[i]].tolist() == x
+
+
 def test_point_cloud_output():
     shape, _ = _spheres()
     cloud = sample_csg(shape, 0.1)
@@ -479,6 +505,39 @@ def test_two_threads_give_the_one_thread_samples_bit_for_bit(name, splat, trace,
     for key in a:
         assert np.array_equal(a[key], b[key]), key
     assert dataclasses.replace(one.stats, seconds=0.0) == dataclasses.replace(two.stats, seconds=0.0)
+
+
+@pytest.mark.skipif(numba.config.DISABLE_JIT, reason="the neighbour rule over 78,000 leaves in pure Python")
+def test_the_neighbour_rule_on_parts_of_tasks_is_the_one_pass_in_region_order(monkeypatch):
+    """The neighbour rule shares tasks out among threads; a region's raise of a sample's radius can cover a later
+    region of its task, so each part must do its tasks' regions in order: covered regions, the count and every
+    raised radius as on one thread, on a model where raises happen in several tasks."""
+    import csgnb.sampling.sampler as sampler
+    from csgnb.csg.gallery import TABLE2
+    from csgnb.sampling.kernel import cover_by_neighbours
+
+    seen = []
+    rule = sampler.cover_by_neighbours
+    monkeypatch.setattr(sampler, "cover_by_neighbours",
+                        lambda ts, LF, LI, UR, *a: seen.append((ts, LF.copy(), LI, UR.copy(), *a[:2])) or
+                        rule(ts, LF, LI, UR, *a))
+    build, radii = TABLE2["block"]
+    sample_csg(build(), radii["small"])
+    ts, LF, LI, UR, radius, reduce_radius = seen[0]
+    before = numba.get_num_threads()
+    results = []
+    try:
+        for threads in (1, min(2, numba.config.NUMBA_NUM_THREADS)):
+            numba.set_num_threads(threads)
+            lf, covered = LF.copy(), np.zeros(len(UR), dtype=np.bool_)
+            results.append((cover_by_neighbours(ts, lf, LI, UR, radius, reduce_radius, covered), covered, lf))
+    finally:
+        numba.set_num_threads(before)
+    (n1, c1, lf1), (n2, c2, lf2) = results
+    raised = np.flatnonzero(lf1[:, 9] != LF[:, 9])
+    assert reduce_radius and len(np.unique(ts.job_task[LI[raised, 0]])) > 1  # raises in several tasks
+    assert n1 == n2 == c1.sum() and np.array_equal(c1, c2)
+    assert np.array_equal(lf1, lf2)
 
 
 def test_joining_chunk_buffers_shifts_clip_list_offsets_and_trace_rows():

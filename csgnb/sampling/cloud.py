@@ -203,6 +203,8 @@ def _dedup_kernel(ptr, idx, start, count, buf):
     offsets = Dict.empty(key_type=types.int64, value_type=types.int64)
     lengths = Dict.empty(key_type=types.int64, value_type=types.int64)
     nb = 0
+    prev_a, prev_c, prev_s = 0, -1, 0  # the last non-empty set and where it is stored (a leaf's samples
+    # mostly share theirs)
     for i in range(start.shape[0]):
         a, b = ptr[i], ptr[i + 1]
         c = b - a
@@ -210,6 +212,17 @@ def _dedup_kernel(ptr, idx, start, count, buf):
         if c == 0:
             start[i] = 0
             continue
+        if c == prev_c:
+            same = True
+            for k in range(c):
+                if idx[prev_a + k] != idx[a + k]:
+                    same = False
+                    break
+            if same:  # the very set stored last: no hashing, no lookup
+                start[i] = prev_s
+                prev_a = a
+                continue
+        prev_a, prev_c = a, c
         h = _FNV_OFFSET
         for k in range(a, b):
             h = _fnv_step(h, idx[k])
@@ -225,6 +238,7 @@ def _dedup_kernel(ptr, idx, start, count, buf):
                             break
                 if same:
                     start[i] = s
+                    prev_s = s
                     break
                 h = (h + 1) & _MASK63
             else:
@@ -233,6 +247,7 @@ def _dedup_kernel(ptr, idx, start, count, buf):
                 for k in range(c):
                     buf[nb + k] = idx[a + k]
                 start[i] = nb
+                prev_s = nb
                 nb += c
                 break
     return nb

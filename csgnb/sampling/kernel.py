@@ -59,6 +59,7 @@ import math
 
 import numpy as np
 
+from csgnb._threads import run_parts, threads
 from csgnb.csg.distance import box_distance, quadric_distance
 from csgnb.quadric import tolerances as tol
 from csgnb.quadric.distortions import delta_at_points
@@ -712,7 +713,6 @@ def _reorder(values, a0, idx):
         values[a0 + i] = seg[idx[i]]
 
 
-@ieee_jit
 def cover_by_neighbours(ts, LF, LI, UR, radius, reduce_radius, covered):
     """Mark the regions ``UR`` (``_record_region``) that a sample of the same quadric covers; return the count.
 
@@ -722,12 +722,44 @@ def cover_by_neighbours(ts, LF, LI, UR, radius, reduce_radius, covered):
     surface patches (where two feature curves meet at a corner: d_Qab > 0 outside, zero only at the
     tip) and along tangencies without a sign change (a sphere inside a cylinder of its radius),
     which sit next to the samples of the patch itself. ``covered`` (u,) bool is written.
+
+    With reduced radii, a region no sample covers at its own radius raises the radius of the sample that
+    would cover it at the full one (``LF[leaf, 9]``), so a later region may find that sample covering: the
+    rule is a pass in region order. Only the samples of a region's own task are searched or raised, so the
+    tasks are independent: they are shared out among ``csgnb._threads`` parts of about equal work (leaves to
+    index, regions to search), each doing its tasks' regions in order -- the one-thread result, bit for bit.
     """
+    covered[:] = False
+    if UR.shape[0] == 0:
+        return 0
+    count_t, order, regions_t = _neighbour_groups(ts, LI, UR)
+    n_tasks = len(regions_t)
+    # work per task: its leaves (when it has regions) and its regions (a search each, ~50 leaves' worth)
+    work = np.where(regions_t > 0, np.diff(count_t) + 50 * regions_t, 0)
+    parts = min(threads(), int(np.count_nonzero(work))) or 1
+    owner = np.zeros(n_tasks, dtype=np.int64)
+    load = np.zeros(parts)
+    for t in np.argsort(-work, kind="stable"):  # the largest first, each to the least loaded part
+        p = int(np.argmin(load))
+        owner[t] = p
+        load[p] += work[t]
+    n_leaves = LI.shape[0]
+    index = (np.empty((n_leaves, 4)), np.empty(3 * n_tasks + 1, dtype=np.int64), np.empty(n_leaves, dtype=np.int64),
+             np.empty(n_leaves), np.zeros(3 * n_tasks), np.empty(n_leaves, dtype=np.int64))
+    index[1][::3] = count_t  # every task's span starts its singles and ends the task before it
+    counts = run_parts(_neighbour_part, ts, LF, LI, UR, count_t, order, regions_t, owner, index, radius,
+                       reduce_radius, covered, parts=parts)
+    return int(sum(counts))
+
+
+@ieee_jit
+def _neighbour_groups(ts, LI, UR):
+    """``(count_t, order, regions_t)``: the leaves of task t are ``order[count_t[t]:count_t[t + 1]]`` (in leaf
+    order), and ``regions_t[t]`` regions of ``UR`` are task t's."""
     job_task = ts.job_task
     n_leaves = LI.shape[0]
     n_tasks = ts.quadric.shape[0]
-    # the leaves of every task (leaves are in job order, jobs in task order — pass 1b's jobs
-    # follow, so collect by task explicitly)
+    # leaves are in job order, jobs in task order — pass 1b's jobs follow, so collect by task explicitly
     count_t = np.zeros(n_tasks + 1, dtype=np.int64)
     for leaf in range(n_leaves):
         count_t[job_task[LI[leaf, 0]] + 1] += 1
@@ -739,130 +771,160 @@ def cover_by_neighbours(ts, LF, LI, UR, radius, reduce_radius, covered):
         t = job_task[LI[leaf, 0]]
         order[fill[t]] = leaf
         fill[t] += 1
-    # only the tasks with regions to check matter
-    needed = np.zeros(n_tasks, dtype=np.bool_)
+    regions_t = np.zeros(n_tasks, dtype=np.int64)
     for u in range(UR.shape[0]):
-        needed[int(UR[u, 4])] = True
-    # a world ball per leaf: its first vertex (recorded by pass 1) and the world reach of its triangle
-    P = np.empty((n_leaves, 4))
-    for leaf in range(n_leaves):
-        if not needed[job_task[LI[leaf, 0]]]:
-            continue
+        regions_t[int(UR[u, 4])] += 1
+    return count_t, order, regions_t
+
+
+@ieee_jit
+def _index_task(LF, LI, t, count_t, order, radius, index):
+    """Index the leaves of task t in ``index = (P, kind_first, sorted_leaf, key, widest, cell)``, within the task's
+    span ``count_t[t]:count_t[t + 1]``.
+
+    ``P`` (leaves, 4): a world ball per leaf (its first vertex, recorded by pass 1, and the world reach of its
+    triangle); the groups ``g = 3 t + kind`` (singles, small lattices with reach ≤ 4 radii, large lattices) are
+    ``sorted_leaf[kind_first[g]:kind_first[g + 1]]``, singles sorted by their grid ``cell`` of one radius
+    (feature curves often lie in planes x = const), lattices in leaf order with the x of their ball centers in
+    ``key`` (:func:`_sort_lattices` sorts them by it: a window of x ± (radius + ``widest[g]``, the group's largest
+    reach) then holds every leaf that can cover a region; the few large lattices are one wide window).
+    """
+    P, kind_first, sorted_leaf, key, widest, cell = index
+    for o in range(count_t[t], count_t[t + 1]):
+        leaf = order[o]
         P[leaf, 0], P[leaf, 1], P[leaf, 2] = LF[leaf, 6], LF[leaf, 7], LF[leaf, 8]
         if LI[leaf, 1] == 0:
             P[leaf, 3] = 0.0
         else:
             P[leaf, 3] = LF[leaf, 12] * corner_reach(LF[leaf, 0], LF[leaf, 1], LF[leaf, 2], LF[leaf, 3],
                                                      LF[leaf, 4], LF[leaf, 5], 0)
-    # per task and group (singles, small lattices with reach ≤ 4 radii, large lattices), its leaves
-    # sorted by the x of their ball centers: a window of x ± (radius + the group's largest reach)
-    # holds every leaf that can cover a region (the few large lattices are one wide window)
-    kind_first = np.empty(3 * n_tasks + 1, dtype=np.int64)
-    sorted_leaf = np.empty(n_leaves, dtype=np.int64)
-    key = np.empty(n_leaves)
-    widest = np.zeros(3 * n_tasks)
-    at = 0
-    for t in range(n_tasks):
-        for kind in range(3):
-            g = 3 * t + kind
+    at = count_t[t]
+    for kind in range(3):
+        g = 3 * t + kind
+        if kind > 0:  # (kind_first[3 t] = count_t[t] is set by the caller: a neighbour task reads it as its end)
             kind_first[g] = at
-            if not needed[t]:
-                continue
-            for o in range(count_t[t], count_t[t + 1]):
-                leaf = order[o]
-                group = 0 if LI[leaf, 1] == 0 else (1 if P[leaf, 3] <= 4.0 * radius else 2)
-                if group == kind:
-                    sorted_leaf[at] = leaf
-                    key[at] = P[leaf, 0]
-                    widest[g] = max(widest[g], P[leaf, 3])
-                    at += 1
-    kind_first[3 * n_tasks] = at
-    sorted_lattices = False  # (sorted by x only if some region is left to them)
-    # singles also by grid cell (cells of one radius; feature curves often lie in planes x = const)
-    cell = np.empty(n_leaves, dtype=np.int64)
-    h = radius
-    for t in range(n_tasks):
-        a0, b0 = kind_first[3 * t], kind_first[3 * t + 1]
-        for o in range(a0, b0):
-            leaf = sorted_leaf[o]
-            cell[o] = _cell_key(P[leaf, 0], P[leaf, 1], P[leaf, 2], h)
-        idx = np.argsort(cell[a0:b0])
+        widest[g] = 0.0
+        for o in range(count_t[t], count_t[t + 1]):
+            leaf = order[o]
+            group = 0 if LI[leaf, 1] == 0 else (1 if P[leaf, 3] <= 4.0 * radius else 2)
+            if group == kind:
+                sorted_leaf[at] = leaf
+                key[at] = P[leaf, 0]
+                widest[g] = max(widest[g], P[leaf, 3])
+                at += 1
+    a0, b0 = kind_first[3 * t], kind_first[3 * t + 1]
+    for o in range(a0, b0):
+        leaf = sorted_leaf[o]
+        cell[o] = _cell_key(P[leaf, 0], P[leaf, 1], P[leaf, 2], radius)
+    idx = np.argsort(cell[a0:b0])
+    _reorder(sorted_leaf, a0, idx)
+    _reorder(cell, a0, idx)
+
+
+@ieee_jit
+def _sort_lattices(index, t):
+    """Sort task t's lattice groups of ``index`` (:func:`_index_task`) by their leaves' x, in place."""
+    _, kind_first, sorted_leaf, key, _, _ = index
+    for g in range(3 * t + 1, 3 * t + 3):
+        a0, b0 = kind_first[g], kind_first[g + 1]
+        idx = np.argsort(key[a0:b0])
         _reorder(sorted_leaf, a0, idx)
-        _reorder(cell, a0, idx)
+        _reorder(key, a0, idx)
+
+
+@inline_jit
+def _singles_cover(LF, UR, u, index, radius, reduce_radius, best_need, best_leaf):
+    """``(covered, best_need, best_leaf)``: does a single sample of region u's task cover it, at the radii in
+    ``LF`` now; with reduced radii, the closest that would at the full radius, if it is closer than ``best_need``.
+    """
+    P, kind_first, sorted_leaf, _, _, cell = index
+    t = int(UR[u, 4])
+    cx, cy, cz, rho = UR[u, 0], UR[u, 1], UR[u, 2], UR[u, 3]
+    h = radius
+    # a covering one is within one radius of the center, so in the ≤ 8 cells of the box center ± radius
+    a0, b0 = kind_first[3 * t], kind_first[3 * t + 1]
+    ix0, ix1 = int(math.floor((cx - h) / h)), int(math.floor((cx + h) / h))
+    iy0, iy1 = int(math.floor((cy - h) / h)), int(math.floor((cy + h) / h))
+    iz0, iz1 = int(math.floor((cz - h) / h)), int(math.floor((cz + h) / h))
+    for ix in range(ix0, ix1 + 1):
+        for iy in range(iy0, iy1 + 1):
+            for iz in range(iz0, iz1 + 1):
+                kc = ((ix + (1 << 20)) << 42) | ((iy + (1 << 20)) << 21) | (iz + (1 << 20))
+                lo, hi = a0, b0
+                while lo < hi:  # first entry ≥ kc
+                    mid = (lo + hi) >> 1
+                    if cell[mid] < kc:
+                        lo = mid + 1
+                    else:
+                        hi = mid
+                o = lo
+                while o < b0 and cell[o] == kc:
+                    leaf = sorted_leaf[o]
+                    dx, dy, dz = P[leaf, 0] - cx, P[leaf, 1] - cy, P[leaf, 2] - cz
+                    need = (math.sqrt(dx * dx + dy * dy + dz * dz) + rho) / (1.0 - tol.NEIGHBOUR_MARGIN)
+                    r_s = max(LF[leaf, 14], LF[leaf, 9]) if reduce_radius else radius
+                    if need <= r_s:
+                        return True, best_need, best_leaf
+                    if need <= radius and need < best_need:  # (reduced radii only: r_s < radius)
+                        best_need, best_leaf = need, leaf
+                    o += 1
+    return False, best_need, best_leaf
+
+
+@inline_jit
+def _lattices_cover(ts, LF, LI, UR, u, index, radius, reduce_radius, best_need, best_leaf):
+    """:func:`_singles_cover` for the nearest points of the task's lattices (sorted: :func:`_sort_lattices`)."""
+    P, kind_first, sorted_leaf, key, widest, _ = index
+    t = int(UR[u, 4])
+    cx, cy, cz, rho = UR[u, 0], UR[u, 1], UR[u, 2], UR[u, 3]
+    for kind in range(1, 3):
+        g = 3 * t + kind
+        a0, b0 = kind_first[g], kind_first[g + 1]
+        half = radius + widest[g]
+        lo = a0 + np.searchsorted(key[a0:b0], cx - half)
+        hi = a0 + np.searchsorted(key[a0:b0], cx + half, side="right")
+        for o in range(lo, hi):
+            leaf = sorted_leaf[o]
+            dx, dy, dz = P[leaf, 0] - cx, P[leaf, 1] - cy, P[leaf, 2] - cz
+            if abs(dy) > half or abs(dz) > half:
+                continue
+            dist = math.sqrt(dx * dx + dy * dy + dz * dz)
+            if dist - P[leaf, 3] + rho <= radius:
+                need, r_s = _lattice_need(ts, LF, LI, leaf, cx, cy, cz, rho, radius, reduce_radius)
+                if need <= r_s:
+                    return True, best_need, best_leaf
+                if need <= radius and need < best_need:
+                    best_need, best_leaf = need, leaf
+    return False, best_need, best_leaf
+
+
+@ieee_jit
+def _neighbour_part(ts, LF, LI, UR, count_t, order, regions_t, owner, index, radius, reduce_radius, covered,
+                    part, parts):
+    """The neighbour rule for the tasks ``owner`` gives this part: index their leaves, then do their regions in
+    order (singles, then lattices, then the radius raise); return the count covered."""
+    n_tasks = regions_t.shape[0]
+    lattices_sorted = np.zeros(n_tasks, dtype=np.bool_)
+    for t in range(n_tasks):
+        if owner[t] == part and regions_t[t] > 0:
+            _index_task(LF, LI, t, count_t, order, radius, index)
     count = 0
     for u in range(UR.shape[0]):
-        covered[u] = False
         t = int(UR[u, 4])
-        cx, cy, cz, rho = UR[u, 0], UR[u, 1], UR[u, 2], UR[u, 3]
-        if not rho < radius:
+        if owner[t] != part or not UR[u, 3] < radius:
             continue
-        # With reduced radii, the sample that would cover the region at the full radius (the closest such) has
-        # its radius raised to what the region needs (LF[leaf, 9]): the guarantee holds, radii grow only here.
-        best_need, best_leaf = np.inf, -1
-        # singles: a covering one is within one radius of the center, so in the ≤ 8 cells of the
-        # box center ± radius
-        a0, b0 = kind_first[3 * t], kind_first[3 * t + 1]
-        ix0, ix1 = int(math.floor((cx - h) / h)), int(math.floor((cx + h) / h))
-        iy0, iy1 = int(math.floor((cy - h) / h)), int(math.floor((cy + h) / h))
-        iz0, iz1 = int(math.floor((cz - h) / h)), int(math.floor((cz + h) / h))
-        for ix in range(ix0, ix1 + 1):
-            for iy in range(iy0, iy1 + 1):
-                for iz in range(iz0, iz1 + 1):
-                    if covered[u]:
-                        break
-                    kc = ((ix + (1 << 20)) << 42) | ((iy + (1 << 20)) << 21) | (iz + (1 << 20))
-                    lo, hi = a0, b0
-                    while lo < hi:  # first entry ≥ kc
-                        mid = (lo + hi) >> 1
-                        if cell[mid] < kc:
-                            lo = mid + 1
-                        else:
-                            hi = mid
-                    o = lo
-                    while o < b0 and cell[o] == kc:
-                        leaf = sorted_leaf[o]
-                        dx, dy, dz = P[leaf, 0] - cx, P[leaf, 1] - cy, P[leaf, 2] - cz
-                        need = (math.sqrt(dx * dx + dy * dy + dz * dz) + rho) / (1.0 - tol.NEIGHBOUR_MARGIN)
-                        r_s = max(LF[leaf, 14], LF[leaf, 9]) if reduce_radius else radius
-                        if need <= r_s:
-                            covered[u] = True
-                            break
-                        if need <= radius and need < best_need:  # (reduced radii only: r_s < radius)
-                            best_need, best_leaf = need, leaf
-                        o += 1
-        if not covered[u] and not sorted_lattices:
-            for g in range(3 * n_tasks):
-                if g % 3 != 0:
-                    a0, b0 = kind_first[g], kind_first[g + 1]
-                    idx = np.argsort(key[a0:b0])
-                    _reorder(sorted_leaf, a0, idx)
-                    _reorder(key, a0, idx)
-            sorted_lattices = True
-        for kind in range(1, 3):  # then the nearest points of lattices
-            if covered[u]:
-                break
-            g = 3 * t + kind
-            a0, b0 = kind_first[g], kind_first[g + 1]
-            half = radius + widest[g]
-            lo = a0 + np.searchsorted(key[a0:b0], cx - half)
-            hi = a0 + np.searchsorted(key[a0:b0], cx + half, side="right")
-            for o in range(lo, hi):
-                leaf = sorted_leaf[o]
-                dx, dy, dz = P[leaf, 0] - cx, P[leaf, 1] - cy, P[leaf, 2] - cz
-                if abs(dy) > half or abs(dz) > half:
-                    continue
-                dist = math.sqrt(dx * dx + dy * dy + dz * dz)
-                if dist - P[leaf, 3] + rho <= radius:
-                    need, r_s = _lattice_need(ts, LF, LI, leaf, cx, cy, cz, rho, radius, reduce_radius)
-                    if need <= r_s:
-                        covered[u] = True
-                        break
-                    if need <= radius and need < best_need:
-                        best_need, best_leaf = need, leaf
-        if not covered[u] and reduce_radius and best_leaf >= 0:
+        c, best_need, best_leaf = _singles_cover(LF, UR, u, index, radius, reduce_radius, np.inf, -1)
+        if not c:
+            if not lattices_sorted[t]:
+                _sort_lattices(index, t)
+                lattices_sorted[t] = True
+            c, best_need, best_leaf = _lattices_cover(ts, LF, LI, UR, u, index, radius, reduce_radius,
+                                                      best_need, best_leaf)
+        if not c and reduce_radius and best_leaf >= 0:
             LF[best_leaf, 9] = max(LF[best_leaf, 9], best_need)
-            covered[u] = True
-        if covered[u]:
+            c = True
+        covered[u] = c
+        if c:
             count += 1
     return count
 

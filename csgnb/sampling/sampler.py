@@ -418,17 +418,28 @@ def _new_buffers(jobs: int, trace: bool, expected: float = 0.0) -> list:
             np.empty(tcap, dtype=np.int64), np.empty((256, 14)), np.zeros(7, dtype=np.int64), [0, 0, 0, 0, 0]]
 
 
-def _job_chunks(weights: np.ndarray, parts: int) -> list[tuple[int, int]]:
-    """Split jobs ``0:len(weights)`` into consecutive ranges of about ``sum / parts`` estimated work each (a job
-    heavier than that alone): enough pieces for the threads to balance a misestimate."""
+def _job_chunks(weights: np.ndarray, threads: int) -> list[tuple[int, int]]:
+    """Split jobs ``0:len(weights)`` into consecutive ranges that shrink as the work left does (guided): each about
+    a ``4 × threads``-th of the estimated work still to chunk, and no less than a ``64 × threads``-th of the whole
+    (a job heavier than its share alone).
+
+    The estimate (domain area over r²) misses how much a surface's curvature multiplies its regions: on the
+    80-quadric plate the two last tasks cost 3–4× their estimate per unit, and equal chunks of a 16 × threads-th
+    left one thread with a 31 ms chunk while the other waited. Small chunks at the end bound that wait; large
+    ones at the start keep the calls few.
+    """
     n = len(weights)
-    if parts <= 1 or n == 0:
+    if threads <= 1 or n == 0:
         return [(0, n)]
-    target = float(weights.sum()) / parts
+    left = float(weights.sum())
+    floor = left / (64 * threads)
+    target = max(floor, left / (4 * threads))
     chunks, start, acc = [], 0, 0.0
     for j, w in enumerate(weights.tolist()):
         if j > start and acc + w > target:
             chunks.append((start, j))
+            left -= acc
+            target = max(floor, left / (4 * threads))
             start, acc = j, 0.0
         acc += w
     chunks.append((start, n))
@@ -438,8 +449,8 @@ def _job_chunks(weights: np.ndarray, parts: int) -> list[tuple[int, int]]:
 def _parallel_pass(C, ts: TaskSet, radius, min_size, sqrt3, refine, trace, ranges, bar, max_samples) -> list:
     """Pass 1 over the job ranges, on ``threads()`` threads when the model is large enough to gain from it.
 
-    Consecutive chunks of jobs of about equal estimated work (their domain area over r², as the sample estimate;
-    ``16 × threads`` of them, so that a misestimate evens out) are taken in turn by the threads (the kernel
+    Consecutive chunks of jobs, shrinking as the estimated work left does (their domain area over r², as the
+    sample estimate; :func:`_job_chunks`), are taken in turn by the threads (the kernel
     releases the GIL); each thread appends to buffers of its own, sized like the one-thread ones and reused
     across its chunks (fresh small buffers per chunk cost four times the page faults), and records the span
     each chunk filled. The spans are joined in job order: the one-thread output bit for bit, since a job's
@@ -453,7 +464,7 @@ def _parallel_pass(C, ts: TaskSet, radius, min_size, sqrt3, refine, trace, range
         bufs = _new_buffers(jobs, trace)
         _pass(C, ts, radius, min_size, sqrt3, refine, trace, True, ranges, bar, bufs, max_samples)
         return bufs
-    chunks = _job_chunks(weights, 16 * threads)
+    chunks = _job_chunks(weights, threads)
     if bar is not None:  # the bar counts chunks of jobs now, not quadrics
         bar.unit = "chunk"
         bar.reset(total=len(chunks) + 1)
