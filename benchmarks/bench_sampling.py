@@ -6,8 +6,8 @@ Each run is the whole pipeline — normal form, term boxes, sampling domains, su
 emission, clip-set deduplication — from a CSG graph to a ``SampleCloud``; kernels are compiled
 (or loaded from the cache) by an untimed first run, the domain cache is emptied before every
 timed run, and the best of ``--repeat`` runs is kept. One thread, as in the paper; each row again on all cores
-(``--threads``, default every core numba sees): the two passes run over chunks of jobs and leaves in threads, the
-cloud bit-identical to the one-thread one.
+(``--threads``, default every core numba sees; one-thread and all-core runs alternate): the two passes run over
+chunks of jobs and leaves in threads, the cloud bit-identical to the one-thread one.
 
     python benchmarks/bench_sampling.py --json /tmp/bench_sampling.json
 
@@ -58,15 +58,29 @@ PAPER_TABLE1 = {
 
 
 def _time(shape, radius, repeat, threads=1, **kwargs):
-    numba.set_num_threads(threads)
-    sample_csg(shape, radius, **kwargs)  # compile / load the kernels outside the timing
-    best, cloud = np.inf, None
-    for _ in range(repeat):
-        domain_cache_clear()  # (kept for comparison with earlier runs: the set-up is not cached)
-        t0 = time.perf_counter()
-        cloud = sample_csg(shape, radius, **kwargs)
-        best = min(best, time.perf_counter() - t0)
-    return best, cloud
+    return _time_pair(shape, radius, repeat, (threads,), **kwargs)[0]
+
+
+def _time_pair(shape, radius, repeat, thread_counts, **kwargs):
+    """Best of ``repeat`` runs at each of ``thread_counts``, the counts alternating run by run (so that a slow
+    spell of the machine falls on both sides of a ratio, not on one): ``[(seconds, cloud), ...]``."""
+    best = [np.inf] * len(thread_counts)
+    clouds = [None] * len(thread_counts)
+    before = numba.get_num_threads()
+    try:
+        for threads in thread_counts:
+            numba.set_num_threads(threads)
+            sample_csg(shape, radius, **kwargs)  # compile / load the kernels outside the timing
+        for _ in range(repeat):
+            for i, threads in enumerate(thread_counts):
+                numba.set_num_threads(threads)
+                domain_cache_clear()  # (kept for comparison with earlier runs: the set-up is not cached)
+                t0 = time.perf_counter()
+                clouds[i] = sample_csg(shape, radius, **kwargs)
+                best[i] = min(best[i], time.perf_counter() - t0)
+    finally:
+        numba.set_num_threads(before)
+    return list(zip(best, clouds, strict=True))
 
 
 def run_table2(repeat: int, only=None, threads: int = 1) -> list[dict]:
@@ -77,8 +91,7 @@ def run_table2(repeat: int, only=None, threads: int = 1) -> list[dict]:
         shape = build()
         n_quadrics = len(csg.graph_leaves(shape))
         for splat, r in radii.items():
-            seconds, cloud = _time(shape, r, repeat)
-            parallel, cloud_n = _time(shape, r, repeat, threads)
+            (seconds, cloud), (parallel, cloud_n) = _time_pair(shape, r, repeat, (1, threads))
             same = all(np.array_equal(getattr(cloud, f), getattr(cloud_n, f)) for f in (
                 "positions", "normals", "radii", "quadric_ids", "clip_start", "clip_count", "clip_indices"))
             if not same:
