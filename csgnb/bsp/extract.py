@@ -124,10 +124,15 @@ class ClipScratch(NamedTuple):
 
 
 def new_clip_scratch(dtype) -> ClipScratch:
-    """Initial :class:`ClipScratch` (grown by :func:`grown_clip_scratch` when a kernel runs short)."""
-    return ClipScratch(np.empty((64, 4), dtype), np.empty(256, np.int64), np.empty(256, np.int64),
-                       np.empty((64, 3), np.int64), np.empty(64, np.int64), np.empty(64, np.int64),
-                       np.empty(256, np.int32))
+    """Initial :class:`ClipScratch` (grown by :func:`grown_clip_scratch` when a kernel runs short).
+
+    Sized for the cells of an octree workpiece at its default threshold (~200 kB at 256 bits): a drill sweep's
+    union of prisms grew a 16× smaller scratch four times, and an octree grows it together with the boundary
+    pieces (the kernel does not say which array was short), ~20 MB of copies per scratch workpiece.
+    """
+    return ClipScratch(np.empty((1024, 4), dtype), np.empty(4096, np.int64), np.empty(4096, np.int64),
+                       np.empty((1024, 3), np.int64), np.empty(1024, np.int64), np.empty(1024, np.int64),
+                       np.empty(4096, np.int32))
 
 
 def grown_clip_scratch(s: ClipScratch) -> ClipScratch:
