@@ -849,7 +849,7 @@ def _singles_cover(LF, UR, u, index, radius, reduce_radius, best_need, best_leaf
     for ix in range(ix0, ix1 + 1):
         for iy in range(iy0, iy1 + 1):
             for iz in range(iz0, iz1 + 1):
-                kc = ((ix + (1 << 20)) << 42) | ((iy + (1 << 20)) << 21) | (iz + (1 << 20))
+                kc = _cell_id(ix, iy, iz)
                 lo, hi = a0, b0
                 while lo < hi:  # first entry ≥ kc
                     mid = (lo + hi) >> 1
@@ -932,10 +932,13 @@ def _neighbour_part(ts, LF, LI, UR, count_t, order, regions_t, owner, index, rad
 @inline_jit
 def _cell_key(x, y, z, h):
     """A grid cell id of (x, y, z) for cells of size h (coordinates within 2²⁰ cells of 0)."""
-    ix = int(math.floor(x / h)) + (1 << 20)
-    iy = int(math.floor(y / h)) + (1 << 20)
-    iz = int(math.floor(z / h)) + (1 << 20)
-    return (ix << 42) | (iy << 21) | iz
+    return _cell_id(int(math.floor(x / h)), int(math.floor(y / h)), int(math.floor(z / h)))
+
+
+@inline_jit
+def _cell_id(ix, iy, iz):
+    """The id of grid cell (ix, iy, iz), each index within 2²⁰ of 0: one int64, ordered by ix, then iy, then iz."""
+    return ((ix + (1 << 20)) << 42) | ((iy + (1 << 20)) << 21) | (iz + (1 << 20))
 
 
 @inline_jit
