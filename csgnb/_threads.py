@@ -23,7 +23,7 @@ from concurrent.futures import ThreadPoolExecutor
 
 import numba
 
-__all__ = ["run_parts", "threads"]
+__all__ = ["run_parts", "run_tasks", "threads"]
 
 _POOL: ThreadPoolExecutor | None = None
 _POOL_SIZE = 0
@@ -74,3 +74,31 @@ def run_parts(kernel, *args, parts: int | None = None) -> list:
         if e is not None:
             raise e
     return [first] + [f.result() for f in futures]
+
+
+def run_tasks(task, count: int, parts: int | None = None) -> list:
+    """Call ``task(k)`` for ``k`` in ``range(count)`` on ``parts`` threads (default :func:`threads`) of the persistent
+    pool, each thread taking the next task not yet taken (tasks in order: a task that waits on the GIL does not hold
+    up the others); returns the results in task order. ``task`` runs Python around GIL-releasing kernels or numpy
+    copies (the sampler's chunks of jobs, of leaves, of the join). An exception raised by a task is raised here,
+    after every thread has stopped taking tasks.
+    """
+    results: list = [None] * count
+    taken = [iter(range(count))]
+    lock = threading.Lock()
+
+    def worker(part: int, parts: int) -> None:
+        while True:
+            with lock:
+                k = next(taken[0], None)
+            if k is None:
+                return
+            try:
+                results[k] = task(k)
+            except BaseException:
+                with lock:
+                    taken[0] = iter(())  # the other threads take no new task
+                raise
+
+    run_parts(worker, parts=min(count, threads() if parts is None else max(1, int(parts))) or 1)
+    return results

@@ -108,3 +108,70 @@ def test_exponential_growth_is_limited():
     parts = [csg.sphere((k, 0, 0), 1) | csg.sphere((k, 1, 0), 1) for k in range(14)]
     with pytest.raises(CsgnbError, match="max_terms"):
         csg.intersection(*parts).normal_form(max_terms=1000)
+
+
+def _placed_quadrics(rng, n):
+    from csgnb.quadric import ellipsoid, elliptic_cone, elliptic_cylinder, sphere
+
+    makers = [lambda c: sphere(c, rng.uniform(0.2, 2.0)), lambda c: ellipsoid(rng.uniform(0.2, 2.0, 3), c),
+              lambda c: elliptic_cylinder(rng.uniform(0.2, 2.0, 2), c), lambda c: elliptic_cone((1.0, 0.5), c)]
+    return [makers[i % 4](rng.normal(size=3) * 10.0 ** rng.integers(0, 7)) for i in range(n)]
+
+
+def _random_affine(rng):
+    M = np.eye(4)
+    M[:3, :3] = rng.normal(size=(3, 3)) + 2.0 * np.eye(3)
+    M[:3, 3] = rng.normal(size=3) * 10.0 ** rng.integers(0, 6)
+    return M
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_quadrics_moved_together_are_the_quadrics_moved_one_by_one(seed):
+    """``moved_placements`` maps a batch of placed quadrics at once (the normal form's leaves, its world mapping);
+    each result must be the same bits as the quadric mapped alone (``Quadric.transformed``), and the map of eq. 17:
+    ``Q'(M x) = Q(x)``."""
+    from csgnb.quadric.quadric import moved_placements, transform_inverse
+
+    rng = np.random.default_rng(seed)
+    qs = _placed_quadrics(rng, 9)
+    M = _random_affine(rng)
+    together = moved_placements(qs, M, transform_inverse(M))
+    for q, t in zip(qs, together, strict=True):
+        alone = q.transformed(M)
+        assert np.array_equal(t.matrix, alone.matrix)
+        assert np.array_equal(t.placement[0], alone.placement[0]) and np.array_equal(t.placement[1],
+                                                                                     alone.placement[1])
+        local, origin = q.placement
+        x = rng.normal(size=(20, 3))  # points near the quadric's own origin
+        want = Quadric(local).value(x)
+        got = Quadric(t.placement[0]).value(x @ M[:3, :3].T)  # (translations cancel in the placement)
+        assert np.allclose(got, want, rtol=1e-9, atol=1e-9 * np.abs(want).max())
+        assert np.allclose(t.placement[1], M[:3, :3] @ origin + M[:3, 3], rtol=1e-12, atol=0.0)
+
+
+def test_a_normal_form_maps_its_placed_quadrics_as_each_alone():
+    rng = np.random.default_rng(7)
+    qs = _placed_quadrics(rng, 8)
+    pairs = zip(qs[::2], qs[1::2], strict=True)
+    g = csg.union(*[csg.intersection(csg.leaf(a), csg.complement(csg.leaf(b))) for a, b in pairs])
+    nf = g.normal_form()
+    M = _random_affine(rng)
+    for q, m in zip(nf.quadrics, nf.mapped(M).quadrics, strict=True):
+        assert np.array_equal(m.matrix, q.transformed(M).matrix)
+    # leaves under one path map are mapped in one batch when the normal form is built: the same bits as alone
+    F = _random_affine(rng)
+    framed = csg.to_normal_form(g.transformed(M), frame=F)
+    for q, got in zip(qs, [q for q in framed.quadrics if q.placement is not None][: len(qs)], strict=False):
+        assert np.array_equal(abs(got.matrix), abs(q.transformed(F @ M).matrix))
+
+
+def test_a_map_that_overflows_a_quadric_is_refused():
+    from csgnb.errors import GeometryError
+    from csgnb.quadric import sphere
+
+    M = np.eye(4)
+    M[:3, 3] = (1e200, 0.0, 0.0)  # |o|² = 10⁴⁰⁰: the world matrix's constant is inf
+    with pytest.raises(GeometryError, match="NaN or inf"):
+        sphere().transformed(M)
+    with pytest.raises(GeometryError, match="NaN or inf"):
+        csg.union(csg.leaf(sphere()), csg.leaf(sphere((3.0, 0.0, 0.0)))).normal_form().mapped(M)

@@ -563,3 +563,83 @@ def test_joining_chunk_buffers_shifts_clip_list_offsets_and_trace_rows():
     assert TT[:, 0].tolist() == [0, 0, 0, 0, 1, 1, 2]
     assert UR[:, 13].tolist() == [1, 5, -1, 7]  # trace rows shifted to the joined rows; -1 stays
     assert counters.tolist() == [3] * 7
+
+
+def _filled_workers(chunks, caps=(64, 4)):
+    """Workers' pass-1 buffers filled chunk by chunk as ``_parallel_pass`` would: ``chunks`` lists
+    ``(worker, leaves, clip indices, trace leaves, regions)``; worker 0 has room for ``caps[0]`` jobs, the others
+    for ``caps[1]``. Returns (workers, spans in job order, the expected joined LA, LI offsets, TT rows, UR rows)."""
+    from csgnb.sampling.sampler import _new_buffers
+
+    workers = [_new_buffers(caps[0], True)] + [_new_buffers(caps[1], True) for _ in range(2)]
+    spans, la, tt, ur = [], [], [], []
+    for k, (w, nl, nla, nt, nur) in enumerate(chunks):
+        b = workers[w]
+        before = list(b[9])
+        if b[7].shape[0] < before[4] + nur:
+            b[7] = np.concatenate([b[7], np.empty_like(b[7])])
+        b[1][before[0] : before[0] + nl, 4] = before[1] + np.arange(nl) % max(nla, 1)
+        b[2][before[1] : before[1] + nla] = 100 * k + np.arange(nla)
+        b[3][before[2] : before[2] + nt, 0] = k
+        rows = before[2] + np.arange(nur) % max(nt, 1)
+        b[7][before[4] : before[4] + nur, 13] = np.where(np.arange(nur) % 2 == 0, rows, -1)
+        b[8][:] += 1
+        b[9] = [before[0] + nl, before[1] + nla, before[2] + nt, 0, before[4] + nur]
+        spans.append((w, before, list(b[9])))
+        la += list(100 * k + np.arange(nla))
+        tt += [k] * nt
+        ur += [(len(tt) - nt + i % max(nt, 1)) if i % 2 == 0 else -1 for i in range(nur)]
+    return workers, spans, la, tt, ur
+
+
+@pytest.mark.parametrize("chunks", [
+    [(0, 2, 3, 4, 1), (0, 3, 5, 2, 2), (1, 1, 1, 1, 1), (2, 4, 2, 0, 3)],  # worker 0's spans first: joined in place
+    [(0, 2, 3, 4, 1), (1, 3, 5, 2, 300), (2, 1, 1, 1, 1)],  # worker 0's UR too small for the total: copied once
+    [(1, 2, 3, 4, 1), (0, 3, 5, 2, 2), (1, 1, 1, 1, 1)],  # worker 0 not first: fresh arrays
+    [(0, 2, 3, 4, 1), (1, 3, 5, 2, 2), (0, 1, 1, 1, 1)],  # worker 0 also later: fresh arrays
+])
+def test_joining_in_place_or_not_is_concatenating_the_spans(chunks):
+    from csgnb.sampling.sampler import _joined
+
+    workers, spans, la, tt, ur = _filled_workers(chunks)
+    first_lf = workers[0][0]
+    LF, LI, LA, TT, TI, TP, TJ, UR, counters, fill = _joined(workers, spans)
+    n_leaves = sum(c[1] for c in chunks)
+    assert fill == [n_leaves, len(la), len(tt), 0, len(ur)]
+    assert LA[: len(la)].tolist() == la and TT[: len(tt), 0].tolist() == tt and UR[: len(ur), 13].tolist() == ur
+    at, offsets = 0, []
+    for _, nl, nla, _, _ in chunks:
+        offsets += list(at + np.arange(nl) % max(nla, 1))
+        at += nla
+    assert LI[:n_leaves, 4].tolist() == offsets
+    assert counters.tolist() == [len(chunks)] * 7
+    of_0 = [k for k, c in enumerate(chunks) if c[0] == 0]
+    assert (LF is first_lf) == (of_0 == list(range(len(of_0))) != [])  # worker 0's spans a prefix: in place
+
+
+@given(st.lists(st.floats(0.0, 100.0), min_size=1, max_size=60), st.integers(2, 5),
+       st.lists(st.booleans(), min_size=200, max_size=200))
+@settings(max_examples=200, deadline=None)
+def test_two_ended_chunks_cover_every_job_once_the_front_ones_a_prefix(weights, threads, fronts):
+    """Thread 0 takes chunks from the front, the others from the back, in any interleaving: every job lands in
+    exactly one chunk, thread 0's chunks are consecutive from job 0 (a prefix, joined in place), and chunks never
+    grow as the two ends close in."""
+    from csgnb.sampling.sampler import _TwoEnds
+
+    ends = _TwoEnds(np.array(weights) + 1e-3, threads)
+    taken, front_end = [], 0
+    for front in fronts:
+        chunk = ends.take(front)
+        if chunk is None:
+            break
+        start, end = chunk
+        assert start < end
+        if front:
+            assert start == front_end
+            front_end = end
+        taken.append(chunk)
+    else:
+        while (chunk := ends.take(True)) is not None:
+            taken.append(chunk)
+    jobs = sorted(j for s, e in taken for j in range(s, e))
+    assert jobs == list(range(len(weights)))

@@ -79,3 +79,31 @@ def test_splat_and_ray_traced_frames_do_not_depend_on_the_parts(monkeypatch, par
         for name in ("depth", "quadric", "normal", "overdraw", "rgb", "clip_count"):
             assert np.array_equal(getattr(a, name), getattr(b, name)), name
         assert a.stats.fragments == b.stats.fragments
+
+
+def test_tasks_run_once_each_and_return_in_task_order():
+    seen = []
+    lock = threading.Lock()
+
+    def task(k):
+        with lock:
+            seen.append(k)
+        return k * k
+
+    assert _threads.run_tasks(task, 11, parts=3) == [k * k for k in range(11)]
+    assert sorted(seen) == list(range(11))
+    assert _threads.run_tasks(task, 0) == []
+
+
+def test_an_error_in_a_task_stops_the_others_taking_new_ones():
+    started = []
+
+    def task(k):
+        started.append(k)
+        if k == 0:
+            raise ValueError("task 0 failed")
+        threading.Event().wait(0.01)
+
+    with pytest.raises(ValueError, match="task 0 failed"):
+        _threads.run_tasks(task, 200, parts=2)
+    assert len(started) < 200

@@ -29,7 +29,7 @@ from csgnb.csg.graph import Complement, Difference, Intersection, Leaf, Node, Tr
 from csgnb.errors import CsgnbError
 from csgnb.quadric import tolerances as tol
 from csgnb.quadric.arguments import as_count, as_matrix
-from csgnb.quadric.quadric import Quadric, apply_inverse, transform_inverse
+from csgnb.quadric.quadric import Quadric, apply_inverse, moved_placements, transform_inverse
 
 __all__ = ["NormalForm", "to_normal_form", "quadric_coefficients"]
 
@@ -161,9 +161,12 @@ class NormalForm:
         out = 0.5 * (out + out.transpose(0, 2, 1))
         affine = Minv[3, 0] == 0.0 and Minv[3, 1] == 0.0 and Minv[3, 2] == 0.0 and Minv[3, 3] == 1.0
         # placed quadrics (``Quadric.placement``) are mapped through their placement: exact far away
-        qs = tuple(q0._transformed(matrix, Minv) if affine and q0.placement is not None else
-                   Quadric._trusted(q, symmetric=True) for q0, q in zip(self.quadrics, out, strict=True))
-        return NormalForm(qs, self.term_start, self.names, self.surface, self.orientation)
+        qs = [Quadric._trusted(q, symmetric=True) for q in out]
+        placed = [i for i, q in enumerate(self.quadrics) if q.placement is not None] if affine else []
+        if placed:
+            for i, q in zip(placed, moved_placements([self.quadrics[i] for i in placed], matrix, Minv), strict=True):
+                qs[i] = q
+        return NormalForm(tuple(qs), self.term_start, self.names, self.surface, self.orientation)
 
     def __repr__(self) -> str:
         sizes = np.diff(self.term_start).tolist()
@@ -229,10 +232,46 @@ class _Converter:
         self.memo: dict[tuple, list[Term]] = {}
         self.leaf_memo: dict[tuple, tuple[int, int]] = {}
         self.inverse: dict[bytes, np.ndarray] = {}
+        self.moved: dict[tuple[int, bytes], Quadric] = {}  # leaves mapped ahead (:meth:`prepare`)
+
+    def prepare(self, root: Node, M: np.ndarray) -> None:
+        """Map the leaves' quadrics ahead of :meth:`convert`, those under one affine path map in one batch
+        (:func:`~csgnb.quadric.quadric.moved_placements`: one call instead of one per leaf, the same matrices)."""
+        groups: dict[bytes, tuple[np.ndarray, dict[int, Quadric]]] = {}
+        seen: set[tuple[int, bytes]] = set()
+        stack = [(root, M)]
+        while stack:
+            node, P = stack.pop()
+            pkey = P.tobytes()
+            if (id(node), pkey) in seen:
+                continue
+            seen.add((id(node), pkey))
+            if isinstance(node, Leaf):
+                if node.quadric.placement is not None and P[3, 0] == 0.0 and P[3, 1] == 0.0 and P[3, 2] == 0.0 \
+                        and P[3, 3] != 0.0:  # (the placed leaves :meth:`_leaf_quadric` moves by ``P``)
+                    groups.setdefault(pkey, (P, {}))[1][id(node.quadric)] = node.quadric
+            elif isinstance(node, Transformed):
+                stack.append((node.child, P @ node.matrix))
+            elif isinstance(node, Complement):
+                stack.append((node.child, P))
+            elif isinstance(node, Union | Intersection):
+                stack.extend((c, P) for c in node.operands)
+            elif isinstance(node, Difference):
+                stack.extend((c, P) for c in (node.base, *node.subtrahends))
+        for pkey, (P, leaves) in groups.items():
+            Minv = self.inverse.get(pkey)
+            if Minv is None:
+                Minv = self.inverse[pkey] = transform_inverse(P, "the transform along a path to a leaf")
+            qs = list(leaves.values())
+            for q, moved in zip(qs, moved_placements(qs, P, Minv), strict=True):
+                self.moved[(id(q), pkey)] = moved
 
     def _leaf_quadric(self, q: Quadric, M: np.ndarray | None, mkey: bytes | None) -> Quadric:
         if M is None:
             return q
+        ready = self.moved.get((id(q), mkey))
+        if ready is not None:
+            return ready
         Minv = self.inverse.get(mkey)
         if Minv is None:  # a composed path map: checked once (a product of good maps can be singular)
             Minv = self.inverse[mkey] = transform_inverse(M, "the transform along a path to a leaf")
@@ -334,6 +373,7 @@ def to_normal_form(root, max_terms: int = 4096, frame=None) -> NormalForm:
 
 
 def _convert(conv: _Converter, root: Node, F: np.ndarray) -> NormalForm:
+    conv.prepare(root, F)
     terms = conv.convert(root, F, False)
     quadrics: list[Quadric] = []
     names: list[str | None] = []

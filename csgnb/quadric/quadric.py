@@ -123,6 +123,55 @@ def _validated(q: np.ndarray, finite_checked: bool = True) -> np.ndarray:
     return q
 
 
+def moved_placements(quadrics, M: np.ndarray, Minv: np.ndarray) -> list[Quadric]:
+    """Return ``[q.transformed(M) for q in quadrics]`` for an affine ``M`` (``Minv`` its checked inverse), all at once.
+
+    Each quadric is moved through its placement (:attr:`Quadric.placement`; a quadric without one is its own
+    local matrix at the origin): its local matrix is mapped by ``M``'s linear part ``L`` alone, its origin ``o``
+    goes to ``L o + t``, and the world matrix is the new local one moved there -- the shape keeps its digits far
+    from the origin. The arithmetic is the same element by element whatever the number of quadrics (einsum's
+    loops, no BLAS), so a normal form mapped as a whole (``NormalForm.mapped``) has the matrices of its quadrics
+    mapped one by one. A result that is not a quadric (an overflow to inf) raises :class:`GeometryError`.
+    """
+    n = len(quadrics)
+    local = np.empty((n, 4, 4))
+    origin = np.zeros((n, 3))
+    for i, q in enumerate(quadrics):
+        if q._origin is None:
+            local[i] = q._matrix
+        else:
+            local[i] = q._local
+            origin[i] = q._origin
+    w = M[3, 3]
+    L, t, Li = M[:3, :3] / w, M[:3, 3] / w, Minv[:3, :3]
+    A, m = local[:, :3, :3], local[:, :3, 3]
+    moved = np.empty_like(local)  # the local matrices mapped by L: Lᵢᵀ A Lᵢ, Lᵢᵀ m, c (Lᵢ = L⁻¹)
+    moved[:, :3, :3] = np.einsum("nik,kl->nil", np.einsum("ji,njk->nik", Li, A), Li)
+    moved[:, :3, 3] = moved[:, 3, :3] = np.einsum("ji,nj->ni", Li, m)
+    moved[:, 3, 3] = local[:, 3, 3]
+    to = np.einsum("ij,nj->ni", L, origin) + t
+    s = -to  # the world matrix: the moved local one translated to ``to`` (eq. 17 with Minv = [I, -to])
+    A2, m2 = moved[:, :3, :3], moved[:, :3, 3]
+    A2s = np.einsum("nij,nj->ni", A2, s)
+    world = np.empty_like(moved)
+    world[:, :3, :3] = 0.5 * (A2 + A2.transpose(0, 2, 1))
+    world[:, :3, 3] = world[:, 3, :3] = A2s + m2
+    world[:, 3, 3] = np.einsum("ni,ni->n", s, A2s) + 2.0 * np.einsum("ni,ni->n", m2, s) + moved[:, 3, 3]
+    scale = np.abs(world).max(axis=(1, 2))
+    bad = ~(np.isfinite(scale) & (scale > 0.0) & np.any(world[:, :3, :] != 0.0, axis=(1, 2)))
+    if bad.any():
+        _validated(world[int(np.flatnonzero(bad)[0])], finite_checked=False)  # raises the reason
+    world.setflags(write=False)
+    moved.setflags(write=False)
+    to.setflags(write=False)
+    out = []
+    for i in range(n):
+        q = Quadric.__new__(Quadric)
+        q._matrix, q._local, q._origin = world[i], moved[i], to[i]
+        out.append(q)
+    return out
+
+
 class Quadric:
     """A quadric surface ``xᵀ Q x = 0`` with ``Q`` symmetric 4×4 (inside where negative).
 
@@ -257,15 +306,7 @@ class Quadric:
                 np.any(M[:3, 3]) or self._origin is not None):
             # affine with a translation: x ↦ L x + t is the linear map, then the move to t (or to
             # L o + t from a placed quadric's origin o) — the shape keeps its digits far away
-            L = M[:3, :3] / M[3, 3]
-            t = M[:3, 3] / M[3, 3]
-            local, origin = self.placement or (self._matrix, np.zeros(3))
-            Li = np.zeros((4, 4))
-            Li[:3, :3] = Minv[:3, :3]  # L⁻¹ (blockwise inverse of an affine M)
-            Li[3, 3] = 1.0
-            out = Quadric._placed(apply_inverse(local, Li), L @ origin + t)
-            _validated(out._matrix, finite_checked=False)  # the usual validation of the result
-            return out
+            return moved_placements([self], M, Minv)[0]
         return Quadric._checked(apply_inverse(self._matrix, Minv))
 
     def translated(self, offset) -> Quadric:

@@ -734,8 +734,9 @@ def cover_by_neighbours(ts, LF, LI, UR, radius, reduce_radius, covered):
         return 0
     count_t, order, regions_t = _neighbour_groups(ts, LI, UR)
     n_tasks = len(regions_t)
-    # work per task: its leaves (when it has regions) and its regions (a search each, ~50 leaves' worth)
-    work = np.where(regions_t > 0, np.diff(count_t) + 50 * regions_t, 0)
+    # work per task: its leaves (when it has regions) and its regions (a search each: ~4 leaves' worth, fitted
+    # on the per-task times of the perforated plate, 0.10 µs a leaf and 0.42 µs a region, 2026-12-04)
+    work = np.where(regions_t > 0, np.diff(count_t) + 4 * regions_t, 0)
     parts = min(threads(), int(np.count_nonzero(work))) or 1
     owner = np.zeros(n_tasks, dtype=np.int64)
     load = np.zeros(parts)

@@ -11,7 +11,6 @@ import dataclasses
 import math
 import threading
 import time
-from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
@@ -418,44 +417,53 @@ def _new_buffers(jobs: int, trace: bool, expected: float = 0.0) -> list:
             np.empty(tcap, dtype=np.int64), np.empty((256, 14)), np.zeros(7, dtype=np.int64), [0, 0, 0, 0, 0]]
 
 
-def _job_chunks(weights: np.ndarray, threads: int) -> list[tuple[int, int]]:
-    """Split jobs ``0:len(weights)`` into consecutive ranges that shrink as the work left does (guided): each about
-    a ``4 × threads``-th of the estimated work still to chunk, and no less than a ``64 × threads``-th of the whole
-    (a job heavier than its share alone).
+class _TwoEnds:
+    """The jobs not yet taken, ``lo:hi``, handed out in chunks from both ends (:func:`_parallel_pass`): thread 0
+    takes the next chunk from the front, the others from the back, so that thread 0's chunks are a prefix of the
+    output, already in place for the join.
 
-    The estimate (domain area over r²) misses how much a surface's curvature multiplies its regions: on the
-    80-quadric plate the two last tasks cost 3–4× their estimate per unit, and equal chunks of a 16 × threads-th
-    left one thread with a 31 ms chunk while the other waited. Small chunks at the end bound that wait; large
-    ones at the start keep the calls few.
+    A chunk is about a ``4 × threads``-th of the estimated work still between the ends (guided, on the jobs'
+    ``weights``: domain area over r²) and no less than a ``64 × threads``-th of the whole (a job heavier than its
+    share alone). The estimate misses how much a surface's curvature multiplies its regions (on the 80-quadric
+    plate the two last tasks cost 3–4× their estimate per unit), so where the two ends meet is not known in advance:
+    sizing each chunk when it is taken, from what is left between the ends, makes the chunks small wherever they
+    meet, and no thread waits long for another's last chunk.
     """
-    n = len(weights)
-    if threads <= 1 or n == 0:
-        return [(0, n)]
-    left = float(weights.sum())
-    floor = left / (64 * threads)
-    target = max(floor, left / (4 * threads))
-    chunks, start, acc = [], 0, 0.0
-    for j, w in enumerate(weights.tolist()):
-        if j > start and acc + w > target:
-            chunks.append((start, j))
-            left -= acc
-            target = max(floor, left / (4 * threads))
-            start, acc = j, 0.0
-        acc += w
-    chunks.append((start, n))
-    return chunks
+
+    def __init__(self, weights: np.ndarray, threads: int) -> None:
+        self.cum = np.concatenate([[0.0], np.cumsum(weights)])
+        self.lo, self.hi = 0, len(weights)
+        self.threads = threads
+        self.floor = float(self.cum[-1]) / (64 * threads)
+        self.lock = threading.Lock()
+
+    def take(self, front: bool) -> tuple[int, int] | None:
+        """The next chunk ``(start, end)`` of jobs from the front or the back; None when every job is taken."""
+        with self.lock:
+            lo, hi, cum = self.lo, self.hi, self.cum
+            if lo >= hi:
+                return None
+            size = max(self.floor, float(cum[hi] - cum[lo]) / (4 * self.threads))
+            if front:
+                end = min(hi, max(lo + 1, int(np.searchsorted(cum, cum[lo] + size))))
+                self.lo = end
+                return lo, end
+            start = max(lo, min(hi - 1, int(np.searchsorted(cum, cum[hi] - size, side="right")) - 1))
+            self.hi = start
+            return start, hi
 
 
 def _parallel_pass(C, ts: TaskSet, radius, min_size, sqrt3, refine, trace, ranges, bar, max_samples) -> list:
     """Pass 1 over the job ranges, on ``threads()`` threads when the model is large enough to gain from it.
 
-    Consecutive chunks of jobs, shrinking as the estimated work left does (their domain area over r², as the
-    sample estimate; :func:`_job_chunks`), are taken in turn by the threads (the kernel
-    releases the GIL); each thread appends to buffers of its own, sized like the one-thread ones and reused
-    across its chunks (fresh small buffers per chunk cost four times the page faults), and records the span
-    each chunk filled. The spans are joined in job order: the one-thread output bit for bit, since a job's
-    output does not depend on the jobs before it (only the LA offsets in LI, the trace rows in UR and the
-    counters are adjusted).
+    The jobs are handed out in chunks from both ends (:class:`_TwoEnds`): the first thread takes them in order
+    from the front, the others from the back, until they meet, so that the first thread's chunks are a prefix of
+    the output. Each thread appends to buffers of its own (reused across its chunks: fresh small buffers per chunk
+    cost four times the page faults; the first thread's are sized like the one-thread ones, their pages touched
+    only as they fill) and records the span each chunk filled. The spans are joined in job order
+    (:func:`_joined`: the others' spans copied after the first thread's, in its buffers): the one-thread output
+    bit for bit, since a job's output does not depend on the jobs before it (only the LA offsets in LI, the trace
+    rows in UR and the counters are adjusted).
     """
     threads = _threads.threads()
     jobs = len(ts.job_task)
@@ -464,29 +472,26 @@ def _parallel_pass(C, ts: TaskSet, radius, min_size, sqrt3, refine, trace, range
         bufs = _new_buffers(jobs, trace)
         _pass(C, ts, radius, min_size, sqrt3, refine, trace, True, ranges, bar, bufs, max_samples)
         return bufs
-    chunks = _job_chunks(weights, threads)
-    if bar is not None:  # the bar counts chunks of jobs now, not quadrics
-        bar.unit = "chunk"
-        bar.reset(total=len(chunks) + 1)
-    workers = [_new_buffers(jobs // threads, trace, 0.5 * float(weights.sum()) / threads) for _ in range(threads)]
-    spans: list = [None] * len(chunks)
-    taken = iter(range(len(chunks)))
-    lock = threading.Lock()
+    if bar is not None:  # the bar counts jobs now, not quadrics
+        bar.unit = "job"
+        bar.reset(total=jobs + 1)
+    expected = 0.5 * float(weights.sum())
+    workers = [_new_buffers(jobs, trace, expected)]
+    workers += [_new_buffers(jobs // threads, trace, expected / threads) for _ in range(threads - 1)]
+    spans: list = []
+    ends = _TwoEnds(weights, threads)
 
     def work(w):
         bufs = workers[w]
-        while True:
-            with lock:
-                k = next(taken, None)
-            if k is None:
-                return
+        while (chunk := ends.take(front=w == 0)) is not None:
             before = list(bufs[9])
-            _pass(C, ts, radius, min_size, sqrt3, refine, trace, True, [chunks[k]], bar, bufs, max_samples)
-            spans[k] = (w, before, list(bufs[9]))
+            _pass(C, ts, radius, min_size, sqrt3, refine, trace, True, [chunk], None, bufs, max_samples)
+            spans.append((chunk[0], w, before, list(bufs[9])))  # (list.append is atomic)
+            if bar is not None:
+                bar.update(chunk[1] - chunk[0])
 
-    with ThreadPoolExecutor(threads) as pool:
-        list(pool.map(work, range(threads)))
-    return _joined(workers, spans)
+    _threads.run_parts(lambda part, parts: work(part), parts=threads)
+    return _joined(workers, [span[1:] for span in sorted(spans)])
 
 
 def _job_weights(ts: TaskSet, radius: float) -> np.ndarray:
@@ -501,16 +506,35 @@ def _joined(workers: list, spans: list) -> list:
     """Join the spans ``(worker, fill before, fill after)`` of the workers' pass-1 buffers in order (see
     ``_parallel_pass``): fill levels are (leaves, clip-list indices, trace leaves, trace points, regions).
 
-    The joined arrays are allocated once and the spans copied into them on ``threads()`` threads (numpy's copies
-    release the GIL; on the 615,642-sample plate the join moves ~50 MB, whose first touch of fresh pages is most of
-    its time): the same arrays as concatenating the spans in order."""
+    When worker 0's spans are the first ones, filled in order (as ``_parallel_pass`` takes them), they already
+    lie where the joined arrays want them: the other spans are copied after them into worker 0's buffers (an
+    array too small for the total is first copied into one of the total's size). Otherwise the arrays are
+    allocated once and every span is copied. The copies run on ``threads()`` threads (numpy's copies release the
+    GIL; on the 615,642-sample plate a join into fresh arrays moved ~50 MB, whose first touch of fresh pages was
+    most of its time): the same arrays as concatenating the spans in order.
+    """
     field_fill = (0, 0, 1, 2, 2, 3, 3, 4)  # the fill level counting each array's rows
     starts, at = [], np.zeros(5, dtype=np.int64)
     for _, before, after in spans:
         starts.append(at.copy())
         at += np.array(after) - np.array(before)
     first = workers[0]
-    out = [np.empty((int(at[f]),) + first[i].shape[1:], dtype=first[i].dtype) for i, f in enumerate(field_fill)]
+    placed = 0  # worker 0's leading spans, already in their joined place
+    while placed < len(spans) and spans[placed][0] == 0 and list(spans[placed][1]) == starts[placed].tolist():
+        placed += 1
+    if any(w == 0 for w, _, _ in spans[placed:]):
+        placed = 0  # a later span of worker 0 could be overwritten before it is copied
+    kept = starts[placed] if placed < len(spans) else at
+    out = []
+    for i, f in enumerate(field_fill):
+        a = first[i]
+        if placed and a.shape[0] >= at[f]:
+            out.append(a)
+            continue
+        b = np.empty((int(at[f]),) + a.shape[1:], dtype=a.dtype)
+        if placed:
+            b[: kept[f]] = a[: kept[f]]
+        out.append(b)
 
     def copy(k: int) -> None:
         w, before, after = spans[k]
@@ -522,8 +546,7 @@ def _joined(workers: list, spans: list) -> list:
         ur = out[7][to[4] : to[4] + after[4] - before[4]]
         ur[:, 13] = np.where(ur[:, 13] >= 0, ur[:, 13] + (to[2] - before[2]), ur[:, 13])  # trace rows
 
-    with ThreadPoolExecutor(_threads.threads()) as pool:
-        list(pool.map(copy, range(len(spans))))
+    _threads.run_tasks(lambda k: copy(placed + k), len(spans) - placed)
     counters = np.sum([b[8] for b in workers], axis=0).astype(np.int64)
     return out + [counters, [int(x) for x in at]]
 
@@ -669,8 +692,7 @@ def _emit_parallel(C, ts: TaskSet, lv: _Leaves, radius, reduce_radius, frame: Mo
         view = (positions[s0:s1], normals[s0:s1], radii[s0:s1], ptr[s0 : s1 + 1], ids[s0:s1])
         return _emit_leaves(C, ts, lv.LF[l0:l1], lv.LI[l0:l1], lv.LA, radius, reduce_radius, frame, view)
 
-    with ThreadPoolExecutor(threads) as pool:
-        results = list(pool.map(run, range(len(bounds) - 1)))
+    results = _threads.run_tasks(run, len(bounds) - 1)
     at = 0
     for k, (_, nc) in enumerate(results):
         s0, s1 = first[bounds[k]], first[bounds[k + 1]]
