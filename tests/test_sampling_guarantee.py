@@ -643,3 +643,31 @@ def test_two_ended_chunks_cover_every_job_once_the_front_ones_a_prefix(weights, 
             taken.append(chunk)
     jobs = sorted(j for s, e in taken for j in range(s, e))
     assert jobs == list(range(len(weights)))
+
+
+@pytest.mark.skipif(numba.config.DISABLE_JIT or numba.config.NUMBA_NUM_THREADS < 2,
+                    reason="threads need the jit and two of them")
+@pytest.mark.parametrize("trace", [False, True])
+def test_threads_on_every_model_however_few_its_jobs_give_the_one_thread_samples(trace, monkeypatch):
+    """With the size thresholds off, every Table 2 model at its largest splat runs both passes on two threads --
+    a handful of jobs, a thread that gets one chunk or none, regions in one thread's buffers only: every array of
+    the cloud and of its trace must still be the one-thread result, bit for bit."""
+    import csgnb.sampling.sampler as sampler
+    from csgnb.csg.gallery import TABLE2
+
+    monkeypatch.setattr(sampler, "_PARALLEL_MIN_SAMPLES", 0)
+    monkeypatch.setattr(sampler, "_PARALLEL_MIN_EMIT", 0)
+    before = numba.get_num_threads()
+    try:
+        for name, (build, radii) in TABLE2.items():
+            shape = build()
+            radius = max(radii.values())
+            clouds = []
+            for threads in (1, 2):
+                numba.set_num_threads(threads)
+                clouds.append(sample_csg(shape, radius, trace=trace))
+            a, b = (_cloud_arrays(c) for c in clouds)
+            for key in a:
+                assert np.array_equal(a[key], b[key]), (name, key)
+    finally:
+        numba.set_num_threads(before)
