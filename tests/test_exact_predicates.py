@@ -415,3 +415,41 @@ def test_distance_comparison_is_the_sign_of_the_exact_difference(width, data):
     out = np.zeros(n, np.int8)
     _compare_all(D, X, np.arange(n), np.arange(n) + n, out)
     assert out.tolist() == [_reference_compare(*c) for c in cases]
+
+
+@pytest.mark.parametrize("regime", ["normals at the edge", "wide offsets"])
+@pytest.mark.parametrize("seed", range(3))
+def test_normals_at_the_64_bit_edge_take_either_product_and_stay_exact(regime, seed):
+    """Full-width 256-bit plane rows whose normals fit in 64 bits are multiplied as wide x word, the others wide x
+    wide (``lowering.plane_dot``, ``intrinsics._intersect_full_or_word``, decided row by row at run time). Normals
+    at -2^63, 2^63 - 1 (word) and 2^63, -2^63 - 1 (wide) mixed in one triple, and 2^46 normals with offsets far
+    beyond 64 bits (the 256-bit dome grid's), must give the exact point and sides."""
+    width = 256
+    rng = np.random.default_rng(seed)
+    limit = budget(width).limit
+    if regime == "normals at the edge":
+        choices, n_bits = [-(1 << 63), (1 << 63) - 1, 1 << 63, -(1 << 63) - 1, 1, -1, 0], 64
+    else:
+        choices, n_bits = [(1 << 46) - 1, -(1 << 46), 1, -1, 0], 46
+    D = (limit - 1) // (16 * (1 << n_bits) ** 3)  # the offsets the width allows with such normals
+    checked = 0
+    for _ in range(40):
+        rows = []
+        for _ in range(4):
+            normal = [int(rng.choice(choices)) if rng.random() < 0.6 else int(rng.integers(-(1 << 45), 1 << 45))
+                      for _ in range(3)]
+            if not any(normal):
+                normal[0] = 1
+            rows.append(normal + [int(rng.integers(-(1 << 62), 1 << 62)) * (D >> 62) or int(rng.integers(-D, D + 1))])
+        p, q, r, s = rows
+        point = solve_3_planes(p, q, r)
+        if point is None:
+            continue
+        wide = exact.to_wide(rows, width)
+        x = as_ints(exact.intersect_3_planes(wide[0], wide[1], wide[2]))
+        assert x[3] == -det3([p[:3], q[:3], r[:3]])
+        assert [Fraction(x[i], x[3]) for i in range(3)] == point
+        assert exact.classify_vertex(exact.to_wide(x, width), wide[3]) == side(point, s)
+        assert exact.classify_vertex(exact.to_wide(x, width), wide[:3]).tolist() == [0, 0, 0]
+        checked += 1
+    assert checked >= 20

@@ -98,7 +98,7 @@ def classify_at(typingctx, points, i, planes, j):
     def codegen(context, builder, sig, args):
         x = lw.load_row(context, builder, sig.args[0], args[0], args[1], sig.args[1], T, 4)
         s = lw.load_plane(context, builder, sig.args[2], args[2], args[3], sig.args[3])
-        return lw.sign_times_sign(builder, lw.dot(builder, x, s, T), x[3])
+        return lw.sign_times_sign(builder, lw.plane_dot(builder, x, s, T), x[3])
 
     return types.int8(points, i, planes, j), codegen
 
@@ -145,6 +145,33 @@ def _intersect_narrow(builder, p, q, r, T, M):
     return [det_bcd, builder.neg(det_acd), det_abd, builder.neg(det_abc)]
 
 
+def _intersect_full_or_word(builder, planes, T):
+    """Eq. 5 for full-width rows, decided at run time: when the nine normal coefficients fit in 64 bits (the
+    common case: on the 256-bit dome grid the normals reach 2^46, the offsets 2^72), as :func:`_intersect_narrow`
+    with 64-bit normal fields (minors one ``imul`` each, the offset products wide times a word); otherwise as
+    :func:`_intersect_full`. Both give the same cofactors modulo 2**T.width: the same exact point."""
+    fits = None
+    for plane in planes:
+        for v in plane[:3]:
+            ok = builder.icmp_signed("==", builder.sext(builder.trunc(v, I64), T), v)
+            fits = ok if fits is None else builder.and_(fits, ok)
+    with builder.if_else(fits, likely=True) as (word, full):
+        with word:
+            narrow = [[builder.trunc(v, I64) for v in plane[:3]] + [plane[3]] for plane in planes]
+            from_word = _intersect_narrow(builder, *narrow, T, _T(128))
+            word_block = builder.basic_block
+        with full:
+            from_full = _intersect_full(builder, *planes)
+            full_block = builder.basic_block
+    out = []
+    for a, b in zip(from_word, from_full, strict=True):
+        phi = builder.phi(T)
+        phi.add_incoming(a, word_block)
+        phi.add_incoming(b, full_block)
+        out.append(phi)
+    return out
+
+
 @intrinsic
 def intersect_into(typingctx, P, ip, Q, iq, R, ir_, out, io):
     """Store intersect(p, q, r) (eq. 5) of planes ``P[ip], Q[iq], R[ir_]`` into ``out[io]``.
@@ -165,7 +192,11 @@ def intersect_into(typingctx, P, ip, Q, iq, R, ir_, out, io):
     def values(context, builder, sig, args):
         planes = [lw.load_plane(context, builder, sig.args[2 * k], args[2 * k], args[2 * k + 1], sig.args[2 * k + 1],
                                 None if narrow else T) for k in range(3)]
-        return _intersect_narrow(builder, *planes, T, M) if narrow else _intersect_full(builder, *planes)
+        if narrow:
+            return _intersect_narrow(builder, *planes, T, M)
+        if T.width <= 64:
+            return _intersect_full(builder, *planes)
+        return _intersect_full_or_word(builder, planes, T)
 
     def codegen(context, builder, sig, args):
         x = values(context, builder, sig, args)
@@ -343,7 +374,7 @@ def plane_value_into(typingctx, X, i, S, j, out, io):
     def codegen(context, builder, sig, args):
         x = lw.load_row(context, builder, sig.args[0], args[0], args[1], sig.args[1], T, 4)
         s = lw.load_plane(context, builder, sig.args[2], args[2], args[3], sig.args[3])
-        value = lw.dot(builder, x, s, T)
+        value = lw.plane_dot(builder, x, s, T)
         lw.store_row(context, builder, sig.args[4], args[4], args[5], sig.args[5], T, [value])
         return builder.mul(lw.sign(builder, value), lw.sign(builder, x[3]))
 

@@ -239,6 +239,33 @@ def dot(builder, xs, ys, T=None):
     return acc
 
 
+def plane_dot(builder, x, s, T):
+    """x·s of a point ``x`` (four ``T`` integers) and a plane ``s`` (as loaded: full rows or narrow records) at ``T``.
+
+    A full-width row whose normal (a, b, c) fits in 64 bits -- the common case: on the 256-bit dome grid the normals
+    reach 2^46 and the offsets 2^72 -- takes its three normal products as wide-times-word (:func:`mul_exact`: one
+    64-bit multiply per limb) instead of wide-times-wide; which way is decided at run time from the row, and both
+    give the same value modulo 2**T.width, so the same exact result.
+    """
+    if all(v.type.width <= 64 for v in s[:3]) or T.width <= 64:
+        return dot(builder, x, s, T)
+    fits = None
+    for v in s[:3]:
+        ok = builder.icmp_signed("==", builder.sext(builder.trunc(v, I64), v.type), v)
+        fits = ok if fits is None else builder.and_(fits, ok)
+    with builder.if_else(fits, likely=True) as (narrow, full):
+        with narrow:
+            word = dot(builder, x, [builder.trunc(v, I64) for v in s[:3]] + [s[3]], T)
+            from_narrow = builder.basic_block
+        with full:
+            wide = dot(builder, x, s, T)
+            from_full = builder.basic_block
+    value = builder.phi(T)
+    value.add_incoming(word, from_narrow)
+    value.add_incoming(wide, from_full)
+    return value
+
+
 def to_double(builder, v):
     """``v`` rounded to the nearest double (ties to even), without compiler-rt calls.
 
