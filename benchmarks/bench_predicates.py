@@ -73,7 +73,7 @@ def _bare_pfp(P, Q, R, out):
         a = y1 * z2 - z1 * y2
         b = z1 * x2 - x1 * z2
         c = x1 * y2 - y1 * x2
-        g = K._gcd3(a, b, c)
+        g = K.gcd3(a, b, c)
         if g > 1:
             a //= g
             b //= g

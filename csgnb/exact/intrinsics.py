@@ -194,7 +194,7 @@ def intersect_into(typingctx, P, ip, Q, iq, R, ir_, out, io):
                                 None if narrow else T) for k in range(3)]
         if narrow:
             return _intersect_narrow(builder, *planes, T, M)
-        if T.width <= 64:
+        if T.width <= 128:  # (see lowering.plane_dot: the branch slows the 128-bit bulk loops)
             return _intersect_full(builder, *planes)
         return _intersect_full_or_word(builder, planes, T)
 

@@ -245,9 +245,11 @@ def plane_dot(builder, x, s, T):
     A full-width row whose normal (a, b, c) fits in 64 bits -- the common case: on the 256-bit dome grid the normals
     reach 2^46 and the offsets 2^72 -- takes its three normal products as wide-times-word (:func:`mul_exact`: one
     64-bit multiply per limb) instead of wide-times-wide; which way is decided at run time from the row, and both
-    give the same value modulo 2**T.width, so the same exact result.
+    give the same value modulo 2**T.width, so the same exact result. At 128 bits the plain code is kept: its
+    bulk loops (the public predicates) vectorize, and the branch made them slower (classification 23 -> 40 cycles
+    in ``bench_predicates.py``) for no gain in the Booleans.
     """
-    if all(v.type.width <= 64 for v in s[:3]) or T.width <= 64:
+    if all(v.type.width <= 64 for v in s[:3]) or T.width <= 128:
         return dot(builder, x, s, T)
     fits = None
     for v in s[:3]:
