@@ -299,6 +299,25 @@ def _walk(root: Node) -> Iterator[Node]:
         stack.extend(reversed(n.children()))
 
 
+def _leaf_paths(root: Node, M: np.ndarray | None = None) -> Iterator[tuple[Leaf, np.ndarray | None]]:
+    """Each distinct (leaf, path map) pair of the graph once: the transforms along the path from the root composed
+    (``M`` applied at the root first; None where no map is on the path), in a depth-first order."""
+    seen: set[tuple[int, bytes | None]] = set()
+    stack: list[tuple[Node, np.ndarray | None]] = [(as_node(root), M)]
+    while stack:
+        node, P = stack.pop()
+        key = (id(node), None if P is None else P.tobytes())
+        if key in seen:
+            continue
+        seen.add(key)
+        if isinstance(node, Leaf):
+            yield node, P
+        elif isinstance(node, Transformed):
+            stack.append((node.child, node.matrix if P is None else P @ node.matrix))
+        else:
+            stack.extend((c, P) for c in node.children())
+
+
 def graph_leaves(root: Node) -> list[Leaf]:
     """Return the distinct leaves of the graph (a shared leaf once)."""
     return [n for n in _walk(root) if isinstance(n, Leaf)]

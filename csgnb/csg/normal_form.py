@@ -25,7 +25,7 @@ from functools import cached_property
 
 import numpy as np
 
-from csgnb.csg.graph import Complement, Difference, Intersection, Leaf, Node, Transformed, Union, as_node
+from csgnb.csg.graph import Complement, Difference, Intersection, Leaf, Node, Transformed, Union, _leaf_paths, as_node
 from csgnb.errors import CsgnbError
 from csgnb.quadric import tolerances as tol
 from csgnb.quadric.arguments import as_count, as_matrix
@@ -161,11 +161,10 @@ class NormalForm:
         out = 0.5 * (out + out.transpose(0, 2, 1))
         affine = Minv[3, 0] == 0.0 and Minv[3, 1] == 0.0 and Minv[3, 2] == 0.0 and Minv[3, 3] == 1.0
         # placed quadrics (``Quadric.placement``) are mapped through their placement: exact far away
-        qs = [Quadric._trusted(q, symmetric=True) for q in out]
-        placed = [i for i, q in enumerate(self.quadrics) if q.placement is not None] if affine else []
-        if placed:
-            for i, q in zip(placed, moved_placements([self.quadrics[i] for i in placed], matrix, Minv), strict=True):
-                qs[i] = q
+        placed = [q for q in self.quadrics if q.placement is not None] if affine else []
+        moved = iter(moved_placements(placed, matrix, Minv) if placed else ())
+        qs = [next(moved) if affine and q0.placement is not None else Quadric._trusted(q, symmetric=True)
+              for q0, q in zip(self.quadrics, out, strict=True)]
         return NormalForm(tuple(qs), self.term_start, self.names, self.surface, self.orientation)
 
     def __repr__(self) -> str:
@@ -238,26 +237,10 @@ class _Converter:
         """Map the leaves' quadrics ahead of :meth:`convert`, those under one affine path map in one batch
         (:func:`~csgnb.quadric.quadric.moved_placements`: one call instead of one per leaf, the same matrices)."""
         groups: dict[bytes, tuple[np.ndarray, dict[int, Quadric]]] = {}
-        seen: set[tuple[int, bytes]] = set()
-        stack = [(root, M)]
-        while stack:
-            node, P = stack.pop()
-            pkey = P.tobytes()
-            if (id(node), pkey) in seen:
-                continue
-            seen.add((id(node), pkey))
-            if isinstance(node, Leaf):
-                if node.quadric.placement is not None and P[3, 0] == 0.0 and P[3, 1] == 0.0 and P[3, 2] == 0.0 \
-                        and P[3, 3] != 0.0:  # (the placed leaves :meth:`_leaf_quadric` moves by ``P``)
-                    groups.setdefault(pkey, (P, {}))[1][id(node.quadric)] = node.quadric
-            elif isinstance(node, Transformed):
-                stack.append((node.child, P @ node.matrix))
-            elif isinstance(node, Complement):
-                stack.append((node.child, P))
-            elif isinstance(node, Union | Intersection):
-                stack.extend((c, P) for c in node.operands)
-            elif isinstance(node, Difference):
-                stack.extend((c, P) for c in (node.base, *node.subtrahends))
+        for node, P in _leaf_paths(root, M):
+            if node.quadric.placement is not None and P[3, 0] == 0.0 and P[3, 1] == 0.0 and P[3, 2] == 0.0 \
+                    and P[3, 3] != 0.0:  # (the placed leaves :meth:`_leaf_quadric` moves by ``P``)
+                groups.setdefault(P.tobytes(), (P, {}))[1][id(node.quadric)] = node.quadric
         for pkey, (P, leaves) in groups.items():
             Minv = self.inverse.get(pkey)
             if Minv is None:

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from csgnb.csg.graph import Leaf, Node, Transformed, as_node
+from csgnb.csg.graph import _leaf_paths
 from csgnb.quadric.arguments import as_finite_array, as_positive
 from csgnb.quadric.frames import principal_frame
 from csgnb.quadric.quadric import Quadric, apply_inverse, transform_inverse
@@ -158,35 +158,23 @@ def graph_frame(root) -> ModelFrame:
     pts: list[np.ndarray] = []
     sizes: list[float] = []
     planes: list[tuple[np.ndarray, float]] = []
-    seen: set[tuple[int, bytes | None]] = set()
-    stack: list[tuple[Node, np.ndarray | None]] = [(as_node(root), None)]
-    while stack:
-        node, M = stack.pop()
-        key = (id(node), None if M is None else M.tobytes())
-        if key in seen:
-            continue
-        seen.add(key)
-        if isinstance(node, Leaf):
-            pl = _plane(node.quadric.matrix)
-            if pl is not None:
-                if M is not None:
-                    pl = _plane(apply_inverse(node.quadric.matrix, transform_inverse(M)))
-                if pl is not None:
-                    planes.append(pl)
-                continue
-            p, s = _anchor(node.quadric)
+    for node, M in _leaf_paths(root):
+        pl = _plane(node.quadric.matrix)
+        if pl is not None:
             if M is not None:
-                h = M @ np.append(p, 1.0)
-                if h[3] == 0.0:
-                    continue
-                p = h[:3] / h[3]
-                s = s * float(np.max(np.linalg.norm(M[:3, :3], axis=0))) / abs(h[3])
-            pts.append(p)
-            sizes.append(s)
-        elif isinstance(node, Transformed):
-            stack.append((node.child, node.matrix if M is None else M @ node.matrix))
-        else:
-            stack.extend((c, M) for c in node.children())
+                pl = _plane(apply_inverse(node.quadric.matrix, transform_inverse(M)))
+            if pl is not None:
+                planes.append(pl)
+            continue
+        p, s = _anchor(node.quadric)
+        if M is not None:
+            h = M @ np.append(p, 1.0)
+            if h[3] == 0.0:
+                continue
+            p = h[:3] / h[3]
+            s = s * float(np.max(np.linalg.norm(M[:3, :3], axis=0))) / abs(h[3])
+        pts.append(p)
+        sizes.append(s)
     return _frame_of(pts, sizes, planes)
 
 

@@ -150,26 +150,12 @@ def _intersect_full_or_word(builder, planes, T):
     common case: on the 256-bit dome grid the normals reach 2^46, the offsets 2^72), as :func:`_intersect_narrow`
     with 64-bit normal fields (minors one ``imul`` each, the offset products wide times a word); otherwise as
     :func:`_intersect_full`. Both give the same cofactors modulo 2**T.width: the same exact point."""
-    fits = None
-    for plane in planes:
-        for v in plane[:3]:
-            ok = builder.icmp_signed("==", builder.sext(builder.trunc(v, I64), T), v)
-            fits = ok if fits is None else builder.and_(fits, ok)
-    with builder.if_else(fits, likely=True) as (word, full):
-        with word:
-            narrow = [[builder.trunc(v, I64) for v in plane[:3]] + [plane[3]] for plane in planes]
-            from_word = _intersect_narrow(builder, *narrow, T, _T(128))
-            word_block = builder.basic_block
-        with full:
-            from_full = _intersect_full(builder, *planes)
-            full_block = builder.basic_block
-    out = []
-    for a, b in zip(from_word, from_full, strict=True):
-        phi = builder.phi(T)
-        phi.add_incoming(a, word_block)
-        phi.add_incoming(b, full_block)
-        out.append(phi)
-    return out
+    def word():
+        return [[builder.trunc(v, I64) for v in plane[:3]] + [plane[3]] for plane in planes]
+
+    return lw.branch_values(builder, lw.fits_in_word(builder, [v for plane in planes for v in plane[:3]]),
+                            lambda: _intersect_narrow(builder, *word(), T, _T(128)),
+                            lambda: _intersect_full(builder, *planes))
 
 
 @intrinsic

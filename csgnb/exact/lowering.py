@@ -251,21 +251,38 @@ def plane_dot(builder, x, s, T):
     """
     if all(v.type.width <= 64 for v in s[:3]) or T.width <= 128:
         return dot(builder, x, s, T)
+    return branch_values(
+        builder, fits_in_word(builder, s[:3]),
+        lambda: [dot(builder, x, [builder.trunc(v, I64) for v in s[:3]] + [s[3]], T)],
+        lambda: [dot(builder, x, s, T)])[0]
+
+
+def fits_in_word(builder, values):
+    """i1: every one of the integer ``values`` equals the sign extension of its low 64 bits."""
     fits = None
-    for v in s[:3]:
+    for v in values:
         ok = builder.icmp_signed("==", builder.sext(builder.trunc(v, I64), v.type), v)
         fits = ok if fits is None else builder.and_(fits, ok)
-    with builder.if_else(fits, likely=True) as (narrow, full):
-        with narrow:
-            word = dot(builder, x, [builder.trunc(v, I64) for v in s[:3]] + [s[3]], T)
-            from_narrow = builder.basic_block
-        with full:
-            wide = dot(builder, x, s, T)
-            from_full = builder.basic_block
-    value = builder.phi(T)
-    value.add_incoming(word, from_narrow)
-    value.add_incoming(wide, from_full)
-    return value
+    return fits
+
+
+def branch_values(builder, condition, if_true, if_false):
+    """The values ``if_true()`` computes where ``condition`` holds (the likely side), ``if_false()``'s elsewhere:
+    both emitted behind one branch, their lists (of equal types) joined by phis."""
+    with builder.if_else(condition, likely=True) as (then, otherwise):
+        with then:
+            first = if_true()
+            first_block = builder.basic_block
+        with otherwise:
+            second = if_false()
+            second_block = builder.basic_block
+    joined = []
+    for a, b in zip(first, second, strict=True):
+        phi = builder.phi(a.type)
+        phi.add_incoming(a, first_block)
+        phi.add_incoming(b, second_block)
+        joined.append(phi)
+    return joined
 
 
 def to_double(builder, v):
