@@ -111,7 +111,7 @@ def _octree(variants: bool) -> None:
     w = Workpiece.box([-16, -16, -16], [16, 16, 16], threshold=16)
     octahedron = convex_hull(np.array([[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]]) * 9)
     w.difference(octahedron, track_volume=True)
-    w |= convex_hull(np.array([[0, 0, 0], [5, 0, 0], [0, 5, 0], [0, 0, 5]]))
+    w.run([convex_hull(np.array([[0, 0, 0], [5, 0, 0], [0, 5, 0], [0, 0, 5]]))], "union")  # the batch kernel
     w &= Tool.from_hull(octahedron).translated([3, 0, 0])
     w.volume()  # (its boundary's kernels: the "boundary" part)
     w.classify([[0, 0, 0]])

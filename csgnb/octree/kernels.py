@@ -848,6 +848,7 @@ def split_uniform(oc, node, need):
     return 1
 
 
+@unlinked
 @jit
 def _boolean_kernel(pal, oc, pool, amap, work, cand, done, tool_kind, tool, tlo, thi, table, constant, ws, st,
                     split_stack, threshold, min_size, max_polygons, seed, need):
