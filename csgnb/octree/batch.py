@@ -22,8 +22,8 @@ import numpy as np
 from csgnb._jit import jit
 from csgnb._resumable import DONE, FAILED, NEED_ROOM
 from csgnb.octree.kernels import (
-    CONVEX_TOOL,
     COMBINE_ORDER_LEAVES,
+    CONVEX_TOOL,
     ST_DONE,
     ST_LEAF,
     ST_REFINE,

@@ -48,6 +48,21 @@ from csgnb.exact.quantization import Grid
 from csgnb.exact.wide import DEFAULT_WIDTH, to_wide, wide_dtype
 from csgnb.mesh.hull import ConvexHull
 from csgnb.octree import kernels as K
+from csgnb.octree.batch import (
+    B_NEXT,
+    B_PALETTE_LIMIT,
+    B_PHASE,
+    R_COMPACT,
+    REP_COMBINES,
+    REP_LEAVES,
+    REP_MERGES,
+    REP_RELABELS,
+    REP_SPLITS,
+    REP_UNCHANGED,
+    convex_batch_kernel,
+    new_convex_batch,
+    spread_orders,
+)
 from csgnb.octree.global_tree import _global_size, _global_tree_kernel
 from csgnb.octree.layout import (
     BSP,
@@ -78,21 +93,6 @@ from csgnb.octree.layout import (
     new_octree,
     new_pool,
     new_tree_arrays,
-)
-from csgnb.octree.batch import (
-    B_NEXT,
-    B_PALETTE_LIMIT,
-    B_PHASE,
-    R_COMPACT,
-    REP_COMBINES,
-    REP_LEAVES,
-    REP_MERGES,
-    REP_RELABELS,
-    REP_SPLITS,
-    REP_UNCHANGED,
-    convex_batch_kernel,
-    new_convex_batch,
-    spread_orders,
 )
 from csgnb.octree.tool import Tool, _as_int64, _exact_planes, convex_tool_tree, store_int64_rows
 from csgnb.octree.volume import CellVolumes, LocalChange, cell_key, convex_change
