@@ -387,20 +387,20 @@ def test_a_checkpoint_of_another_run_is_refused_and_its_own_run_resumes(tmp_path
     whole = start()
     whole.run(tools_a)
     path = tmp_path / "ck.npz"
-    boolean = Workpiece.boolean
+    batch = Workpiece._boolean_hulls
     calls = []
 
-    def interrupted(self, *args, **kw):  # the 6th operation of the run is interrupted
+    def interrupted(self, *args, **kw):  # operations 5-6 of the run (one batch between checkpoints) are interrupted
         calls.append(1)
-        if len(calls) == 7:
+        if len(calls) == 3:
             raise Interrupt
-        return boolean(self, *args, **kw)
+        return batch(self, *args, **kw)
 
-    monkeypatch.setattr(Workpiece, "boolean", interrupted)
-    crashed = start()  # (the box itself is the first call)
+    monkeypatch.setattr(Workpiece, "_boolean_hulls", interrupted)
+    crashed = start()
     with pytest.raises(Interrupt):
         crashed.run(tools_a, checkpoint=path, checkpoint_every=2)
-    monkeypatch.setattr(Workpiece, "boolean", boolean)
+    monkeypatch.setattr(Workpiece, "_boolean_hulls", batch)
     assert Workpiece.load(path)._meta["completed"] == 4
     ck = path.read_bytes()
     # same grid and threshold, other tools / operation / start: refused, the file untouched
