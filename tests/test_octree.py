@@ -160,6 +160,27 @@ def test_mesh_and_bsp_tools_match_the_convex_tool():
                                   ).volume()
 
 
+@pytest.mark.parametrize("seed", range(3))
+def test_finely_faceted_mesh_tools_match_the_convex_tool(seed):
+    """A mesh tool of ~600 small facets over a workpiece of small cells: most facets lie strictly inside a cell
+    they reach (copied whole, without the six wall splits) and the others are clipped; the result is the same
+    solid as the hull used as a convex tool (volume, and every sampled point)."""
+    rng = np.random.default_rng(seed)
+    d = rng.normal(size=(600, 3))
+    points = np.rint(d / np.linalg.norm(d, axis=1)[:, None] * 90).astype(np.int64) + rng.integers(60, 68, size=3)
+    hull = convex_hull(points)
+    V, F = hull.to_mesh()
+    tool = Tool.from_mesh(V, F, width=128)
+    a = Workpiece.box([0, 0, 0], [128, 128, 128], threshold=24)
+    b = Workpiece.box([0, 0, 0], [128, 128, 128], threshold=24)
+    a -= tool
+    b -= hull
+    assert a.volume() == b.volume()
+    pts = rng.integers(-4, 260, size=(4000, 3))
+    X = to_wide(np.column_stack([pts, np.full(len(pts), 2)]), 128)
+    assert np.array_equal(a.classify(X), b.classify(X))
+
+
 def test_translated_tools_are_exact():
     V, F = tetra_mesh([0, 0, 0], 6)
     tool = Tool.from_mesh(V, F, width=128)

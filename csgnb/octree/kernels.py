@@ -335,6 +335,22 @@ def clip_tool_polygons(pal, tool, cand, lo, size, brows, arena, bi, need):
         srow = s if s >= 0 else -s - 1
         e0 = tool.offsets[i]
         k = tool.offsets[i + 1] - e0
+        if (tool.plo[i, 0] > lo[0] and tool.phi[i, 0] < hi0 and tool.plo[i, 1] > lo[1] and tool.phi[i, 1] < hi1
+                and tool.plo[i, 2] > lo[2] and tool.phi[i, 2] < hi2):
+            # The polygon's box (which holds its exact vertices) lies strictly inside the cell box: every wall
+            # would find it entirely on its inner side and leave it as it is -- copy it without the six splits.
+            if n_out + 1 >= bi.support.shape[0] or e_out + k > bi.edges.shape[0]:
+                need[0] = R_BUILD_IN
+                return -1
+            bi.support[n_out] = s
+            bi.offsets[n_out] = e_out
+            for j in range(k):
+                bi.edges[e_out + j] = tool.edges[e0 + j]
+                copy_point(tool.verts, e0 + j, bi.verts, e_out + j)
+            e_out += k
+            n_out += 1
+            bi.offsets[n_out] = e_out
+            continue
         if k + 7 > cap:
             need[0] = R_TOOL_ARENA
             return -1
