@@ -29,7 +29,7 @@ from csgnb.octree.kernels import (
     ST_REFINE,
     _boolean_kernel,
     combine_order,
-    combine_parent,
+    combine_upwards,
 )
 from csgnb.octree.layout import (
     N_PAL,
@@ -191,14 +191,8 @@ def convex_batch_kernel(pal, oc, pool, amap, work, cand, done, batch, table, con
             s[B_COMBINED] = 0
             s[B_PHASE] = P_COMBINE
         while s[B_COMBINED] < s[B_PARENTS]:
-            node = batch.parents[s[B_COMBINED]]
-            while node >= 0 and oc.child[node] >= 0:
-                r = combine_parent(pal, oc, pool, amap, node, ws, threshold, seed, need)
-                if r == 0:
-                    return FAILED if need[0] == 0 else NEED_ROOM
-                if r == 2:
-                    break
-                node = oc.parent[node]
+            if not combine_upwards(pal, oc, pool, amap, batch.parents[s[B_COMBINED]], ws, threshold, seed, need):
+                return FAILED if need[0] == 0 else NEED_ROOM
             s[B_COMBINED] += 1
         rep = batch.reports
         b = batch.before

@@ -311,6 +311,22 @@ def convex_tool_in_box(pal, rows, corners, dist, tb):
     return 2, n
 
 
+@jit(inline="always")
+def _append_import_polygon(bi, n_out, e_out, support, edges, verts, first, k, need):
+    """Append import polygon ``n_out`` (support row ``support``, edges and vertices ``first:first + k`` of ``edges``
+    and ``verts``) at edge ``e_out`` of ``bi``; return the next free edge, or -1 when short of room."""
+    if n_out + 1 >= bi.support.shape[0] or e_out + k > bi.edges.shape[0]:
+        need[0] = R_BUILD_IN
+        return -1
+    bi.support[n_out] = support
+    bi.offsets[n_out] = e_out
+    for j in range(k):
+        bi.edges[e_out + j] = edges[first + j]
+        copy_point(verts, first + j, bi.verts, e_out + j)
+    bi.offsets[n_out + 1] = e_out + k
+    return e_out + k
+
+
 @unlinked
 @jit
 def clip_tool_polygons(pal, tool, cand, lo, size, brows, arena, bi, need):
@@ -339,17 +355,10 @@ def clip_tool_polygons(pal, tool, cand, lo, size, brows, arena, bi, need):
                 and tool.plo[i, 2] > lo[2] and tool.phi[i, 2] < hi2):
             # The polygon's box (which holds its exact vertices) lies strictly inside the cell box: every wall
             # would find it entirely on its inner side and leave it as it is -- copy it without the six splits.
-            if n_out + 1 >= bi.support.shape[0] or e_out + k > bi.edges.shape[0]:
-                need[0] = R_BUILD_IN
+            e_out = _append_import_polygon(bi, n_out, e_out, s, tool.edges, tool.verts, e0, k, need)
+            if e_out < 0:
                 return -1
-            bi.support[n_out] = s
-            bi.offsets[n_out] = e_out
-            for j in range(k):
-                bi.edges[e_out + j] = tool.edges[e0 + j]
-                copy_point(tool.verts, e0 + j, bi.verts, e_out + j)
-            e_out += k
             n_out += 1
-            bi.offsets[n_out] = e_out
             continue
         if k + 7 > cap:
             need[0] = R_TOOL_ARENA
@@ -373,17 +382,10 @@ def clip_tool_polygons(pal, tool, cand, lo, size, brows, arena, bi, need):
             break
         if not keep:
             continue
-        if n_out + 1 >= bi.support.shape[0] or e_out + k > bi.edges.shape[0]:
-            need[0] = R_BUILD_IN
+        e_out = _append_import_polygon(bi, n_out, e_out, s, arena.edges, arena.verts, start, k, need)
+        if e_out < 0:
             return -1
-        bi.support[n_out] = s
-        bi.offsets[n_out] = e_out
-        for j in range(k):
-            bi.edges[e_out + j] = arena.edges[start + j]
-            copy_point(arena.verts, start + j, bi.verts, e_out + j)
-        e_out += k
         n_out += 1
-        bi.offsets[n_out] = e_out
     return n_out
 
 
@@ -1100,6 +1102,19 @@ def combine_parent(pal, oc, pool, amap, node, ws, threshold, seed, need):
     return 1
 
 
+@jit(inline="always")
+def combine_upwards(pal, oc, pool, amap, node, ws, threshold, seed, need):
+    """Combine ``node``'s children, then its parent's, and so on while they combine; False when short of room."""
+    while node >= 0 and oc.child[node] >= 0:
+        r = combine_parent(pal, oc, pool, amap, node, ws, threshold, seed, need)
+        if r == 0:
+            return False
+        if r == 2:
+            break
+        node = oc.parent[node]
+    return True
+
+
 @jit
 def _combine_kernel(pal, oc, pool, amap, parents, ws, st, threshold, seed, need):
     """Try to combine each of ``parents`` (resumable via ``st[0]``); combined parents are tried upwards."""
@@ -1113,14 +1128,8 @@ def _combine_kernel(pal, oc, pool, amap, parents, ws, st, threshold, seed, need)
     ws = unmanaged_workspace(ws)
     need[0] = 0
     while st[0] < parents.shape[0]:
-        node = parents[st[0]]
-        while node >= 0 and oc.child[node] >= 0:
-            r = combine_parent(pal, oc, pool, amap, node, ws, threshold, seed, need)
-            if r == 0:
-                return FAILED if need[0] == 0 else NEED_ROOM
-            if r == 2:
-                break
-            node = oc.parent[node]
+        if not combine_upwards(pal, oc, pool, amap, parents[st[0]], ws, threshold, seed, need):
+            return FAILED if need[0] == 0 else NEED_ROOM
         st[0] += 1
     return DONE
 
