@@ -587,8 +587,7 @@ class Workpiece:
                                  f"|coordinate| <= {limit} ({self.width}-bit)")
         starts = np.zeros(n + 1, np.int64)
         np.cumsum([p.shape[0] for p in planes], out=starts[1:])
-        P = _exact_planes(np.concatenate([p if p.dtype == np.int64 else p.astype(object) for p in planes]
-                                         if any(p.dtype != np.int64 for p in planes) else planes))
+        P = _exact_planes(np.concatenate(planes))  # int64 beside object rows: object, of Python ints
         P = P[spread_orders(P[:, :3].astype(np.float64), starts)]  # as Tool.from_hull orders each hull's planes
         max_normal, max_offset = self._max_normal, self._max_offset
         self._check_planes(P, "the tools' planes")
@@ -602,10 +601,10 @@ class Workpiece:
             hi[:] = self.root_lo + self.root_size + 1
         biggest = int(np.diff(starts).max())
         self._palette_room(biggest + 64)
-        batch = new_convex_batch(W, starts, lo, hi, 256, max(PALETTE_COMPACT_ROWS, 2 * self._palette_kept))
         if not hasattr(self, "_split_stack"):
             self._split_stack = np.zeros(512, np.int64)
-        work, cand, done = np.zeros((512, 4), np.int64), np.empty(1024, np.int32), np.empty(256, np.int64)
+        work, cand, done = self._walk_arrays(0)
+        batch = new_convex_batch(W, starts, lo, hi, done.shape[0], max(PALETTE_COMPACT_ROWS, 2 * self._palette_kept))
         st, need = np.zeros(8, np.int64), np.zeros(4, np.int64)
         counts_before = self.oc.counts.copy()
         shortages = 0
@@ -630,11 +629,9 @@ class Workpiece:
                 if shortages > _MAX_RESUMPTIONS:
                     raise InternalError("an octree Boolean kept running short of room (a bug in csgnb: please "
                                         "report it)")
-                if code == K.R_WORK:
-                    work, done = grown(work), grown(done)
+                if code in (K.R_WORK, K.R_CANDIDATES):
+                    work, cand, done = self._grow_walk(code, work, cand, done)
                     batch = batch._replace(parents=grown(batch.parents, done.shape[0]))
-                elif code == K.R_CANDIDATES:
-                    cand = grown(cand)
                 else:
                     self._grow(code)
                     self._palette_room(biggest + 64)
@@ -642,8 +639,7 @@ class Workpiece:
             if int(batch.state[B_NEXT]) == 0 and int(batch.state[B_PHASE]) == 0:
                 self._max_normal, self._max_offset = max_normal, max_offset
             raise
-        self._maybe_compact()
-        self._maybe_compact_palette()
+        # (the kernel stopped for every compaction due, after the last hull too)
         seconds = (time.perf_counter() - t0) / n
         c = self.oc.counts - counts_before
         stats = self.stats
@@ -984,6 +980,27 @@ class Workpiece:
         _reinsert(old.keys[used], old.rows[used], new)
         self.amap = new
 
+    def _walk_arrays(self, n_poly: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The Boolean kernel's worklist ``(w, 4) int64``, candidate arena ``(c,) int32`` (room for ``16 n_poly``) and
+        list of touched cells ``(d,) int64``. They live with the workpiece and only grow: fresh ones resumed a drill
+        step ~5 times to grow (each redoing a cell) and touched ~1 MB of new pages every step."""
+        work, cand, done = self.__dict__.get("_walk") or (np.zeros((512, 4), np.int64), np.empty(1024, np.int32),
+                                                           np.empty(256, np.int64))
+        if cand.shape[0] < 16 * n_poly:
+            cand = np.empty(16 * n_poly, np.int32)
+        self._walk = (work, cand, done)
+        return self._walk
+
+    def _grow_walk(self, code: int, work, cand, done) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The walk arrays after the kernel ran short of ``code`` (``R_WORK``: worklist and cell list; else the
+        candidates), kept with the workpiece."""
+        if code == K.R_WORK:
+            work, done = grown(work), grown(done)
+        else:
+            cand = grown(cand)
+        self._walk = (work, cand, done)
+        return self._walk
+
     def _run_boolean(self, kind: int, tool: ToolArrays, lo, hi, table, constant) -> np.ndarray:
         """Run the Boolean kernel from the root over the open box ``(lo, hi)``; return the leaves it processed."""
         st = np.zeros(8, np.int64)
@@ -991,12 +1008,7 @@ class Workpiece:
         if not hasattr(self, "_split_stack"):
             self._split_stack = np.zeros(512, np.int64)
         n_poly = tool.support.shape[0]
-        # the worklist, candidate arena and list of touched cells live with the workpiece and only grow: fresh ones
-        # resumed a drill step ~5 times to grow (each redoing a cell) and touched ~1 MB of new pages every step
-        work, cand, done = self.__dict__.get("_walk") or (np.zeros((512, 4), np.int64), np.empty(1024, np.int32),
-                                                           np.empty(256, np.int64))
-        if cand.shape[0] < 16 * n_poly:
-            cand = np.empty(16 * n_poly, np.int32)
+        work, cand, done = self._walk_arrays(n_poly)
         cand[:n_poly] = np.arange(n_poly, dtype=np.int32)
         work[0] = (0, 0, n_poly, 4 * n_poly + 4)
         st[K.ST_LEAF] = 1
@@ -1010,17 +1022,13 @@ class Workpiece:
                                        tlo, thi, table, constant, self.ws, st, self._split_stack, self.threshold,
                                        self.min_cell, self.max_tool_polygons, self.seed, need)
             if status == DONE:
-                self._walk = (work, cand, done)
                 return done[: st[K.ST_DONE]]
             if status == FAILED:
                 raise InternalError("an octree Boolean failed an internal check (a bug in csgnb: please report it)")
-            if need[0] == K.R_WORK:
-                work, done = grown(work), grown(done)
-            elif need[0] == K.R_CANDIDATES:
-                cand = grown(cand)
+            if need[0] in (K.R_WORK, K.R_CANDIDATES):
+                work, cand, done = self._grow_walk(int(need[0]), work, cand, done)
             else:
                 self._grow(int(need[0]))
-            self._walk = (work, cand, done)
         raise InternalError("an octree Boolean kept running short of room (a bug in csgnb: please report it)")
 
     def _run_combine(self, parents: np.ndarray) -> None:
