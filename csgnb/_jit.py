@@ -13,7 +13,9 @@ and the absence of ``fastmath``, are decided in one place:
   can only call what its module's globals name, and those come from its imports,
   so the import closure covers everything it inlines; an edit of
   ``csgnb/apps/gcode.py`` recompiles only the kernels whose modules import it,
-  not the exact, mesh, bsp and octree kernels (minutes of compilation).
+  not the exact, mesh, bsp and octree kernels (minutes of compilation). Kernels in
+  files outside the package that import csgnb (tests, benchmarks, scripts) are keyed
+  the same way (:func:`keyed_on_dependencies`).
 * A cache folder that cannot be written (a read-only install, another user's
   ``NUMBA_CACHE_DIR``) falls back to a per-user folder, then to no cache, with a
   warning, instead of failing at import.
@@ -39,7 +41,7 @@ import numba
 from csgnb._unlinked import resolve_unlinked
 
 __all__ = ["BORROWING_KERNELS", "CACHE_ENABLED", "PACKAGE_SOURCE_HASH", "borrowing_jit", "dependency_hash", "jit",
-           "module_dependencies"]
+           "keyed_on_dependencies", "module_dependencies"]
 
 _PACKAGE_DIR = Path(__file__).resolve().parent
 
@@ -129,7 +131,8 @@ def dependency_hash(path, package_dir=None) -> str:
     root = Path(package_dir or _PACKAGE_DIR).resolve()
     digest = hashlib.sha256()
     for dep in module_dependencies(path, root):
-        digest.update(str(dep.relative_to(root)).encode())
+        # a file outside the package (a test, a benchmark, a user's script) is named by its absolute path
+        digest.update(str(dep.relative_to(root) if dep.is_relative_to(root) else dep).encode())
         digest.update(dep.read_bytes())
     return digest.hexdigest()
 
@@ -187,8 +190,21 @@ if CACHE_ROOT is None:
     CACHE_ENABLED = False
 
 
+def keyed_on_dependencies(py_file) -> bool:
+    """Whether kernels of ``py_file`` are cached under :func:`dependency_hash`: csgnb's own modules, and any other
+    file that imports csgnb (tests, benchmarks, a user's script). Keyed on the file alone, a kernel there that
+    inlines csgnb's intrinsics outlives an edit of them: a test compiled against the old lowering kept passing
+    after it changed (2026-12-04). Files that do not import csgnb keep numba's own locator."""
+    try:
+        path = Path(py_file).resolve()
+        return path.is_relative_to(_PACKAGE_DIR) or (path.is_file() and bool(_imported_modules(path, _PACKAGE_DIR)))
+    except (OSError, SyntaxError, ValueError):
+        return False
+
+
 def _install_package_cache_locator() -> None:
-    """Put a locator keyed on :func:`dependency_hash` first in numba's list, for csgnb files only."""
+    """Put a locator keyed on :func:`dependency_hash` first in numba's list, for the files
+    :func:`keyed_on_dependencies` names."""
     from numba.core import caching
 
     # numba renamed these from private to public names over its versions.
@@ -213,11 +229,7 @@ def _install_package_cache_locator() -> None:
 
         @classmethod
         def from_function(cls, py_func, py_file):
-            try:
-                inside = Path(py_file).resolve().is_relative_to(_PACKAGE_DIR)
-            except OSError:
-                inside = False
-            return super().from_function(py_func, py_file) if inside and CACHE_ROOT else None
+            return super().from_function(py_func, py_file) if CACHE_ROOT and keyed_on_dependencies(py_file) else None
 
     if not any(c.__name__ == "PackageCacheLocator" for c in impl._locator_classes):
         impl._locator_classes.insert(0, PackageCacheLocator)

@@ -10,7 +10,7 @@ from hypothesis import strategies as st
 from csgnb import GeometryError, PrecisionError, exact
 from csgnb._jit import jit
 from csgnb.exact import budget, integer_root
-from csgnb.exact.intrinsics import compare_cached_values_at, cross_sign, plane_side_sign
+from csgnb.exact.intrinsics import compare_cached_values_at, cross_sign, plane_side_sign, wide_filter_double_at
 from tests.exact_reference import cross, det3, side, solve_3_planes
 
 WIDTHS = exact.WIDTHS
@@ -388,9 +388,20 @@ def quotient_pairs(draw, width):
     top = (1 << (width - 1)) - 1
     value = st.one_of(st.integers(-top - 1, top), st.integers(-3, 3), st.just(top), st.just(-top - 1),
                       st.integers(-(1 << 64), 1 << 64))
-    kind = draw(st.sampled_from(["random", "equal", "near"]))
+    kind = draw(st.sampled_from(["random", "equal", "near", "at the filter's bound"]))
     if kind == "random":
         return tuple(draw(value) for _ in range(4))
+    if kind == "at the filter's bound":
+        # dv/wv = du/wu (other terms) moved by 2**-40 .. 2**-60 of itself: the doubles decide some, the products the
+        # rest; a filter bound below the conversions' error (2**-58 for 2**-48) gives wrong signs here
+        wu = draw(st.integers(1 << 60, top)) * draw(st.sampled_from([-1, 1]))
+        du = draw(st.integers(-top - 1, top))
+        k_bound = max(1, top // max(abs(du), abs(wu)))
+        k = draw(st.integers(1, k_bound))
+        dv, wv = du * k, wu * k
+        dv += (abs(dv) >> draw(st.integers(40, 60))) * draw(st.sampled_from([-1, 1])) + draw(st.integers(-2, 2))
+        assume(-top - 1 <= dv <= top)
+        return du, wu, dv, wv
     p, q = draw(value), draw(value.filter(bool))
     bound = top // max(abs(p), abs(q), 1)
     k1 = draw(st.integers(-bound, bound).filter(bool)) if bound else 1
@@ -415,6 +426,28 @@ def test_distance_comparison_is_the_sign_of_the_exact_difference(width, data):
     out = np.zeros(n, np.int8)
     _compare_all(D, X, np.arange(n), np.arange(n) + n, out)
     assert out.tolist() == [_reference_compare(*c) for c in cases]
+
+
+@jit
+def _filter_doubles(V, out):
+    for k in range(V.shape[0]):
+        out[k] = wide_filter_double_at(V, k, 0)
+
+
+@settings(max_examples=200)
+@given(width=widths, data=st.data())
+def test_filter_doubles_are_within_four_units(width, data):
+    """``lowering.filter_double`` (limb by limb, for the float filters): within 4 units of 2**-53 of the exact value,
+    checked with Fractions over the whole signed width, at the extremes, at powers of two and just beside them."""
+    top = (1 << (width - 1)) - 1
+    edges = [0, 1, -1, top, -top - 1] + [s * ((1 << e) + d) for e in (52, 53, 63, 64, 126, width - 2)
+                                          for d in (-1, 0, 1) for s in (1, -1) if e < width - 1]
+    values = data.draw(st.lists(st.one_of(st.integers(-top - 1, top), st.sampled_from(edges),
+                                          st.integers(-(1 << 70), 1 << 70)), min_size=1, max_size=32))
+    out = np.zeros(len(values))
+    _filter_doubles(exact.to_wide([[v] for v in values], width), out)
+    for v, f in zip(values, out, strict=True):
+        assert abs(Fraction(f) - v) <= Fraction(4, 1 << 53) * abs(v), (v, f)
 
 
 @pytest.mark.parametrize("regime", ["normals at the edge", "wide offsets"])

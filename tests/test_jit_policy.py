@@ -87,6 +87,28 @@ def test_an_edit_invalidates_only_the_kernels_that_depend_on_it(tmp_path):
             assert {"exact/predicates.py", "mesh/cutting.py", "octree/kernels.py"} <= rel
 
 
+def test_kernels_outside_the_package_are_keyed_on_what_they_import(tmp_path):
+    """A test's or a script's kernel inlines csgnb's intrinsics: its cache key must change when they do (keyed on
+    its own file only, a test compiled against an old ``lowering.py`` kept passing after it changed)."""
+    from csgnb._jit import dependency_hash, keyed_on_dependencies, module_dependencies
+
+    assert keyed_on_dependencies(__file__)
+    script = tmp_path / "user_script.py"
+    script.write_text("from csgnb.exact.intrinsics import classify_at\n")
+    assert {"user_script.py", "intrinsics.py", "lowering.py", "_jit.py"} <= {p.name for p in module_dependencies(script)}
+    plain = tmp_path / "plain.py"
+    plain.write_text("import numpy\n")
+    assert keyed_on_dependencies(script) and not keyed_on_dependencies(plain)
+    assert not keyed_on_dependencies(tmp_path / "missing.py") and not keyed_on_dependencies("<ipython-input-1>")
+    # an edit of the package (in a copy) changes the script's key
+    copy = tmp_path / "pkg" / "csgnb"
+    shutil.copytree(PACKAGE, copy, ignore=shutil.ignore_patterns("__pycache__"))
+    before = dependency_hash(script, copy)
+    lowering = copy / "exact" / "lowering.py"
+    lowering.write_text(lowering.read_text() + "\n# an edit\n")
+    assert dependency_hash(script, copy) != before
+
+
 def test_an_unwritable_cache_folder_falls_back_with_a_warning(tmp_path):
     locked = tmp_path / "locked"
     locked.mkdir()

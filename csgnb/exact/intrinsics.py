@@ -51,6 +51,7 @@ __all__ = [
     "compare_cached_values_at",
     "wide_sign_at",
     "wide_to_float_at",
+    "wide_filter_double_at",
     "wide_to_int64_at",
     "wide_split_double_at",
     "wide_abs_greater_at",
@@ -428,6 +429,11 @@ wide_sign_at.__doc__ = "int8 sign of the wide element ``arr[i, j]``."
 
 wide_to_float_at = _element_intrinsic("wide_to_float_at", types.float64, lambda ctx, b, v: lw.to_double(b, v))
 wide_to_float_at.__doc__ = "The wide element ``arr[i, j]`` rounded to the nearest double."
+
+wide_filter_double_at = _element_intrinsic("wide_filter_double_at", types.float64,
+                                           lambda ctx, b, v: lw.filter_double(b, v))
+wide_filter_double_at.__doc__ = """A double within 4 units of 2**-53 (relative) of ``arr[i, j]``: cheap, for filters
+(:func:`csgnb.exact.lowering.filter_double`; :func:`wide_to_float_at` rounds correctly, at several times the cost)."""
 
 wide_to_int64_at = _element_intrinsic("wide_to_int64_at", types.int64, lambda ctx, b, v: b.trunc(v, I64))
 wide_to_int64_at.__doc__ = "The low 64 bits of ``arr[i, j]`` as int64 (exact when it fits)."

@@ -11,11 +11,12 @@ those with doubles instead, and only when it is sure:
    2**-52 |x~|), then the box's corners are pushed outwards by :data:`WIDEN` of their magnitude
    (2**-50 > 2**-52 plus the rounding of that subtraction, 2**-53).
 2. :func:`box_side` evaluates the plane's largest and smallest value over the box in doubles:
-   max = d + sum_c max(a_c lo_c, a_c hi_c). The coefficients are rounded once (``to_double``,
-   relative 2**-53), each product once and the sum three times: the computed max is within
-   ~6 * 2**-53 * T of the exact one, T = |d| + sum_c max(|a_c lo_c|, |a_c hi_c|). A side is
-   returned only when the max is below -:data:`MARGIN` T (or the min above +MARGIN T), with
-   MARGIN = 2**-48 (32 units in the last place, five times the bound): then every vertex is
+   max = d + sum_c max(a_c lo_c, a_c hi_c). The coefficients are converted within 4 units of 2**-53
+   (``wide_filter_double_at``: limb by limb, several times cheaper than correct rounding at 256 bits),
+   each product rounded once and the sum three times: the computed max is within ~9 * 2**-53 * T of
+   the exact one, T = |d| + sum_c max(|a_c lo_c|, |a_c hi_c|). A side is returned only when the max
+   is below -:data:`MARGIN` T (or the min above +MARGIN T), with MARGIN = 2**-48 (32 units in the
+   last place, more than three times the bound): then every vertex is
    strictly on that side, the exact cut would have found no proper intersection and returned the
    same side, and the mesh is not touched. Otherwise (a plane through or near the box, a box that
    could not be bounded) it returns 0 and the exact cut decides.
@@ -32,7 +33,7 @@ import numpy as np
 
 from csgnb._jit import jit
 from csgnb._views import unmanaged, unmanaged_tuple
-from csgnb.exact.intrinsics import positions_into, wide_sign_at, wide_to_float_at
+from csgnb.exact.intrinsics import positions_into, wide_filter_double_at, wide_sign_at
 from csgnb.exact.wide import to_wide
 from csgnb.mesh.halfedge import NH, STAMP, VERT, MeshStore, collect_cell_halfedges
 
@@ -113,12 +114,12 @@ def box_side(palette, row, boxes, r):
     0 when the doubles cannot tell (the plane meets the box or nearly, or the box is unknown)."""
     if boxes[r, 0] != boxes[r, 0]:
         return 0
-    d = wide_to_float_at(palette, row, 3)
+    d = wide_filter_double_at(palette, row, 3)
     smax = d
     smin = d
     t = abs(d)
     for c in range(3):
-        a = wide_to_float_at(palette, row, c)
+        a = wide_filter_double_at(palette, row, c)
         x = a * boxes[r, c]
         y = a * boxes[r, 3 + c]
         smax += max(x, y)
