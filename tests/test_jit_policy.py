@@ -95,7 +95,8 @@ def test_kernels_outside_the_package_are_keyed_on_what_they_import(tmp_path):
     assert keyed_on_dependencies(__file__)
     script = tmp_path / "user_script.py"
     script.write_text("from csgnb.exact.intrinsics import classify_at\n")
-    assert {"user_script.py", "intrinsics.py", "lowering.py", "_jit.py"} <= {p.name for p in module_dependencies(script)}
+    names = {p.name for p in module_dependencies(script)}
+    assert {"user_script.py", "intrinsics.py", "lowering.py", "_jit.py"} <= names
     plain = tmp_path / "plain.py"
     plain.write_text("import numpy\n")
     assert keyed_on_dependencies(script) and not keyed_on_dependencies(plain)
