@@ -432,7 +432,7 @@ wide_to_float_at.__doc__ = "The wide element ``arr[i, j]`` rounded to the neares
 
 wide_filter_double_at = _element_intrinsic("wide_filter_double_at", types.float64,
                                            lambda ctx, b, v: lw.filter_double(b, v))
-wide_filter_double_at.__doc__ = """A double within 4 units of 2**-53 (relative) of ``arr[i, j]``: cheap, for filters
+wide_filter_double_at.__doc__ = """A double within 4.001 units of 2**-53 (relative) of ``arr[i, j]``: cheap, for filters
 (:func:`csgnb.exact.lowering.filter_double`; :func:`wide_to_float_at` rounds correctly, at several times the cost)."""
 
 wide_to_int64_at = _element_intrinsic("wide_to_int64_at", types.int64, lambda ctx, b, v: b.trunc(v, I64))

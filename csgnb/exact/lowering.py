@@ -310,11 +310,11 @@ def to_double(builder, v):
 
 
 def filter_double(builder, v):
-    """A double within 4 units of 2**-53 (relative) of the signed integer ``v``: for filters, not for output.
+    """A double within 4.001 units of 2**-53 (relative) of the signed integer ``v``: for filters, not for output.
 
-    |v| is split into its 64-bit limbs, each converted (one rounding) and scaled by its exact power of two, and
-    the non-negative terms are summed from the top (one rounding each): a relative error of at most
-    (1 + 2**-53)**(2k-1) - 1 < 4 units for the k <= 4 limbs of a 256-bit value -- and no ``ctlz``, no
+    |v| is split into its k <= 4 limbs of 64 bits, each converted (one rounding) and scaled by its exact power of
+    two, and the non-negative terms are summed from the top (k - 1 roundings): no term meets more than k roundings,
+    so the relative error is at most (1 + 2**-53)**4 - 1 < 4.001 units at 256 bits -- and no ``ctlz``, no
     variable-width shift of the wide value (which LLVM spills through the stack), no sticky bit, unlike the
     correctly rounded :func:`to_double`, which costs several times as much at 256 bits. Zero gives 0.0.
     """
@@ -331,7 +331,7 @@ def filter_double(builder, v):
 
 
 #: Relative bound for deciding sign(a/b - c/d) = sign(a d - c b)·sign(b)·sign(d) from doubles
-#: (:func:`quotient_difference_sign`): each of a, b, c, d is within 4 units of 2**-53 (:func:`filter_double`), each
+#: (:func:`quotient_difference_sign`): each of a, b, c, d is within 4.001 units of 2**-53 (:func:`filter_double`), each
 #: product within 9.01 units of its exact value, so the computed p - q is within 9.02 units of |p| + |q| of a d - c b;
 #: 2**-48 is 32 units (the bound's own two roundings and the difference's cost under one): sound with room. A closer
 #: call goes to the exact products.

@@ -11,7 +11,7 @@ those with doubles instead, and only when it is sure:
    2**-52 |x~|), then the box's corners are pushed outwards by :data:`WIDEN` of their magnitude
    (2**-50 > 2**-52 plus the rounding of that subtraction, 2**-53).
 2. :func:`box_side` evaluates the plane's largest and smallest value over the box in doubles:
-   max = d + sum_c max(a_c lo_c, a_c hi_c). The coefficients are converted within 4 units of 2**-53
+   max = d + sum_c max(a_c lo_c, a_c hi_c). The coefficients are converted within 4.001 units of 2**-53
    (``wide_filter_double_at``: limb by limb, several times cheaper than correct rounding at 256 bits),
    each product rounded once and the sum three times: the computed max is within ~9 * 2**-53 * T of
    the exact one, T = |d| + sum_c max(|a_c lo_c|, |a_c hi_c|). A side is returned only when the max
