@@ -319,15 +319,22 @@ def test_python_ints_become_limbs_as_their_bytes_say(width, data):
     from csgnb.exact.wide import _python_ints_to_wide, to_wide
 
     top = (1 << (width - 1)) - 1
-    values = data.draw(st.lists(st.integers(-top - 1, top), min_size=1, max_size=12))
+    # columns that fit in int64 take numpy's int64 loops, the others bytes: mix both, and their edges
+    value = st.one_of(st.integers(-top - 1, top), st.integers(-(1 << 63), (1 << 63) - 1),
+                      st.sampled_from([-(1 << 63), (1 << 63) - 1, 1 << 63, -(1 << 63) - 1, 0, -1]))
+    values = data.draw(st.lists(value, min_size=1, max_size=12))
     values += [-top - 1, top, 0, -1]
-    arr = np.array(values, dtype=object).reshape(-1, 4) if len(values) % 4 == 0 else np.array(values, dtype=object)
+    shape = data.draw(st.sampled_from(["flat", "rows", "3-d"])) if len(values) % 4 == 0 else "flat"
+    arr = np.array(values, dtype=object)
+    arr = arr.reshape({"flat": (-1,), "rows": (-1, 4), "3-d": (-1, 2, 2)}[shape])
     got = to_wide(arr, width)
     assert got.shape == arr.shape
     expected = np.frombuffer(b"".join(int(v).to_bytes(width // 8, "little", signed=True) for v in arr.reshape(-1)),
                              dtype=got.dtype).reshape(arr.shape)
     assert got.tobytes() == expected.tobytes()
     assert _python_ints_to_wide(arr, width).tobytes() == expected.tobytes()
+    scalar = np.array(values[0], dtype=object)  # a 0-d object array (it once failed on an int without astype)
+    assert to_wide(scalar, width).tobytes() == expected.reshape(-1)[:1].tobytes()
     for bad in (top + 1, -top - 2):
         with pytest.raises(PrecisionError, match=f"does not fit in {width} bits"):
             to_wide(np.array([1, bad], dtype=object), width)

@@ -139,31 +139,43 @@ def to_wide(values, width: int) -> np.ndarray:
     return out.reshape(ints.shape)
 
 
-_LIMB = (1 << 64) - 1
-
-
 def _only_python_ints(arr: np.ndarray) -> bool:
     """Whether every element of the object array ``arr`` is a Python ``int`` (not a bool, not a numpy scalar)."""
     return set(map(type, arr.reshape(-1).tolist())) <= {int}
 
 
 def _python_ints_to_wide(arr: np.ndarray, width: int) -> np.ndarray:
-    """An object array of Python ints as a wide array, limb by limb in numpy's object loops (a tool's planes at
-    256 bits: int64 normals and offsets beyond int64 -- the per-element ``to_bytes`` loop cost ~1 ms per tool).
-    Python's ``>>`` and ``&`` act on the infinite two's complement, so each limb of a negative value is its
-    two's-complement limb."""
-    lo, hi = -(1 << (width - 1)), (1 << (width - 1)) - 1
-    least, most = int(arr.min()), int(arr.max())
-    if least < lo or most > hi:
-        v = least if least < lo else most
-        raise PrecisionError(
-            f"integer {v} does not fit in {width} bits: the signed range is "
-            f"[-2**{width - 1}, 2**{width - 1} - 1]; choose a wider width or smaller inputs"
-        )
+    """An object array of Python ints as a wide array. Along the last axis (a tool's planes: a, b, c, d), a column
+    whose values all fit in int64 takes numpy's int64 loops (at 256 bits a hull's normals fit, its offsets often
+    do not); the others are written as little-endian two's-complement bytes (``int.to_bytes``), which are the
+    limbs. A hull's 100 planes at 256 bits: all four columns limb by limb in numpy's object loops ~0.25 ms, this
+    ~0.05 ms."""
+    k = width // 64
     out = np.zeros(arr.shape, wide_dtype(width))
     limbs = out["limbs"]
-    for j in range(width // 64):
-        limbs[..., j] = ((arr >> (64 * j)) & _LIMB).astype(np.uint64)
+    columns = arr.reshape(-1, arr.shape[-1]) if arr.ndim >= 2 else arr.reshape(-1, 1)
+    dst = limbs.reshape(columns.shape + (k,))
+    lo, hi = -(1 << (width - 1)), (1 << (width - 1)) - 1
+    for c in range(columns.shape[1]):  # a few columns (the last axis): the loop is over them, not the values
+        col = columns[:, c]
+        try:
+            small = col.astype(np.int64)
+        except OverflowError:
+            small = None
+        if small is not None:
+            dst[:, c, 0] = small.view(np.uint64)
+            dst[:, c, 1:] = np.where(small < 0, np.uint64(0xFFFFFFFFFFFFFFFF), np.uint64(0))[:, None]
+            continue
+        values = col.tolist()
+        try:  # to_bytes refuses exactly the values outside the signed range of ``width`` bits
+            raw = b"".join([v.to_bytes(8 * k, "little", signed=True) for v in values])
+        except OverflowError:
+            v = next(v for v in values if not lo <= v <= hi)
+            raise PrecisionError(
+                f"integer {v} does not fit in {width} bits: the signed range is "
+                f"[-2**{width - 1}, 2**{width - 1} - 1]; choose a wider width or smaller inputs"
+            ) from None
+        dst[:, c, :] = np.frombuffer(raw, np.uint64).reshape(-1, k)
     return out
 
 
