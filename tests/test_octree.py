@@ -458,3 +458,41 @@ def test_a_stock_workpiece_stops_splitting_at_its_share_of_the_stock(tmp_path):
     V = np.array([[0, 0, 0], [4096, 0, 0], [0, 4096, 0], [0, 0, 4096]], np.int64)
     F = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])
     assert Workpiece.from_mesh(V, F).min_cell == 4096 >> STOCK_CELL_DEPTH
+
+
+def test_largest_magnitudes_of_planes_are_exact_in_every_representation():
+    """``_largest_magnitude`` (the budget check of a tool's planes): int64 at -2**63 (where |v| would wrap), Python
+    ints that fit in int64 and ones that do not, negative and positive extremes."""
+    from csgnb.octree.workpiece import _largest_magnitude
+
+    cases = [[3, -7, 5], [-(1 << 63), 1, 2], [(1 << 63) - 1, -5], [1 << 63, -3], [-(1 << 63) - 1, 4],
+             [-(1 << 200), 1 << 199]]
+    for values in cases:
+        expected = max(abs(v) for v in values)
+        assert _largest_magnitude(np.array(values, dtype=object)) == expected, values
+        if all(-(1 << 63) <= v < (1 << 63) for v in values):
+            assert _largest_magnitude(np.array(values, dtype=np.int64)) == expected, values
+
+
+def test_python_int_planes_are_refused_exactly_at_the_budget():
+    """A 256-bit workpiece takes planes whose offsets exceed int64 (Python ints) up to the budget and refuses one
+    unit beyond it, with the bound named; the workpiece is unchanged after the refusal."""
+    from csgnb.exact import budget
+    from csgnb.octree.tool import Tool
+
+    w = Workpiece.box([0, 0, 0], [10, 10, 10], width=256)
+    limit = budget(256).limit
+    N = 1 << 40
+    D = (limit - 1) // (16 * N**3)  # the largest offset with 16 N^3 D < 2**255 (the other bounds are looser here)
+    assert not budget(256).plane_violations(N, D) and budget(256).plane_violations(N, D + 1)
+    ok = np.array([[N, 0, 0, -D], [-1, 0, 0, 0], [0, 1, 0, -5], [0, -1, 0, 0], [0, 0, 1, -5], [0, 0, -1, 0]], object)
+    w._check_planes(ok, "planes")
+    w2 = Workpiece.box([0, 0, 0], [10, 10, 10], width=256)
+    before = w2._arrays()
+    bad = ok.copy()
+    bad[0, 3] = -(D + 1)
+    with pytest.raises(PrecisionError, match="16·N³·D"):
+        w2 -= Tool("convex", bad, [0, 0, 0], [5, 5, 5])
+    after = w2._arrays()
+    for name in before:
+        assert np.array_equal(before[name], after[name]), name

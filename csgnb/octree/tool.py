@@ -142,9 +142,10 @@ class Tool:
     """
 
     def __init__(self, kind: str, planes: np.ndarray, lo, hi, *, polygons: PolygonSet | None = None,
-                 tree=None, grid=None) -> None:
+                 tree=None, grid=None, _exact: bool = False) -> None:
         self.kind = kind
-        self.planes = _exact_planes(planes)  # (k, 4) exact: int64 below 2**62, else Python ints (object)
+        # (k, 4) exact: int64 below 2**62, else Python ints (object); ``_exact``: the caller made them so already
+        self.planes = planes if _exact else _exact_planes(planes)
         self.lo = np.asarray(lo, np.int64).reshape(3)
         self.hi = np.asarray(hi, np.int64).reshape(3)
         self.polygons = polygons
@@ -166,7 +167,7 @@ class Tool:
         planes = _exact_planes(hull.planes)
         if planes.shape[0] > 4:
             planes = planes[spread_order(planes if planes.dtype == np.int64 else planes[:, :3].astype(np.float64))]
-        return cls("convex", planes, hull.lo, hull.hi, grid=getattr(hull, "grid", None))
+        return cls("convex", planes, hull.lo, hull.hi, grid=getattr(hull, "grid", None), _exact=True)
 
     @classmethod
     def from_mesh(cls, vertices, faces, *, width: int, grid=None, seed: int = 0) -> Tool:

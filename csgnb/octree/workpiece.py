@@ -94,7 +94,7 @@ from csgnb.octree.layout import (
     new_pool,
     new_tree_arrays,
 )
-from csgnb.octree.tool import Tool, _as_int64, _exact_planes, convex_tool_tree, store_int64_rows
+from csgnb.octree.tool import Tool, _exact_planes, convex_tool_tree, store_int64_rows
 from csgnb.octree.volume import CellVolumes, LocalChange, cell_key, convex_change
 from csgnb.octree.workspace import ToolArrays, grow, new_workspace, with_palette
 
@@ -175,6 +175,18 @@ class OpReport:
     def removed(self) -> Fraction | None:
         """Volume removed (``-volume_change``), when tracked."""
         return None if self.volume_change is None else -self.volume_change
+
+
+def _largest_magnitude(values: np.ndarray) -> int:
+    """max |v| of int64 or Python-int ``values`` (non-empty), exact: from the largest and the smallest value (no |v|
+    array, which would wrap at -2**63), in numpy's int64 loops where the values fit (a 256-bit hull's normals; its
+    offsets often do not), else in the object loops."""
+    if values.dtype == object:
+        try:
+            values = values.astype(np.int64)
+        except OverflowError:
+            pass
+    return max(int(values.max()), -int(values.min()))
 
 
 def _combine_order(oc, leaves: np.ndarray) -> np.ndarray:
@@ -405,14 +417,8 @@ class Workpiece:
         workpiece's; otherwise record their largest normal and offset."""
         if not planes.shape[0]:
             return
-        small = planes if planes.dtype == np.int64 else _as_int64(planes, 1 << 62)
-        if small is not None:  # the common case: no loop over Python ints
-            N = max(self._max_normal, int(np.abs(small[:, :3]).max()))
-            D = max(self._max_offset, int(np.abs(small[:, 3]).max()))
-        else:
-            # Python ints (Tool keeps them so): abs and max in numpy's object loops, exact
-            N = max(self._max_normal, int(np.abs(planes[:, :3]).max()))
-            D = max(self._max_offset, int(np.abs(planes[:, 3]).max()))
+        N = max(self._max_normal, _largest_magnitude(planes[:, :3]))
+        D = max(self._max_offset, _largest_magnitude(planes[:, 3]))
         problems = budget(self.width).plane_violations(N, D)
         if problems:
             raise PrecisionError(f"{what} break the {self.width}-bit budget together with the "
