@@ -648,3 +648,28 @@ def test_small_hulls_at_256_bit_extents_equal_the_exact_hull(seed):
         assert h is not None and hull_planes(h) == hull_planes(ref) == reference_planes(S)
         assert h.volume() == ref.volume()
         assert h.contains(S).all()
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_independent_points_compiled_at_wide_extents_match_python_ints(seed):
+    """``_independent`` takes its compiled path up to local extents of 2**29 (a 256-bit grid's capsule: 2**22), the
+    last test's sign in i128: the same four indices as the Python-int path, and None for flat sets (a line, a plane
+    through the origin) whose products reach far beyond int64."""
+    from csgnb.mesh.hull import _independent
+
+    rng = np.random.default_rng(seed)
+    E = 1 << int(rng.integers(20, 29))
+    generic = rng.integers(-E, E, size=(30, 3))
+    generic[0] = 0
+    u, v = rng.integers(-E // 64, E // 64, size=(2, 3))
+    t = rng.integers(-8, 8, size=(30, 2))
+    plane = t[:, :1] * u + t[:, 1:] * v  # every row a combination of u and v: flat
+    line = t[:, :1] * u
+    plane[0] = line[0] = 0
+    for L in (generic, plane, line):
+        compiled = _independent(L.astype(np.int64))
+        reference = _independent(L.astype(object))
+        assert (compiled is None) == (reference is None)
+        if reference is not None:
+            assert compiled.tolist() == reference.tolist()
+    assert _independent(plane.astype(np.int64)) is None and _independent(line.astype(np.int64)) is None

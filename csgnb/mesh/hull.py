@@ -68,6 +68,25 @@ def _maybe_int64(a: np.ndarray) -> np.ndarray:
     return a.astype(np.int64) if big < (1 << 63) else a
 
 
+_SPLIT = 31  # _exact_row_dots: N = high * 2**31 + low
+_SPLIT_POINTS = 1 << 29  # ... exact in int64 for |P| below this (each partial sum of three < 3 * 2**60)
+
+
+def _exact_row_dots(N: np.ndarray, P: np.ndarray) -> np.ndarray:
+    """Exact row-wise N·P of int64 ``N`` (k, 3) and ``P`` (k, 3), |P| < 2**29: int64 when every value fits, else
+    Python ints (object) -- a 256-bit hull's offsets reach 2**70, and forming them as Python ints (3k conversions
+    and products) was most of a capsule hull's extra cost at 256 bits. N is split into high * 2**31 + low
+    (|high| <= 2**32, 0 <= low < 2**31), so each half's dot is exact in int64 (three products below 2**61 and 2**60);
+    only the k results are joined in Python ints, and only when they do not fit."""
+    high = N >> _SPLIT
+    low = N & ((1 << _SPLIT) - 1)
+    s_high = np.einsum("ij,ij->i", high, P)
+    s_low = np.einsum("ij,ij->i", low, P)
+    if s_high.size == 0 or int(np.abs(s_high).max()) < (1 << 29):  # |total| < 2**60 + 3 * 2**60 <= 2**62
+        return (s_high << _SPLIT) + s_low
+    return _maybe_int64(s_high.astype(object) * (1 << _SPLIT) + s_low.astype(object))
+
+
 def _arith(extent: int, scale: int = 12) -> type:
     """int64 when ``scale · extent³`` (the largest local signed distance) stays below 2**62, else object."""
     return np.int64 if scale * extent**3 < _INT64_SAFE else object
@@ -408,9 +427,12 @@ class ConvexHull:
             planes = _global_planes(N.astype(np.int64), self._d_local.astype(np.int64), o.astype(np.int64))
             if planes.shape[0] == N.shape[0]:
                 return planes
-        No = _object(N)
-        d = _object(self._d_local) - No @ _object(o)
-        return _maybe_int64(np.column_stack([No, d]))
+        if N.dtype != object and o.dtype != object and int(np.abs(o).max(initial=0)) < _SPLIT_POINTS:
+            shift = _exact_row_dots(N.astype(np.int64), np.broadcast_to(o.astype(np.int64), N.shape))
+            d = _object(self._d_local) - _object(shift)
+        else:
+            d = _object(self._d_local) - _object(N) @ _object(o)
+        return _maybe_int64(np.column_stack([_object(N), d]))
 
     @property
     def n_planes(self) -> int:
@@ -649,7 +671,7 @@ def _checked_points(points, width: int, name: str = "points") -> np.ndarray:
 def _independent(L: np.ndarray) -> np.ndarray | None:
     """Indices of 4 affinely independent rows of local points (row 0 first), or None if the set is flat."""
     E = int(np.abs(L).max(initial=0))
-    if L.dtype != object and _arith(E) is np.int64:
+    if L.dtype != object and E < _COMPILED_FACETS_SAFE:
         basis = _independent_int64(L.astype(np.int64))
         return basis if basis[3] >= 0 else None
     A = L.astype(_arith(E))
@@ -672,9 +694,11 @@ def _independent(L: np.ndarray) -> np.ndarray | None:
 
 @jit
 def _independent_int64(L):
-    """:func:`_independent` for int64 local points whose extent E keeps 6E³ in int64 (:func:`_arith`): the same
-    four indices (the first nonzero row, the first row off its line, the first row off their plane), compiled;
-    ``basis[3] == -1`` when the set is flat."""
+    """:func:`_independent` for int64 local points of extent E below :data:`_COMPILED_FACETS_SAFE`: the same four
+    indices (the first nonzero row, the first row off its line, the first row off their plane), compiled; the cross
+    products (below 2E² < 2**59) in int64, the last test's sign in i128 (``plane_side_sign``: 6E³ reaches 2**90 on
+    a 256-bit grid, where the Python-int fallback was most of a capsule hull's extra cost); ``basis[3] == -1``
+    when the set is flat."""
     basis = np.array([0, -1, -1, -1], np.int64)
     n = L.shape[0]
     for i in range(n):
@@ -693,8 +717,9 @@ def _independent_int64(L):
             break
     if basis[2] < 0:
         return basis
+    zero = np.int64(0)
     for i in range(n):
-        if c0 * L[i, 0] + c1 * L[i, 1] + c2 * L[i, 2] != 0:
+        if plane_side_sign(c0, c1, c2, L[i, 0], L[i, 1], L[i, 2], zero, zero) != 0:
             basis[3] = i
             break
     return basis
@@ -863,7 +888,7 @@ def _checked_facets(L: np.ndarray, simplices: np.ndarray, basis: np.ndarray) -> 
     A = L[anchor]
     if 24 * E**3 < _INT64_SAFE:
         return N, -np.einsum("ij,ij->i", N, A)
-    return N, _maybe_int64(-np.sum(_object(N) * _object(A), axis=1))
+    return N, -_exact_row_dots(N, A)  # |A| <= E < 2**29 (_COMPILED_FACETS_SAFE)
 
 
 def _qhull_facets(L: np.ndarray, basis: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
