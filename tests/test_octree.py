@@ -496,3 +496,41 @@ def test_python_int_planes_are_refused_exactly_at_the_budget():
     after = w2._arrays()
     for name in before:
         assert np.array_equal(before[name], after[name]), name
+
+
+def test_hull_tools_with_offsets_beyond_int64_keep_split_planes_and_give_the_same_part():
+    """On a 256-bit grid a capsule's facet offsets exceed int64: ``Tool.from_hull`` keeps int64 normals and a column
+    of Python ints (no (k, 4) object array on the per-Boolean path). Its planes (made on request) are the ones the
+    (k, 4) path gives, in the same order; its wide planes are those planes; a translated copy has its own planes;
+    and Booleans with it leave the workpiece bit for bit as a tool built from the materialised planes does."""
+    from csgnb.exact import Grid, to_wide
+    from csgnb.octree.tool import Tool, _exact_planes, spread_order
+
+    grid = Grid.fit([-12.0, -12.0, -1.0], [12.0, 12.0, 12.0], width=256)
+    rng = np.random.default_rng(3)
+    w_split = Workpiece.empty(grid, threshold=150)
+    w_plain = Workpiece.empty(grid, threshold=150)
+    dome = convex_hull(grid.to_grid(rng.normal(size=(60, 3)) * 6 + [0, 0, 5]), grid=grid)
+    w_split |= dome
+    w_plain |= dome
+    for _ in range(6):
+        centre = rng.uniform(-4, 4, 3) + [0, 0, 5]
+        hull = convex_hull(grid.to_grid(centre + rng.normal(size=(40, 3)) * 0.7), grid=grid)
+        tool = Tool.from_hull(hull)
+        assert tool.split_planes is not None and tool.split_planes[1].dtype == object
+        planes = _exact_planes(hull.planes)
+        expected = planes[spread_order(planes[:, :3].astype(np.float64))]
+        wide = tool.planes_wide(256)
+        assert "planes" not in tool.__dict__  # nothing made the object array so far
+        assert expected.tolist() == tool.planes.tolist()
+        assert wide.tobytes() == to_wide(expected, 256).tobytes()
+        assert tool.n_planes == expected.shape[0]
+        moved = tool.translated(np.array([5, -3, 2]))
+        assert moved.split_planes is None
+        assert moved.planes[:, 3].tolist() == [d - (a * 5 - b * 3 + c * 2) for a, b, c, d in expected.tolist()]
+        w_split -= Tool.from_hull(hull)
+        w_plain -= Tool("convex", expected, hull.lo, hull.hi, grid=grid)
+    a, b = w_split._arrays(), w_plain._arrays()
+    for name in a:
+        assert np.array_equal(a[name], b[name]), name
+    assert w_split.volume() == w_plain.volume()

@@ -434,6 +434,23 @@ class ConvexHull:
             d = _object(self._d_local) - _object(N) @ _object(o)
         return _maybe_int64(np.column_stack([_object(N), d]))
 
+    def _split_planes(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """``(N (k, 3) int64, d (k,))`` global planes with int64 normals and their offsets as int64 or Python ints
+        (a 1-D object array), without the ``(k, 4)`` object array :attr:`planes` makes; None when the normals are
+        not int64 or the origin is too far for the exact int64 split (then :attr:`planes` is the way)."""
+        N, o = self._normals, self._origin
+        if N.dtype == object or o.dtype == object or int(np.abs(o).max(initial=0)) >= _SPLIT_POINTS:
+            return None
+        N = N.astype(np.int64)
+        shift = _exact_row_dots(N, np.broadcast_to(o.astype(np.int64), N.shape))
+        d_local = self._d_local
+        if d_local.dtype != object and shift.dtype != object and \
+                int(np.abs(d_local).max(initial=0)) < _INT64_SAFE:
+            d = d_local.astype(np.int64) - shift  # both below 2**62 (an int64 shift is): no wrap
+        else:
+            d = _maybe_int64(_object(d_local) - _object(shift))
+        return N, d
+
     @property
     def n_planes(self) -> int:
         """Number of facets."""

@@ -22,7 +22,7 @@ from csgnb._jit import jit
 from csgnb.bsp.build import bsp_from_polygons, validate_mesh
 from csgnb.bsp.polygon import PolygonSet, polygons_from_triangles
 from csgnb.errors import GeometryError
-from csgnb.exact.wide import from_wide, is_wide, to_wide, width_of
+from csgnb.exact.wide import from_wide, is_wide, to_wide, wide_dtype, width_of
 from csgnb.exact.wide_store import store_int64_at
 
 __all__ = ["Tool"]
@@ -164,10 +164,40 @@ class Tool:
 
         if not isinstance(hull, ConvexHull):
             raise TypeError(f"Tool.from_hull takes a csgnb.mesh.hull.ConvexHull, got {type(hull).__name__}")
+        split = hull._split_planes()
+        if split is not None and split[1].dtype == object:
+            # offsets beyond int64 (a 256-bit grid's hulls): int64 normals and a column of Python ints, the same
+            # order as below, and no (k, 4) object array unless someone asks for ``planes``
+            N, d = split
+            if N.shape[0] > 4:
+                order = spread_order(N.astype(np.float64))
+                N, d = N[order], d[order]
+            tool = cls.__new__(cls)
+            tool.__dict__.update(kind="convex", lo=np.asarray(hull.lo, np.int64).reshape(3),
+                                 hi=np.asarray(hull.hi, np.int64).reshape(3), polygons=None, tree=None,
+                                 grid=getattr(hull, "grid", None), offset=np.zeros(3, np.int64), _wide={},
+                                 _split=(N, d))
+            return tool
         planes = _exact_planes(hull.planes)
         if planes.shape[0] > 4:
             planes = planes[spread_order(planes if planes.dtype == np.int64 else planes[:, :3].astype(np.float64))]
         return cls("convex", planes, hull.lo, hull.hi, grid=getattr(hull, "grid", None), _exact=True)
+
+    def __getattr__(self, name: str):
+        # ``planes`` of a tool made from split planes (see from_hull): the (k, 4) Python ints, made on first use
+        split = self.__dict__.get("_split")
+        if name != "planes" or split is None:
+            raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
+        N, d = split
+        planes = np.column_stack([N.astype(object), d.astype(object)])
+        self.__dict__["planes"] = planes
+        return planes
+
+    @property
+    def split_planes(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """``(N (k, 3) int64, d (k,) Python ints)`` when the tool keeps its planes split (a hull whose offsets exceed
+        int64: the workpiece then writes them without a (k, 4) object array), else None."""
+        return self.__dict__.get("_split")
 
     @classmethod
     def from_mesh(cls, vertices, faces, *, width: int, grid=None, seed: int = 0) -> Tool:
@@ -222,8 +252,9 @@ class Tool:
         if t.shape != (3,) or t.dtype.kind not in "iu":
             raise TypeError(f"a translation must be a (3,) integer vector, got {t.dtype} {t.shape}")
         moved = Tool.__new__(Tool)
-        moved.__dict__.update(self.__dict__)
         planes = self.planes
+        moved.__dict__.update(self.__dict__)
+        moved.__dict__.pop("_split", None)  # the moved tool's planes are its own
         shift = int(np.abs(t).max(initial=0))
         if planes.dtype == np.int64 and planes.size and \
                 3 * int(np.abs(planes[:, :3]).max()) * shift + int(np.abs(planes[:, 3]).max()) < _SMALL:
@@ -251,14 +282,23 @@ class Tool:
     def planes_wide(self, width: int) -> np.ndarray:
         """The planes as a ``(k, 4)`` wide array (cached per width)."""
         if width not in self._wide:
-            # int64 planes (the common case) take to_wide's vectorised path, no Python ints
-            self._wide[width] = to_wide(self.planes, width)
+            split = self.split_planes
+            if split is not None:  # int64 normals vectorised, the offsets' column as bytes
+                N, d = split
+                wide = np.empty((N.shape[0], 4), wide_dtype(width))
+                wide[:, :3] = to_wide(N, width)
+                wide[:, 3] = to_wide(d, width)
+                self._wide[width] = wide
+            else:
+                # int64 planes (the common case) take to_wide's vectorised path, no Python ints
+                self._wide[width] = to_wide(self.planes, width)
         return self._wide[width]
 
     @property
     def n_planes(self) -> int:
         """Number of planes."""
-        return int(self.planes.shape[0])
+        split = self.split_planes
+        return int(split[0].shape[0] if split is not None else self.planes.shape[0])
 
     def __repr__(self) -> str:
         what = f"{len(self.polygons)} polygons" if self.polygons is not None else f"{self.n_planes} facets"

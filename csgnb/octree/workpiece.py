@@ -400,6 +400,16 @@ class Workpiece:
 
     def _add_planes(self, tool: Tool) -> np.ndarray:
         """Append the tool's planes to the palette (checked against the width's budget); return their rows."""
+        split = tool.split_planes
+        if split is not None:  # a 256-bit grid's hull: no (k, 4) Python-int array on the way
+            N, d = split
+            self._check_extremes(_largest_magnitude(N), _largest_magnitude(d), "the tool's planes")
+            k = N.shape[0]
+            start = int(self.oc.counts[N_PAL])
+            self._palette_room(k)
+            self.palette[start:start + k] = tool.planes_wide(self.width)
+            self.oc.counts[N_PAL] = start + k
+            return np.arange(start, start + k, dtype=np.int64)
         planes = tool.planes
         self._check_planes(planes, "the tool's planes")
         k = planes.shape[0]
@@ -417,8 +427,13 @@ class Workpiece:
         workpiece's; otherwise record their largest normal and offset."""
         if not planes.shape[0]:
             return
-        N = max(self._max_normal, _largest_magnitude(planes[:, :3]))
-        D = max(self._max_offset, _largest_magnitude(planes[:, 3]))
+        self._check_extremes(_largest_magnitude(planes[:, :3]), _largest_magnitude(planes[:, 3]), what)
+
+    def _check_extremes(self, normal: int, offset: int, what: str) -> None:
+        """Refuse planes whose largest normal and offset break the width's budget together with the workpiece's;
+        otherwise record the new extremes."""
+        N = max(self._max_normal, normal)
+        D = max(self._max_offset, offset)
         problems = budget(self.width).plane_violations(N, D)
         if problems:
             raise PrecisionError(f"{what} break the {self.width}-bit budget together with the "
