@@ -121,6 +121,7 @@ def test_batches_at_256_bits_with_python_int_planes():
     """Planes whose offsets exceed int64 (Python ints): one conversion for the whole batch, the same palette."""
     hulls = _hulls(9, 12, extent=40, scale=1 << 20, width=256)
     assert any(h.planes.dtype == object for h in hulls)
+    assert all(h._split_planes() is not None for h in hulls)  # the batch takes the split planes (int64 normals)
     a = Workpiece.empty(width=256)
     b = Workpiece.empty(width=256)
     _one_at_a_time(a, hulls, UNION)

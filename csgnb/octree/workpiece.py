@@ -591,14 +591,13 @@ class Workpiece:
         if n == 0:
             return []
         table, constant, outside_identity = self._prepared(fn)
-        planes, lo, hi = [], np.empty((n, 3), np.int64), np.empty((n, 3), np.int64)
+        lo, hi = np.empty((n, 3), np.int64), np.empty((n, 3), np.int64)
         for i, h in enumerate(hulls):
             if not isinstance(h, ConvexHull):
                 raise TypeError(f"_boolean_hulls takes ConvexHulls, got {type(h).__name__} at {i}")
             g = h.grid
             if g is not None and g is not self.grid and not g.same_as(self.grid):
                 raise GeometryError(f"the tool lies on {g}, the workpiece on {self.grid}: quantize both on one grid")
-            planes.append(h.planes)
             lo[i], hi[i] = h.lo, h.hi
         limit = self.grid.max_coordinate
         outside = np.flatnonzero((np.abs(lo) > limit).any(axis=1) | (np.abs(hi) > limit).any(axis=1))
@@ -607,16 +606,28 @@ class Workpiece:
             raise PrecisionError(f"the tool's box {lo[j].tolist()}..{hi[j].tolist()} leaves the grid's budget box "
                                  f"|coordinate| <= {limit} ({self.width}-bit)")
         starts = np.zeros(n + 1, np.int64)
-        np.cumsum([p.shape[0] for p in planes], out=starts[1:])
-        P = _exact_planes(np.concatenate(planes))  # int64 beside object rows: object, of Python ints
-        P = P[spread_orders(P[:, :3].astype(np.float64), starts)]  # as Tool.from_hull orders each hull's planes
+        np.cumsum([h.n_planes for h in hulls], out=starts[1:])
         max_normal, max_offset = self._max_normal, self._max_offset
-        self._check_planes(P, "the tools' planes")
-        if P.dtype == np.int64:
-            W = np.zeros((P.shape[0], 4), self.palette.dtype)
-            store_int64_rows(W, 0, P)
+        splits = [h._split_planes() for h in hulls]
+        if all(sp is not None for sp in splits) and any(sp[1].dtype == object for sp in splits):
+            # offsets beyond int64 (a 256-bit grid): int64 normals and one column of Python ints, as Tool.from_hull
+            N = np.concatenate([sp[0] for sp in splits])
+            d = np.concatenate([sp[1].astype(object) for sp in splits])
+            order = spread_orders(N.astype(np.float64), starts)  # as Tool.from_hull orders each hull's planes
+            N, d = N[order], d[order]
+            self._check_extremes(_largest_magnitude(N), _largest_magnitude(d), "the tools' planes")
+            W = np.empty((N.shape[0], 4), self.palette.dtype)
+            W[:, :3] = to_wide(N, self.width)
+            W[:, 3] = to_wide(d, self.width)
         else:
-            W = to_wide(P, self.width)
+            P = _exact_planes(np.concatenate([h.planes for h in hulls]))  # int64 beside object rows: Python ints
+            P = P[spread_orders(P[:, :3].astype(np.float64), starts)]  # as Tool.from_hull orders each hull's planes
+            self._check_planes(P, "the tools' planes")
+            if P.dtype == np.int64:
+                W = np.zeros((P.shape[0], 4), self.palette.dtype)
+                store_int64_rows(W, 0, P)
+            else:
+                W = to_wide(P, self.width)
         if not outside_identity:
             lo[:] = self.root_lo - 1
             hi[:] = self.root_lo + self.root_size + 1
