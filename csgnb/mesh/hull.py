@@ -436,12 +436,15 @@ class ConvexHull:
 
     def _split_planes(self) -> tuple[np.ndarray, np.ndarray] | None:
         """``(N (k, 3) int64, d (k,))`` global planes with int64 normals and their offsets as int64 or Python ints
-        (a 1-D object array), without the ``(k, 4)`` object array :attr:`planes` makes; None when the normals are
-        not int64 or the origin is too far for the exact int64 split (then :attr:`planes` is the way)."""
+        (a 1-D object array), without the ``(k, 4)`` object array :attr:`planes` makes; None when a normal does
+        not fit in int64 or the origin is too far for the exact int64 split (then :attr:`planes` is the way)."""
         N, o = self._normals, self._origin
-        if N.dtype == object or o.dtype == object or int(np.abs(o).max(initial=0)) >= _SPLIT_POINTS:
+        if o.dtype == object or int(np.abs(o).max(initial=0)) >= _SPLIT_POINTS:
             return None
-        N = N.astype(np.int64)
+        try:  # the brute-force facets keep Python ints even where every normal fits in int64
+            N = N.astype(np.int64)
+        except OverflowError:
+            return None
         shift = _exact_row_dots(N, np.broadcast_to(o.astype(np.int64), N.shape))
         d_local = self._d_local
         if d_local.dtype != object and shift.dtype != object and \
