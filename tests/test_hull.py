@@ -673,3 +673,49 @@ def test_independent_points_compiled_at_wide_extents_match_python_ints(seed):
         if reference is not None:
             assert compiled.tolist() == reference.tolist()
     assert _independent(plane.astype(np.int64)) is None and _independent(line.astype(np.int64)) is None
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_exact_row_dots_match_python_ints_at_their_edges(seed):
+    """``_exact_row_dots`` (a 256-bit hull's offsets, split at 2**31 into two int64 dots): equal to Python ints for
+    normals anywhere in int64 (-2**63 and 2**63 - 1 included) and points up to 2**29 - 1, int64 exactly when every
+    value fits and Python ints otherwise."""
+    from csgnb.mesh.hull import _exact_row_dots
+
+    rng = np.random.default_rng(seed)
+    for bits in (8, 31, 32, 47, 62, 64):
+        N = rng.integers(-(1 << (bits - 1)), (1 << (bits - 1)) - 1, size=(40, 3), dtype=np.int64, endpoint=True)
+        P = rng.integers(-(1 << 29) + 1, (1 << 29) - 1, size=(40, 3), dtype=np.int64, endpoint=True)
+        N[0], P[0] = [-(1 << 63), (1 << 63) - 1, -(1 << 63)], [(1 << 29) - 1, -(1 << 29) + 1, (1 << 29) - 1]
+        N[1], P[1] = [-(1 << 63), -(1 << 63), -(1 << 63)], [-(1 << 29) + 1] * 3  # the largest positive sum
+        got = _exact_row_dots(N, P)
+        expected = [sum(int(a) * int(b) for a, b in zip(n, p, strict=True)) for n, p in zip(N, P, strict=True)]
+        assert [int(v) for v in got] == expected
+        assert (got.dtype == np.int64) == all(-(1 << 63) <= v < (1 << 63) for v in expected)
+
+
+@pytest.mark.parametrize("d_bits", [0, 40, 61, 62, 63, 70])
+def test_split_planes_equal_python_ints_when_offsets_and_shifts_near_int64(d_bits):
+    """``ConvexHull._split_planes`` (the planes of 256-bit hull tools, single and batched): d = d_local - N·origin
+    equal to Python ints when d_local and the shift N·origin approach or pass 2**62 and 2**63 (a shift of ~5.8e18
+    once came back int64 and was subtracted in int64: a plane offset off by 2**64, no error)."""
+    from csgnb.mesh.hull import ConvexHull
+
+    rng = np.random.default_rng(d_bits)
+    for _ in range(20):
+        # normals just below 2**33 and an origin just below 2**28: shifts N·origin between 2**62 and 2**63 (int64),
+        # and offsets of the other sign, so that d_local - shift passes 2**63 in magnitude
+        N = rng.integers((1 << 33) - (1 << 30), 1 << 33, size=(5, 3), dtype=np.int64) * rng.choice([-1, 1], (5, 1))
+        origin = rng.integers((1 << 28) - (1 << 25), 1 << 28, size=3, dtype=np.int64)
+        if d_bits < 63:
+            magnitude = rng.integers(1 << (d_bits - 1), 1 << d_bits, size=5, dtype=np.int64) if d_bits else 0
+            d_local = -np.sign(N[:, 0]) * magnitude
+        else:
+            d_local = np.array([int(v) * (1 << (d_bits - 40)) for v in rng.integers(-(1 << 40), 1 << 40, 5)], object)
+        hull = ConvexHull(np.zeros((4, 3), np.int64), origin, N, d_local, width=256)
+        got = hull._split_planes()
+        assert got is not None
+        expected = [int(d) - sum(int(a) * int(b) for a, b in zip(n, origin, strict=True))
+                    for n, d in zip(N, d_local, strict=True)]
+        assert got[0].tolist() == N.tolist() and [int(v) for v in got[1]] == expected
+        assert hull.planes[:, 3].tolist() == expected

@@ -461,17 +461,17 @@ def test_a_stock_workpiece_stops_splitting_at_its_share_of_the_stock(tmp_path):
 
 
 def test_largest_magnitudes_of_planes_are_exact_in_every_representation():
-    """``_largest_magnitude`` (the budget check of a tool's planes): int64 at -2**63 (where |v| would wrap), Python
+    """``max_abs`` (the budget check of a tool's planes): int64 at -2**63 (where |v| would wrap), Python
     ints that fit in int64 and ones that do not, negative and positive extremes."""
-    from csgnb.octree.workpiece import _largest_magnitude
+    from csgnb.exact.integral import max_abs
 
     cases = [[3, -7, 5], [-(1 << 63), 1, 2], [(1 << 63) - 1, -5], [1 << 63, -3], [-(1 << 63) - 1, 4],
              [-(1 << 200), 1 << 199]]
     for values in cases:
         expected = max(abs(v) for v in values)
-        assert _largest_magnitude(np.array(values, dtype=object)) == expected, values
+        assert max_abs(np.array(values, dtype=object)) == expected, values
         if all(-(1 << 63) <= v < (1 << 63) for v in values):
-            assert _largest_magnitude(np.array(values, dtype=np.int64)) == expected, values
+            assert max_abs(np.array(values, dtype=np.int64)) == expected, values
 
 
 def test_python_int_planes_are_refused_exactly_at_the_budget():

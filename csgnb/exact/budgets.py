@@ -45,7 +45,7 @@ import numpy as np
 
 from csgnb._jit import jit
 from csgnb.errors import CsgnbError, GeometryError, PrecisionError
-from csgnb.exact.integral import exact_int
+from csgnb.exact.integral import exact_int, max_abs
 from csgnb.exact.intrinsics import scan_rows, wide_abs_greater_at, wide_sign_at
 from csgnb.exact.planes import is_narrow_planes, plane_width_of
 from csgnb.exact.wide import WIDTHS, check_width, from_wide, wide_dtype
@@ -271,13 +271,6 @@ def first_zero_w(points: np.ndarray) -> int:
     return int(_first_zero_w(points)) if points.shape[0] else -1
 
 
-def _max_abs_int64(points: np.ndarray) -> int:
-    """Exact max |value| of an int64 array as a Python int (|-2**63| included)."""
-    if points.size == 0:
-        return 0
-    return max(int(points.max()), -int(points.min()))
-
-
 def _column_max_abs(arr: np.ndarray) -> list[tuple[int, int]]:
     """Exact (max |value|, row) of every column of a 2-D wide array, as Python ints."""
     if arr.shape[0] == 0:
@@ -411,9 +404,9 @@ def check_mesh_points(points: np.ndarray, width: int, name: str = "points", V: i
     b = budget(width)
     if points.size == 0:
         return 0
-    V = _max_abs_int64(points) if V is None else V
+    V = max_abs(points) if V is None else V
     if V > b.max_mesh_coordinate:
-        V = _max_abs_int64(points)
+        V = max_abs(points)
         row = int(np.argmax(np.any((points == V) | (points == -V), axis=1)))
         raise PrecisionError(
             f"{name}[{row}] has a coordinate of magnitude {V}, above the {b.width}-bit mesh budget "
@@ -458,7 +451,7 @@ def check_integer_points_against_planes(points: np.ndarray, planes: np.ndarray, 
     """Check that ``n·v + d`` of ``(n, 3) int64`` points and planes fits: 3·V·N + D < 2**(b-1)."""
     width = plane_width_of(planes)
     b = budget(width)
-    V = _max_abs_int64(points) if V is None else V
+    V = max_abs(points) if V is None else V
     plane_scan = scan(planes, width) if plane_scan is None else plane_scan
     P = scan_bounds(plane_scan, width)
     if 3 * V * max(P[:3]) + P[3] < b.limit:

@@ -31,7 +31,7 @@ import numpy as np
 
 from csgnb.errors import GeometryError, PrecisionError
 
-__all__ = ["exact_int", "integer_array", "integer_scalar", "python_int_array"]
+__all__ = ["exact_int", "integer_array", "integer_scalar", "max_abs", "python_int_array"]
 
 _HINT = "put float geometry on an integer grid first (csgnb.exact.quantize or csgnb.exact.Grid)"
 _INT64_MIN, _INT64_MAX = -(1 << 63), (1 << 63) - 1
@@ -188,3 +188,20 @@ def integer_array(values, name: str = "values", *, dtype=np.int64) -> np.ndarray
             raise PrecisionError(f"{_where(name, i if ints.ndim == 1 else np.unravel_index(i, ints.shape))} = {v} is "
                                  "beyond int64; exact geometry takes coordinates of at most 63 bits")
     return np.array(flat.tolist(), dtype=dtype).reshape(ints.shape)
+
+
+def max_abs(values: np.ndarray) -> int:
+    """Exact max |v| of an int64 or Python-int (object) array as a Python int; 0 when empty.
+
+    From the largest and the smallest value: no |v| array, which would wrap at -2**63 in int64 and make new
+    objects in Python ints. An object array whose values fit in int64 is reduced in numpy's int64 loops (a
+    256-bit hull's normals; its offsets often do not fit, and take the object loops).
+    """
+    if values.size == 0:
+        return 0
+    if values.dtype == object:
+        try:
+            values = values.astype(np.int64)
+        except OverflowError:
+            pass
+    return max(int(values.max()), -int(values.min()))

@@ -42,6 +42,7 @@ from csgnb._shuffle import shuffle_order
 from csgnb._unlinked import unlinked
 from csgnb.errors import GeometryError, InternalError
 from csgnb.exact.budgets import check_mesh_points
+from csgnb.exact.integral import max_abs
 from csgnb.exact.intrinsics import cross_sign, plane_side_sign
 from csgnb.exact.predicates import gcd3
 from csgnb.exact.wide import DEFAULT_WIDTH, to_wide
@@ -64,8 +65,7 @@ def _maybe_int64(a: np.ndarray) -> np.ndarray:
         return a.astype(np.int64)
     if a.size == 0:
         return np.zeros(a.shape, np.int64)
-    big = max(int(a.max()), -int(a.min()))  # numpy's object loops: exact on Python ints, no generator
-    return a.astype(np.int64) if big < (1 << 63) else a
+    return a.astype(np.int64) if max_abs(a) < (1 << 63) else a
 
 
 _SPLIT = 31  # _exact_row_dots: N = high * 2**31 + low
@@ -73,11 +73,12 @@ _SPLIT_POINTS = 1 << 29  # ... exact in int64 for |P| below this (each partial s
 
 
 def _exact_row_dots(N: np.ndarray, P: np.ndarray) -> np.ndarray:
-    """Exact row-wise N·P of int64 ``N`` (k, 3) and ``P`` (k, 3), |P| < 2**29: int64 when every value fits, else
-    Python ints (object) -- a 256-bit hull's offsets reach 2**70, and forming them as Python ints (3k conversions
-    and products) was most of a capsule hull's extra cost at 256 bits. N is split into high * 2**31 + low
-    (|high| <= 2**32, 0 <= low < 2**31), so each half's dot is exact in int64 (three products below 2**61 and 2**60);
-    only the k results are joined in Python ints, and only when they do not fit."""
+    """Exact row-wise N·P of int64 ``N`` (k, 3) and ``P`` (k, 3), |P| < 2**29: int64 when every value fits in
+    int64 (up to 2**63 - 1: a caller adding to it bounds it itself), else Python ints (object) -- a 256-bit hull's
+    offsets reach 2**70, and forming them as Python ints (3k conversions and products) was most of a capsule hull's
+    extra cost at 256 bits. N is split into high * 2**31 + low (|high| <= 2**32, 0 <= low < 2**31), so each half's
+    dot is exact in int64 (three products below 2**61 and 2**60); only the k results are joined in Python ints,
+    and only when they do not fit."""
     high = N >> _SPLIT
     low = N & ((1 << _SPLIT) - 1)
     s_high = np.einsum("ij,ij->i", high, P)
@@ -427,19 +428,19 @@ class ConvexHull:
             planes = _global_planes(N.astype(np.int64), self._d_local.astype(np.int64), o.astype(np.int64))
             if planes.shape[0] == N.shape[0]:
                 return planes
-        if N.dtype != object and o.dtype != object and int(np.abs(o).max(initial=0)) < _SPLIT_POINTS:
-            shift = _exact_row_dots(N.astype(np.int64), np.broadcast_to(o.astype(np.int64), N.shape))
-            d = _object(self._d_local) - _object(shift)
+        split = self._split_planes()
+        if split is not None:
+            N, d = split
         else:
             d = _object(self._d_local) - _object(N) @ _object(o)
-        return _maybe_int64(np.column_stack([_object(N), d]))
+        return _maybe_int64(np.column_stack([_object(N), _object(d)]))
 
     def _split_planes(self) -> tuple[np.ndarray, np.ndarray] | None:
         """``(N (k, 3) int64, d (k,))`` global planes with int64 normals and their offsets as int64 or Python ints
         (a 1-D object array), without the ``(k, 4)`` object array :attr:`planes` makes; None when a normal does
         not fit in int64 or the origin is too far for the exact int64 split (then :attr:`planes` is the way)."""
         N, o = self._normals, self._origin
-        if o.dtype == object or int(np.abs(o).max(initial=0)) >= _SPLIT_POINTS:
+        if o.dtype == object or max_abs(o) >= _SPLIT_POINTS:
             return None
         try:  # the brute-force facets keep Python ints even where every normal fits in int64
             N = N.astype(np.int64)
@@ -447,9 +448,8 @@ class ConvexHull:
             return None
         shift = _exact_row_dots(N, np.broadcast_to(o.astype(np.int64), N.shape))
         d_local = self._d_local
-        if d_local.dtype != object and shift.dtype != object and \
-                int(np.abs(d_local).max(initial=0)) < _INT64_SAFE:
-            d = d_local.astype(np.int64) - shift  # both below 2**62 (an int64 shift is): no wrap
+        if d_local.dtype != object and shift.dtype != object and max(max_abs(d_local), max_abs(shift)) < _INT64_SAFE:
+            d = d_local.astype(np.int64) - shift  # both below 2**62: no wrap (an int64 shift may reach 2**63)
         else:
             d = _maybe_int64(_object(d_local) - _object(shift))
         return N, d

@@ -25,7 +25,7 @@ from csgnb.errors import GeometryError
 from csgnb.exact.wide import from_wide, is_wide, to_wide, wide_dtype, width_of
 from csgnb.exact.wide_store import store_int64_at
 
-__all__ = ["Tool"]
+__all__ = ["Tool", "split_planes_wide"]
 
 
 @jit
@@ -134,6 +134,15 @@ def _exact_planes(planes, *, python_ints: bool = False) -> np.ndarray:
     return obj if small is None else small
 
 
+def split_planes_wide(N: np.ndarray, d: np.ndarray, width: int) -> np.ndarray:
+    """``(k, 4)`` wide planes of ``width`` bits from int64 normals ``N`` (k, 3) and offsets ``d`` (k,) (int64 or
+    Python ints): the normals in numpy's int64 loops, the offsets' column as bytes -- no (k, 4) object array."""
+    wide = np.empty((N.shape[0], 4), wide_dtype(width))
+    wide[:, :3] = to_wide(N, width)
+    wide[:, 3] = to_wide(d, width)
+    return wide
+
+
 class Tool:
     """A solid to combine with a workpiece, in grid coordinates (see the module docstring).
 
@@ -141,11 +150,14 @@ class Tool:
     Booleans also accept those objects directly. ``lo``/``hi`` bound the tool's points.
     """
 
-    def __init__(self, kind: str, planes: np.ndarray, lo, hi, *, polygons: PolygonSet | None = None,
-                 tree=None, grid=None, _exact: bool = False) -> None:
+    def __init__(self, kind: str, planes: np.ndarray | None, lo, hi, *, polygons: PolygonSet | None = None,
+                 tree=None, grid=None, _exact: bool = False, _split: tuple | None = None) -> None:
         self.kind = kind
-        # (k, 4) exact: int64 below 2**62, else Python ints (object); ``_exact``: the caller made them so already
-        self.planes = planes if _exact else _exact_planes(planes)
+        if _split is not None:  # (N int64, d): ``planes`` is made from them on first use (__getattr__)
+            self._split = _split
+        else:
+            # (k, 4) exact: int64 below 2**62, else Python ints (object); ``_exact``: the caller made them so already
+            self.planes = planes if _exact else _exact_planes(planes)
         self.lo = np.asarray(lo, np.int64).reshape(3)
         self.hi = np.asarray(hi, np.int64).reshape(3)
         self.polygons = polygons
@@ -172,12 +184,7 @@ class Tool:
             if N.shape[0] > 4:
                 order = spread_order(N.astype(np.float64))
                 N, d = N[order], d[order]
-            tool = cls.__new__(cls)
-            tool.__dict__.update(kind="convex", lo=np.asarray(hull.lo, np.int64).reshape(3),
-                                 hi=np.asarray(hull.hi, np.int64).reshape(3), polygons=None, tree=None,
-                                 grid=getattr(hull, "grid", None), offset=np.zeros(3, np.int64), _wide={},
-                                 _split=(N, d))
-            return tool
+            return cls("convex", None, hull.lo, hull.hi, grid=getattr(hull, "grid", None), _split=(N, d))
         planes = _exact_planes(hull.planes)
         if planes.shape[0] > 4:
             planes = planes[spread_order(planes if planes.dtype == np.int64 else planes[:, :3].astype(np.float64))]
@@ -283,12 +290,8 @@ class Tool:
         """The planes as a ``(k, 4)`` wide array (cached per width)."""
         if width not in self._wide:
             split = self.split_planes
-            if split is not None:  # int64 normals vectorised, the offsets' column as bytes
-                N, d = split
-                wide = np.empty((N.shape[0], 4), wide_dtype(width))
-                wide[:, :3] = to_wide(N, width)
-                wide[:, 3] = to_wide(d, width)
-                self._wide[width] = wide
+            if split is not None:
+                self._wide[width] = split_planes_wide(*split, width)
             else:
                 # int64 planes (the common case) take to_wide's vectorised path, no Python ints
                 self._wide[width] = to_wide(self.planes, width)

@@ -42,7 +42,7 @@ from csgnb.bsp.surface import BoundarySurface
 from csgnb.bsp.tree import BSPTree
 from csgnb.errors import GeometryError, InternalError, PrecisionError
 from csgnb.exact.budgets import budget
-from csgnb.exact.integral import integer_array
+from csgnb.exact.integral import integer_array, max_abs
 from csgnb.exact.predicates import homogeneous_points, to_double_position
 from csgnb.exact.quantization import Grid
 from csgnb.exact.wide import DEFAULT_WIDTH, to_wide, wide_dtype
@@ -94,7 +94,7 @@ from csgnb.octree.layout import (
     new_pool,
     new_tree_arrays,
 )
-from csgnb.octree.tool import Tool, _exact_planes, convex_tool_tree, store_int64_rows
+from csgnb.octree.tool import Tool, _exact_planes, convex_tool_tree, split_planes_wide, store_int64_rows
 from csgnb.octree.volume import CellVolumes, LocalChange, cell_key, convex_change
 from csgnb.octree.workspace import ToolArrays, grow, new_workspace, with_palette
 
@@ -175,18 +175,6 @@ class OpReport:
     def removed(self) -> Fraction | None:
         """Volume removed (``-volume_change``), when tracked."""
         return None if self.volume_change is None else -self.volume_change
-
-
-def _largest_magnitude(values: np.ndarray) -> int:
-    """max |v| of int64 or Python-int ``values`` (non-empty), exact: from the largest and the smallest value (no |v|
-    array, which would wrap at -2**63), in numpy's int64 loops where the values fit (a 256-bit hull's normals; its
-    offsets often do not), else in the object loops."""
-    if values.dtype == object:
-        try:
-            values = values.astype(np.int64)
-        except OverflowError:
-            pass
-    return max(int(values.max()), -int(values.min()))
 
 
 def _combine_order(oc, leaves: np.ndarray) -> np.ndarray:
@@ -403,7 +391,7 @@ class Workpiece:
         split = tool.split_planes
         if split is not None:  # a 256-bit grid's hull: no (k, 4) Python-int array on the way
             N, d = split
-            self._check_extremes(_largest_magnitude(N), _largest_magnitude(d), "the tool's planes")
+            self._check_extremes(max_abs(N), max_abs(d), "the tool's planes")
             k = N.shape[0]
             start = int(self.oc.counts[N_PAL])
             self._palette_room(k)
@@ -427,7 +415,7 @@ class Workpiece:
         workpiece's; otherwise record their largest normal and offset."""
         if not planes.shape[0]:
             return
-        self._check_extremes(_largest_magnitude(planes[:, :3]), _largest_magnitude(planes[:, 3]), what)
+        self._check_extremes(max_abs(planes[:, :3]), max_abs(planes[:, 3]), what)
 
     def _check_extremes(self, normal: int, offset: int, what: str) -> None:
         """Refuse planes whose largest normal and offset break the width's budget together with the workpiece's;
@@ -615,10 +603,8 @@ class Workpiece:
             d = np.concatenate([sp[1].astype(object) for sp in splits])
             order = spread_orders(N.astype(np.float64), starts)  # as Tool.from_hull orders each hull's planes
             N, d = N[order], d[order]
-            self._check_extremes(_largest_magnitude(N), _largest_magnitude(d), "the tools' planes")
-            W = np.empty((N.shape[0], 4), self.palette.dtype)
-            W[:, :3] = to_wide(N, self.width)
-            W[:, 3] = to_wide(d, self.width)
+            self._check_extremes(max_abs(N), max_abs(d), "the tools' planes")
+            W = split_planes_wide(N, d, self.width)
         else:
             P = _exact_planes(np.concatenate([h.planes for h in hulls]))  # int64 beside object rows: Python ints
             P = P[spread_orders(P[:, :3].astype(np.float64), starts)]  # as Tool.from_hull orders each hull's planes
