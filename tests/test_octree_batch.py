@@ -3,6 +3,8 @@ makes, array for array -- raw arrays, so the pool and palette compactions must h
 
 from __future__ import annotations
 
+from fractions import Fraction
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -209,3 +211,66 @@ def test_the_drills_256_bit_sweep_from_batches_equals_one_from_python_int_planes
     for h in prisms:
         reference |= Tool("convex", _python_int_planes(h), h.lo, h.hi)
     assert batched.volume() == reference.volume() > 0
+
+
+def _hull_near_the_int64_edge(rng, fraction: float, limit: int):
+    """A hull of 12 random points (extent ~2**20) moved along x so that one facet's shift N·origin of its split planes
+    lies in (2**63 - |d_local|, 2**63): an int64 shift whose difference with the local offset passes 2**63 -- the
+    window where the split once wrapped. None when this draw cannot reach it within the budget."""
+    size = 1 << 20
+    points = rng.integers(-size, size + 1, size=(12, 3))
+    hull = convex_hull(points, width=256)
+    N = np.asarray(hull._normals).astype(object)
+    d_local = np.asarray(hull._d_local).astype(object)
+    origin = [int(v) for v in hull._origin]
+    big = [i for i in range(N.shape[0]) if d_local[i] < -4 * abs(N[i, 0]) and abs(N[i, 0]) >= 1 << 37]
+    if not big:
+        return None
+    i = max(big, key=lambda r: abs(N[r, 0]))
+    nx = int(N[i, 0])
+    base = sum(int(N[i, c]) * origin[c] for c in range(3))
+    target = (1 << 63) - 2 * abs(nx) - int(fraction * (-int(d_local[i]) - 4 * abs(nx)))
+    tx = round(Fraction(target - base, nx))
+    if abs(tx) + 2 * size > limit:
+        return None
+    moved = convex_hull(points + np.array([tx, 0, 0]), width=256)
+    shifts = [sum(int(a) * int(b) for a, b in zip(n, moved._origin, strict=True)) for n in moved._normals]
+    d_moved = [int(v) for v in moved._d_local]
+    assert any((1 << 62) <= s_ < (1 << 63) and abs(d - s_) >= 1 << 63 for s_, d in zip(shifts, d_moved, strict=True))
+    return moved
+
+
+@settings(max_examples=30, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), n=st.integers(1, 5), log_size=st.integers(12, 22),
+       fraction=st.floats(0.0, 0.999))
+def test_wide_hulls_anywhere_in_the_256_bit_budget_match_python_int_planes(seed, n, log_size, fraction):
+    """A fuzz over the whole 256-bit mesh budget: one hull whose split planes meet the int64 edge (a shift N·origin in
+    (2**63 - |d_local|, 2**63)) and ``n`` hulls of 12 random points (extent 2**log_size, centres anywhere within the
+    budget: normals up to ~2**45, shifts up to ~2**72), a union and a difference in compiled batches (split planes)
+    against the same hulls as tools of Python-int planes computed here. Fails on 0909b0b (the wrap of 13ea747)."""
+    from hypothesis import assume
+
+    from csgnb.exact import budget
+    from csgnb.octree.tool import Tool
+
+    rng = np.random.default_rng(seed)
+    limit = budget(256).max_mesh_coordinate
+    edge = _hull_near_the_int64_edge(rng, fraction, limit)
+    assume(edge is not None)
+    size = 1 << log_size
+    hulls = [edge]
+    for _ in range(n):
+        centre = rng.integers(-(limit - size), limit - size + 1, size=3)
+        hulls.append(convex_hull(centre + rng.integers(-size, size + 1, size=(12, 3)), width=256))
+    stock = convex_hull(np.array([[i, j, k] for i in (-limit, limit) for j in (-limit, limit)
+                                  for k in (-limit, limit)]), width=256)
+    for op in ("union", "difference"):
+        batched = Workpiece.empty(width=256)
+        reference = Workpiece.empty(width=256)
+        if op == "difference":
+            batched |= stock
+            reference |= stock
+        batched.run(hulls, op)
+        for h in hulls:
+            reference.boolean(Tool("convex", _python_int_planes(h), h.lo, h.hi), UNION if op == "union" else DIFFERENCE)
+        assert batched.volume() == reference.volume(), op
