@@ -282,7 +282,7 @@ ARRAY_NAMES = frozenset([f"oc_{k}" for k in _OC_DTYPES] + ["oc_counts", "oc_free
                         + [f"pool_{k}" for k in _POOL_NAMES] + ["palette_limbs", "axis_keys", "axis_rows"])
 HEADER_FIELDS = {"width", "exponent", "origin", "max_coordinate", "threshold", "min_cell", "max_tool_polygons",
                  "seed", "root_lo", "root_size", "max_normal", "max_offset"}
-OPTIONAL_HEADER_FIELDS = {"completed", "checkpoint", "format", "version", "sha256"}
+OPTIONAL_HEADER_FIELDS = {"completed", "checkpoint", "format", "version", "sha256", "applied"}
 _AXIS_MULTIPLIER = np.int64(-7046029254386353131)
 _MAX_THRESHOLD = 1 << 16  # BSP nodes per cell (the paper's best: 100-200); the workspace grows with it
 
@@ -396,6 +396,13 @@ def _check(header: dict, arrays: dict[str, np.ndarray]) -> dict:  # noqa: C901 (
     problems = budget(width).plane_violations(max_normal, max_offset)
     if problems:
         raise _Bad(f"header fields 'max_normal' and 'max_offset' break the {width}-bit budget: {'; '.join(problems)}")
+    if "applied" in header:
+        from csgnb.octree.workpiece import APPLIED_MEMO
+
+        ap = header["applied"]
+        if not (isinstance(ap, list) and 0 < len(ap) <= APPLIED_MEMO and len(set(ap)) == len(ap)
+                and all(isinstance(v, str) and re.fullmatch(r"[0-9a-f]{64}", v) for v in ap)):
+            raise _Bad(f"header field 'applied' must list 1 to {APPLIED_MEMO} distinct digests of applied differences")
     if "completed" in header:
         _int(header, "completed", 0)
     if "checkpoint" in header:

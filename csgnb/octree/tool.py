@@ -262,6 +262,7 @@ class Tool:
         planes = self.planes
         moved.__dict__.update(self.__dict__)
         moved.__dict__.pop("_split", None)  # the moved tool's planes are its own
+        moved.__dict__.pop("_digests", None)  # and so is its content (csgnb.octree.workpiece._content_digest)
         shift = int(np.abs(t).max(initial=0))
         if planes.dtype == np.int64 and planes.size and \
                 3 * int(np.abs(planes[:, :3]).max()) * shift + int(np.abs(planes[:, 3]).max()) < _SMALL:
@@ -284,6 +285,7 @@ class Tool:
         # A pickled tool (sent to a Dask worker) travels without the tool it was translated from.
         state = dict(self.__dict__)
         state.pop("_moved_from", None)
+        state.pop("_digests", None)  # recomputed where it is used (a moved tool arrives without its source)
         return state
 
     def planes_wide(self, width: int) -> np.ndarray:

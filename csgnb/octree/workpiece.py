@@ -125,6 +125,10 @@ RUN_BATCH = 256
 """:meth:`Workpiece.run` applies a run of convex hulls in compiled calls of at most this many (and never across a
 checkpoint): the progress bar moves at least every ``RUN_BATCH`` operations."""
 
+APPLIED_MEMO = 1024
+"""Mesh-tool differences a workpiece remembers (the newest; see :meth:`Workpiece.boolean`): subtracting one again
+before anything adds material is an exact no-op, and is skipped."""
+
 PALETTE_COMPACT_ROWS = 1 << 16
 """The palette (every tool's planes are appended: ~150 rows a milling move, 7,192 a drill step) is compacted when it
 holds at least this many rows and twice the rows the last compaction kept: planes no cell's BSP and no wall map entry
@@ -170,6 +174,9 @@ class OpReport:
     seconds: float
     volume_change: Fraction | None = None
     unchanged: int = 0
+    repeated: bool = False
+    """A difference with a mesh tool this workpiece had already subtracted, with no material added since: an exact
+    no-op, skipped (no cell touched)."""
 
     @property
     def removed(self) -> Fraction | None:
@@ -185,6 +192,26 @@ def _combine_order(oc, leaves: np.ndarray) -> np.ndarray:
     parents = np.unique(oc.parent[leaves])
     parents = parents[parents >= 0]
     return parents[np.argsort(-oc.size[parents], kind="stable")[::-1]].astype(np.int64)
+
+
+def _content_digest(tool: Tool, width: int) -> str:
+    """SHA-256 of what a mesh tool is at ``width`` bits (kind, wide planes, polygons, tree, box, offset), once per
+    tool and width (a tool is not changed in place; :meth:`Tool.translated` makes a new one)."""
+    cache = tool.__dict__.setdefault("_digests", {})
+    found = cache.get(width)
+    if found is None:
+        h = hashlib.sha256(tool.kind.encode())
+        parts = [tool.planes_wide(width).view(np.uint8), tool.lo, tool.hi, tool.offset]
+        if tool.polygons is not None:
+            parts += [tool.polygons.support, tool.polygons.offsets, tool.polygons.edges]
+        if tool.tree is not None:
+            parts += [np.asarray(a) for a in tool.tree]
+        for a in parts:
+            a = np.ascontiguousarray(a)
+            h.update(f"{a.dtype}{a.shape}|".encode())
+            h.update(a.tobytes())
+        found = cache[width] = h.hexdigest()
+    return found
 
 
 def _polygon_geometry(tool: Tool, width: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -234,6 +261,9 @@ class WorkpieceStats:
     workpiece was made or loaded. A diagnostic: a cell redone after a scratch array grew is counted again, so
     the figure follows the workspace's sizes (chapter 05's drill: 49,306 with the former small clip scratch,
     49,299 now), while the solid does not."""
+    repeated: int = 0
+    """Differences skipped because the same mesh tool (same content, same translation, same ``within``) had been
+    subtracted since material was last added (:meth:`Workpiece.boolean`)."""
     skipped_merges: int = 0
     """Cell merges not made because asking first (:func:`csgnb.bsp.merging.merge_changes_a`) found that the tool
     changes nothing there, since the workpiece was made or loaded."""
@@ -306,6 +336,8 @@ class Workpiece:
         self._meta: dict = {}
         self._tables: dict = {}
         self._prepared_fns: dict = {}  # fn -> (table, constant labels, keeps labels outside the tool)
+        # keys of the mesh-tool differences applied since material was last added (oldest first): part of the state
+        self._applied: dict[str, None] = {}
         self.stats = WorkpieceStats()
 
     # -- construction ---------------------------------------------------------------
@@ -487,6 +519,12 @@ class Workpiece:
             lo, hi = np.maximum(lo, w_lo), np.minimum(hi, w_hi)
             if np.any(lo > hi):
                 return self._empty_tool(True, False, t0)  # no cell to touch: nothing changes in the box
+        is_difference = np.array_equal(table, _DIFFERENCE)
+        key = self._applied_key(tool, None if within is None else (w_lo, w_hi)) if is_difference else None
+        if key is not None and key in self._applied:
+            return self._repeated(track_volume, t0)
+        if not is_difference:
+            self._applied = {}  # material may be added (a union) or the label function is another: forget them all
         if tool.kind == "empty":
             if not outside_identity and int(table[0, 0]) != 0:
                 raise GeometryError("the tool is empty and the label function makes material outside it "
@@ -519,6 +557,10 @@ class Workpiece:
                 change = measure.finish()
             report.volume_change = change
         self._maybe_compact_palette()  # after the volume measurement, whose cache keys name palette rows
+        if key is not None:
+            self._applied[key] = None
+            if len(self._applied) > APPLIED_MEMO:
+                del self._applied[next(iter(self._applied))]
         report.seconds = time.perf_counter() - t0
         s = self.stats
         s.operations += 1
@@ -550,6 +592,30 @@ class Workpiece:
             self._prepared_fns[fn] = prepared
         return prepared
 
+    def _applied_key(self, tool: Tool, within) -> str | None:
+        """The key of subtracting mesh tool ``tool`` (``within`` = the box it is confined to, or None) in the memo of
+        differences applied since material was last added; None for other tools (a hull's Boolean costs little more
+        than a digest would). A translated tool is its source's content digest and the translation: the same planes
+        ``d - n·t``, polygons and tree."""
+        if tool.kind != "mesh":
+            return None
+        source, shift = tool.__dict__.get("_moved_from", (tool, tool.offset * 0))
+        h = hashlib.sha256(_content_digest(source, self.width).encode())
+        h.update(np.asarray(shift, np.int64).tobytes())
+        if within is not None:
+            h.update(b"within")
+            h.update(np.asarray(within, np.int64).tobytes())
+        return h.hexdigest()
+
+    def _repeated(self, track_volume: bool, t0: float) -> OpReport:
+        """The report of a difference already applied with nothing added since: A - T - ... - T = A - T - ..."""
+        report = OpReport(0, 0, 0, 0, 0, time.perf_counter() - t0,
+                          volume_change=Fraction(0) if track_volume else None, repeated=True)
+        self.stats.operations += 1
+        self.stats.repeated += 1
+        self.stats.seconds.append(report.seconds)
+        return report
+
     def _empty_tool(self, outside_identity: bool, track_volume: bool, t0: float) -> OpReport:
         """A Boolean with no tool material: nothing changes where ``fn(a, 0) == a`` (a difference, a union);
         otherwise (``fn(0, 0) = 0`` is checked by the caller) ``fn(1, 0) = 0``: the workpiece becomes empty."""
@@ -579,6 +645,8 @@ class Workpiece:
         if n == 0:
             return []
         table, constant, outside_identity = self._prepared(fn)
+        if not np.array_equal(table, _DIFFERENCE):
+            self._applied = {}  # hulls that may add material: the mesh-tool differences remembered no longer hold
         lo, hi = np.empty((n, 3), np.int64), np.empty((n, 3), np.int64)
         for i, h in enumerate(hulls):
             if not isinstance(h, ConvexHull):
@@ -841,11 +909,14 @@ class Workpiece:
 
     def _header(self) -> dict:
         g = self.grid
-        return {"width": self.width, "exponent": int(g.exponent), "origin": [float(x) for x in g.origin],
+        header = {"width": self.width, "exponent": int(g.exponent), "origin": [float(x) for x in g.origin],
                 "max_coordinate": int(g.max_coordinate), "threshold": self.threshold, "min_cell": self.min_cell,
                 "max_tool_polygons": self.max_tool_polygons, "seed": self.seed,
                 "root_lo": [int(x) for x in self.root_lo], "root_size": int(self.root_size),
                 "max_normal": str(self._max_normal), "max_offset": str(self._max_offset)}
+        if self._applied:  # the differences it would skip are part of what the workpiece does next (a resumed run)
+            header["applied"] = list(self._applied)
+        return header
 
     def _arrays(self) -> dict[str, np.ndarray]:
         """The workpiece's arrays in canonical form: the same solid built the same way gives the same arrays.
@@ -962,6 +1033,7 @@ class Workpiece:
         w.root_size = ok["root_size"]
         w._max_normal, w._max_offset = ok["max_normal"], ok["max_offset"]
         w._palette_kept = limbs.shape[0]
+        w._applied = dict.fromkeys(header.get("applied", []))
         w._meta = header
         return w
 
