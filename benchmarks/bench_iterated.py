@@ -10,6 +10,9 @@ Two set-ups from the paper, built with csgnb's own tools and sweeps (``csgnb.app
   tool; three turns with the feed as an exact translation give 270 subtractions from a
   block. manifold3d gets the same prisms (float hulls), unions them per step with
   ``batch_boolean`` (timed apart) and subtracts the same 270 translated steps.
+  Steps 45-89 of each turn sweep exactly the volumes of steps 0-44 at the same place (the
+  drill turns into itself every 180°): the workpiece skips them as differences it has
+  already applied (``OpReport.repeated``); ``--no-memo`` applies them again (the A/B).
 * **gear_sweep** (Figures 11-12): a spur gear (480 triangles) along a cubic Bézier with S
   sample positions; the prism of every triangle between consecutive positions is unioned
   one by one into an empty workpiece (S = 20: ~9,100 unions). manifold3d unions the same
@@ -61,15 +64,20 @@ def _tenths(ts) -> tuple[float, float]:
     return float(np.median(ts[:k])), float(np.median(ts[-k:]))
 
 
-def _drill_steps(work, step_tools, feed, total: int, verbose: bool = False) -> list[float]:
+def _drill_steps(work, step_tools, feed, total: int, verbose: bool = False,
+                 repeated: list | None = None) -> list[float]:
     """Subtract ``total`` drill steps from ``work``: step i is tool ``i mod 90`` moved down ``i // 90`` feeds (an
-    exact translation of the prepared tool). Returns each step's seconds."""
+    exact translation of the prepared tool). Returns each step's seconds; ``repeated`` gets each step's
+    ``OpReport.repeated`` (steps 45-89 of a turn subtract steps 0-44's sweeps again at the same place: the drill's
+    180° symmetry makes them exact no-ops, which the workpiece skips)."""
     ts = []
     for i in range(total):
         turn, k = divmod(i, len(step_tools))
         t = time.perf_counter()
-        work -= step_tools[k].translated(feed * turn)
+        report = work.difference(step_tools[k].translated(feed * turn))
         ts.append(time.perf_counter() - t)
+        if repeated is not None:
+            repeated.append(report.repeated)
         if verbose and i % 30 == 0:
             print(f"  drill step {i}: {ts[-1] * 1e3:.0f} ms, {work}")
     return ts
@@ -129,7 +137,8 @@ def drill_workload(args) -> dict:
     # -- the same steps on one workpiece, one core (the speed-up's reference) --------------------------------------
     work = Workpiece.box(lo, hi, grid=grid, threshold=args.threshold)
     c0 = time.process_time()
-    csg_t = _drill_steps(work, tools_c, ds.feed, total, args.verbose)
+    repeated: list[bool] = []
+    csg_t = _drill_steps(work, tools_c, ds.feed, total, args.verbose, repeated)
     csg_cpu = time.process_time() - c0
     vol = work.model_volume()
     if par is not None:
@@ -148,7 +157,7 @@ def drill_workload(args) -> dict:
         mf_t.append(time.perf_counter() - t)
     mf_vol = cube.volume()
     surface = work.surface()
-    first, last = _tenths(csg_t)
+    first, last = _tenths([t for t, r in zip(csg_t, repeated, strict=True) if not r])  # the steps that cut
     mfirst, mlast = _tenths(mf_t)
     return {"steps": total, "csgnb_s": float(sum(csg_t)), "csgnb_cpu_s": csg_cpu, "every_core": par,
             "manifold3d_s": float(sum(mf_t)),
@@ -156,6 +165,7 @@ def drill_workload(args) -> dict:
             "csgnb_prisms_s": prisms_s, "csgnb_prisms_cpu_s": prisms_cpu, "distinct_sweeps": ds.period,
             "median_ms": float(np.median(csg_t) * 1e3), "max_ms": float(np.max(csg_t) * 1e3),
             "first_tenth_median_ms": first * 1e3, "last_tenth_median_ms": last * 1e3,
+            "repeated_steps": int(sum(repeated)), "memo": not args.no_memo,
             "manifold3d_median_ms": float(np.median(mf_t) * 1e3), "manifold3d_first_tenth_median_ms": mfirst * 1e3,
             "manifold3d_last_tenth_median_ms": mlast * 1e3,
             "faces": surface.n_polygons, "faces_merged": surface.merged().n_polygons,
@@ -434,9 +444,14 @@ def main() -> None:
     parser.add_argument("--lattice-ops", type=int, default=2000, help="cube lattice Booleans")
     parser.add_argument("--perf-map", action="store_true",
                         help="name the compiled kernels for perf (run under perf record; see _perf_map.py)")
+    parser.add_argument("--no-memo", action="store_true",
+                        help="apply repeated mesh-tool differences again instead of skipping them (the drill's "
+                             "repeated half-turns: the cost without Workpiece's memo of applied differences)")
     parser.add_argument("--verbose", action="store_true")
     parser.add_argument("--json", type=str, default=None)
     args = parser.parse_args()
+    if args.no_memo:  # every workpiece of this run applies repeated differences again (the A/B of the memo)
+        Workpiece._applied_key = lambda self, tool, within: None
     if args.perf_map:
         import _perf_map  # noqa: F401 -- before the first kernel is loaded
 
@@ -465,7 +480,9 @@ def main() -> None:
               f"{d['csgnb_precompute_cpu_s']:.1f} s "
               f"CPU (the prisms' exact hulls, drill_sweeps, {d['csgnb_prisms_s']:.1f} s; then DrillSweeps.tools, every "
               f"core), manifold3d {d['manifold3d_precompute_s']:.1f} s from the same prisms' points (timed apart)")
-        print(f"  per step: median {d['median_ms']:.0f} ms, max {d['max_ms']:.0f} ms, first tenth "
+        print(f"  per step: median {d['median_ms']:.0f} ms, max {d['max_ms']:.0f} ms; {d['repeated_steps']} steps "
+              f"repeat an earlier sweep at the same place (exact no-ops, "
+              f"{'skipped' if d['memo'] else 'applied again: --no-memo'}); over the others first tenth "
               f"{d['first_tenth_median_ms']:.0f} ms, last tenth {d['last_tenth_median_ms']:.0f} ms "
               f"(flat within 1.5x: {'met' if flat else 'NOT met'}); manifold3d median {d['manifold3d_median_ms']:.0f} "
               f"ms, first/last tenth {d['manifold3d_first_tenth_median_ms']:.0f}/"
