@@ -3,7 +3,8 @@
 The file is a zip of ``.npy`` arrays: the plain arrays of :mod:`csgnb.octree.layout` in a
 canonical form (trimmed to the rows in use, dead rows zeroed, the BSP pool compacted; see
 :meth:`csgnb.octree.Workpiece.save`) and a JSON header (format, version, grid, parameters,
-a SHA-256 of the header and every array). The zip is written deterministically (fixed
+the digests of the mesh-tool differences it would skip as already applied, if any, a SHA-256
+of the header and every array). The zip is written deterministically (fixed
 member order and timestamps, no compression), so the same workpiece always gives the same
 bytes. It is written to a temporary file in the same folder (named after the target, this
 host and the writing process), flushed to disk and renamed over the target, so a save
