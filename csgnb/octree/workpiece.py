@@ -910,10 +910,10 @@ class Workpiece:
     def _header(self) -> dict:
         g = self.grid
         header = {"width": self.width, "exponent": int(g.exponent), "origin": [float(x) for x in g.origin],
-                "max_coordinate": int(g.max_coordinate), "threshold": self.threshold, "min_cell": self.min_cell,
-                "max_tool_polygons": self.max_tool_polygons, "seed": self.seed,
-                "root_lo": [int(x) for x in self.root_lo], "root_size": int(self.root_size),
-                "max_normal": str(self._max_normal), "max_offset": str(self._max_offset)}
+                  "max_coordinate": int(g.max_coordinate), "threshold": self.threshold, "min_cell": self.min_cell,
+                  "max_tool_polygons": self.max_tool_polygons, "seed": self.seed,
+                  "root_lo": [int(x) for x in self.root_lo], "root_size": int(self.root_size),
+                  "max_normal": str(self._max_normal), "max_offset": str(self._max_offset)}
         if self._applied:  # the differences it would skip are part of what the workpiece does next (a resumed run)
             header["applied"] = list(self._applied)
         return header
