@@ -67,17 +67,22 @@ def _tenths(ts) -> tuple[float, float]:
 def _drill_steps(work, step_tools, feed, total: int, verbose: bool = False,
                  repeated: list | None = None) -> list[float]:
     """Subtract ``total`` drill steps from ``work``: step i is tool ``i mod 90`` moved down ``i // 90`` feeds (an
-    exact translation of the prepared tool). Returns each step's seconds; ``repeated`` gets each step's
-    ``OpReport.repeated`` (steps 45-89 of a turn subtract steps 0-44's sweeps again at the same place: the drill's
-    180° symmetry makes them exact no-ops, which the workpiece skips)."""
+    exact translation of the prepared tool). Returns each step's seconds; ``repeated`` gets whether each step repeats
+    an earlier one (the same tool object at the same turn: steps 45-89 of a turn subtract steps 0-44's sweeps again at
+    the same place, the drill's 180° symmetry), exact no-ops the workpiece skips (``OpReport.repeated``) unless the
+    memo is off."""
     ts = []
+    seen = set()
     for i in range(total):
         turn, k = divmod(i, len(step_tools))
         t = time.perf_counter()
         report = work.difference(step_tools[k].translated(feed * turn))
         ts.append(time.perf_counter() - t)
-        if repeated is not None:
-            repeated.append(report.repeated)
+        if repeated is not None:  # a repeat whether the workpiece skipped it or not (--no-memo): the same tool, turn
+            key = (id(step_tools[k]), turn)
+            assert report.repeated == (key in seen) or not report.repeated
+            repeated.append(key in seen)
+            seen.add(key)
         if verbose and i % 30 == 0:
             print(f"  drill step {i}: {ts[-1] * 1e3:.0f} ms, {work}")
     return ts
@@ -482,7 +487,7 @@ def main() -> None:
               f"core), manifold3d {d['manifold3d_precompute_s']:.1f} s from the same prisms' points (timed apart)")
         print(f"  per step: median {d['median_ms']:.0f} ms, max {d['max_ms']:.0f} ms; {d['repeated_steps']} steps "
               f"repeat an earlier sweep at the same place (exact no-ops, "
-              f"{'skipped' if d['memo'] else 'applied again: --no-memo'}); over the others first tenth "
+              f"{'skipped' if d['memo'] else 'applied again: --no-memo'}); over the steps that cut, first tenth "
               f"{d['first_tenth_median_ms']:.0f} ms, last tenth {d['last_tenth_median_ms']:.0f} ms "
               f"(flat within 1.5x: {'met' if flat else 'NOT met'}); manifold3d median {d['manifold3d_median_ms']:.0f} "
               f"ms, first/last tenth {d['manifold3d_first_tenth_median_ms']:.0f}/"
