@@ -80,7 +80,7 @@ def _drill_steps(work, step_tools, feed, total: int, verbose: bool = False,
         ts.append(time.perf_counter() - t)
         if repeated is not None:  # a repeat whether the workpiece skipped it or not (--no-memo): the same tool, turn
             key = (id(step_tools[k]), turn)
-            assert report.repeated == (key in seen) or not report.repeated
+            assert key in seen or not report.repeated  # the workpiece skips only what repeats
             repeated.append(key in seen)
             seen.add(key)
         if verbose and i % 30 == 0:

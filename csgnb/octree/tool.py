@@ -148,6 +148,8 @@ class Tool:
 
     Build one with :meth:`from_hull`, :meth:`from_mesh` or :meth:`from_bsp`; workpiece
     Booleans also accept those objects directly. ``lo``/``hi`` bound the tool's points.
+    A tool is never changed in place (:meth:`translated` makes a new one): its wide planes,
+    polygon geometry and content digest are cached on it.
     """
 
     def __init__(self, kind: str, planes: np.ndarray | None, lo, hi, *, polygons: PolygonSet | None = None,

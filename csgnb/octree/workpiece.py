@@ -422,21 +422,17 @@ class Workpiece:
         """Append the tool's planes to the palette (checked against the width's budget); return their rows."""
         split = tool.split_planes
         if split is not None:  # a 256-bit grid's hull: no (k, 4) Python-int array on the way
-            N, d = split
-            self._check_extremes(max_abs(N), max_abs(d), "the tool's planes")
-            k = N.shape[0]
-            start = int(self.oc.counts[N_PAL])
-            self._palette_room(k)
-            self.palette[start:start + k] = tool.planes_wide(self.width)
-            self.oc.counts[N_PAL] = start + k
-            return np.arange(start, start + k, dtype=np.int64)
-        planes = tool.planes
-        self._check_planes(planes, "the tool's planes")
-        k = planes.shape[0]
+            self._check_extremes(max_abs(split[0]), max_abs(split[1]), "the tool's planes")
+            small = None
+        else:
+            planes = tool.planes
+            self._check_planes(planes, "the tool's planes")
+            small = planes if planes.dtype == np.int64 else None
+        k = tool.n_planes
         start = int(self.oc.counts[N_PAL])
         self._palette_room(k)
-        if planes.dtype == np.int64 and k:
-            store_int64_rows(self.palette, start, planes)  # no wide copy of the tool's planes
+        if small is not None and k:
+            store_int64_rows(self.palette, start, small)  # no wide copy of the tool's planes
         else:
             self.palette[start:start + k] = tool.planes_wide(self.width)
         self.oc.counts[N_PAL] = start + k
