@@ -438,6 +438,11 @@ def test_defects_rounding_made_say_the_grid_is_too_coarse():
     with pytest.raises(GeometryError, match="intersects itself") as caught:
         validate_mesh(W, inverse.reshape(-1)[F], 128)
     assert "finer grid" not in str(caught.value)
+    # at the widest width there is no finer grid to name: the refusal says so (it once ended "at 256 bits, )")
+    with pytest.raises(GeometryError, match=r"vertices fell on the grid points of others.*256 bits allow no finer "
+                                            r"grid \(\|coordinate\| <= 87,298,202\): coarsen the mesh") as caught:
+        validate_mesh(np.rint(V), F, 256)
+    assert "on a finer grid" not in str(caught.value) and ", )" not in str(caught.value)
 
 
 def test_rejects_inconsistent_orientation():

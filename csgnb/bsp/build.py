@@ -814,13 +814,15 @@ def validate_mesh(vertices, faces, width: int = DEFAULT_WIDTH, *,
             raise
         # Merged vertices, collapsed and flat faces are what rounding a float mesh does when its detail is finer
         # than the grid: the likelier cause of the defect than the mesh itself (a welded mesh gets no hint).
+        wider = [f"{budget(w).max_mesh_coordinate:,} at {w}" for w in (192, 256) if w > width]
+        finer = (f"quantize it on a finer grid (|coordinate| <= {budget(width).max_mesh_coordinate:,} at {width} "
+                 f"bits, {', '.join(wider)}) or coarsen the mesh first" if wider else
+                 f"{width} bits allow no finer grid (|coordinate| <= {budget(width).max_mesh_coordinate:,}): "
+                 "coarsen the mesh first (merge its near-duplicate vertices, remove its slivers)")
         raise GeometryError(
             f"{exc} -- before this check {merged} vertices fell on the grid points of others, "
             f"{collapsed} faces collapsed and {split} flat ones were split: if the mesh was quantized from a float "
-            f"mesh, its detail is finer than the grid; quantize it on a finer grid (|coordinate| <= "
-            f"{budget(width).max_mesh_coordinate:,} at {width} bits, "
-            + ", ".join(f"{budget(w).max_mesh_coordinate:,} at {w}" for w in (192, 256) if w > width)
-            + ") or coarsen the mesh first"
+            f"mesh, its detail is finer than the grid; {finer}"
         ) from None
     return W, T
 
