@@ -51,8 +51,12 @@ __all__ = ["bsp_from_polygons", "bsp_from_mesh", "validate_mesh", "check_seed", 
 @unlinked
 @borrowing_jit
 def build_kernel(palette, support, offsets, edges, verts, order, label,
-                  plane, neg, pos, lab, a_edges, a_verts, sides, st_node, st_start, st_k):
+                  plane, neg, pos, lab, a_edges, a_verts, sides, st_node, st_start, st_k, creator):
     """Insert polygons ``order[0], order[1], ...`` into a BSP; return the node count or a negative code.
+
+    ``creator`` (int32, as long as the node arrays, or empty to skip it) gets, for every inner
+    node, the polygon whose piece split it: both children lie against that piece
+    (:mod:`csgnb.bsp.winding` labels leaves from it).
 
     Node arrays ``plane, neg, pos, lab`` have a capacity; polygon pieces live in a
     stack-ordered arena (``a_edges``, ``a_verts``, vertices cached so that a split
@@ -100,6 +104,8 @@ def build_kernel(palette, support, offsets, edges, verts, order, label,
                     outside = n_nodes + 1 if s >= 0 else n_nodes
                     plane[node] = row
                     lab[node] = -1
+                    if creator.shape[0] > 0:
+                        creator[node] = f
                     # The polygon faces outward: behind its (possibly flipped) support is inside.
                     neg[node] = inside if s >= 0 else outside
                     pos[node] = outside if s >= 0 else inside
@@ -227,23 +233,27 @@ def bsp_from_polygons(palette: np.ndarray, polygons: PolygonSet, *, seed: int = 
                         f"{type(palette).__name__} {getattr(palette, 'shape', '')}")
     if not isinstance(polygons, PolygonSet):
         raise TypeError(f"polygons must be a csgnb.bsp.PolygonSet, got {type(polygons).__name__}")
-    label = check_label(label)
-    seed = check_seed(seed)
+    return insert_polygons(palette, polygons, seed=check_seed(seed), label=check_label(label))[0]
+
+
+def insert_polygons(palette: np.ndarray, polygons: PolygonSet, *, seed: int, label: int) -> tuple[BSPTree, np.ndarray]:
+    """:func:`bsp_from_polygons` (arguments checked by the caller), and each node's creator: (nodes,) int32, the
+    polygon whose piece split the node (-1 at leaves)."""
     verts = _checked_vertices(palette, polygons)
     palette = np.ascontiguousarray(palette)
     n = len(polygons)
     if n == 0:
-        return BSPTree.leaf(palette[:0], OUT)
+        return BSPTree.leaf(palette[:0], OUT), np.full(1, -1, np.int32)
     order = np.random.default_rng(seed).permutation(n).astype(np.int32)
     cap_nodes, cap_arena, cap_stack = _initial_capacities(n, int(polygons.sizes.max()))
     while True:
-        plane, neg, pos, lab = (np.empty(cap_nodes, np.int32) for _ in range(4))
+        plane, neg, pos, lab, creator = (np.empty(cap_nodes, np.int32) for _ in range(5))
         a_edges = np.empty(cap_arena, np.int32)
         a_verts = np.empty((cap_arena, 4), palette.dtype)
         sides = np.empty(cap_arena, np.int8)
         st = [np.empty(cap_stack, np.int32) for _ in range(3)]
         count = int(build_kernel(palette, polygons.support, polygons.offsets, polygons.edges, verts, order,
-                                  int(label), plane, neg, pos, lab, a_edges, a_verts, sides, *st))
+                                  int(label), plane, neg, pos, lab, a_edges, a_verts, sides, *st, creator))
         if count >= 0:
             break
         if count == -1:
@@ -254,12 +264,13 @@ def bsp_from_polygons(palette: np.ndarray, polygons: PolygonSet, *, seed: int = 
             cap_stack *= 2
     plane, neg, pos, lab = plane[:count], neg[:count], pos[:count], lab[:count]
     inner = plane >= 0
+    creator = np.where(inner, creator[:count], -1).astype(np.int32)
     used, first = np.unique(plane[inner], return_index=True)
     used = used[np.argsort(first, kind="stable")]
     remap = np.full(palette.shape[0], -1, np.int32)
     remap[used] = np.arange(used.shape[0], dtype=np.int32)
     plane = np.where(inner, remap[np.maximum(plane, 0)], -1).astype(np.int32)
-    return BSPTree(np.ascontiguousarray(palette[used]), plane, neg, pos, lab)
+    return BSPTree(np.ascontiguousarray(palette[used]), plane, neg, pos, lab), creator
 
 
 # ---------------------------------------------------------------------------
@@ -419,13 +430,14 @@ def _fill_cells(lo_cell, hi_cell, G0, G1, keys, ids):
 
 
 @jit
-def _first_overlap(V, T, lo, hi, origin, h, G0, G1, keys, ids, pl, sd, found):
-    """Scan each grid cell's triangle pairs; store the first overlapping pair in ``found``.
+def _overlapping_pairs(V, T, lo, hi, origin, h, G0, G1, keys, ids, pl, sd, found):
+    """Scan each grid cell's triangle pairs; store overlapping pairs in ``found`` (k, 2) until it is full.
 
     A pair is tested only in the cell holding the lower corner of the intersection of
-    their bounding boxes, so each pair is tested once.
+    their bounding boxes, so each pair is tested once. Returns the number stored.
     """
     n = keys.shape[0]
+    count = 0
     g = 0
     while g < n:
         e = g
@@ -446,14 +458,27 @@ def _first_overlap(V, T, lo, hi, origin, h, G0, G1, keys, ids, pl, sd, found):
                 if disjoint or key != keys[g]:
                     continue
                 if _triangles_overlap(V, T, i, j, pl, sd):
-                    found[0] = min(i, j)
-                    found[1] = max(i, j)
-                    return
+                    found[count, 0] = min(i, j)
+                    found[count, 1] = max(i, j)
+                    count += 1
+                    if count == found.shape[0]:
+                        return count
         g = e
+    return count
 
 
 def _first_self_intersection(V: np.ndarray, T: np.ndarray) -> tuple[int, int] | None:
     """The first pair of faces that overlap (by a uniform grid of bounding boxes), or None."""
+    pairs = self_intersections(V, T, limit=1)
+    return None if not len(pairs) else (int(pairs[0, 0]), int(pairs[0, 1]))
+
+
+def self_intersections(V: np.ndarray, T: np.ndarray, limit: int | None = None) -> np.ndarray:
+    """The pairs of faces ``(i, j)``, i < j, that cross or touch away from the vertices and edge they share.
+
+    Exact (integer vertices within the mesh budget); a uniform grid of bounding boxes finds the
+    candidates. At most ``limit`` pairs (all by default): a ``(k, 2)`` int64 array.
+    """
     n = T.shape[0]
     corners = V[T]  # (n, 3, 3)
     lo, hi = corners.min(axis=1), corners.max(axis=1)
@@ -474,14 +499,21 @@ def _first_self_intersection(V: np.ndarray, T: np.ndarray) -> tuple[int, int] | 
     order = np.argsort(keys, kind="stable")
     pl = np.empty((1, 4), wide_dtype(128))
     sd = np.empty(1, wide_dtype(128))
-    found = np.array([-1, -1], np.int64)
-    _first_overlap(np.ascontiguousarray(V), np.ascontiguousarray(T), lo, hi, origin, h, int(G[0]), int(G[1]),
-                   keys[order], ids[order], pl, sd, found)
-    return None if found[0] < 0 else (int(found[0]), int(found[1]))
+    V, T, keys, ids = np.ascontiguousarray(V), np.ascontiguousarray(T), keys[order], ids[order]
+    cap = limit if limit is not None else n + 16
+    while True:
+        found = np.empty((cap, 2), np.int64)
+        count = _overlapping_pairs(V, T, lo, hi, origin, h, int(G[0]), int(G[1]), keys, ids, pl, sd, found)
+        if count < cap or limit is not None:
+            return found[:count]
+        cap *= 4
 
 
 # ---------------------------------------------------------------------------
 # validation
+
+WINDING_HINT = ("; or, to take the points the mesh winds around (overlapping parts as their union, folds removed; "
+                "exact), pass fill='winding'")
 
 
 def _describe_shell(k: int, shell: np.ndarray, first_face: np.ndarray) -> str:
@@ -584,7 +616,7 @@ def _check_nesting(W, T, shell, n_shells, volume6, first_face) -> None:
             raise GeometryError(
                 f"{name} lies inside shell {container} and also faces outward, so the space between them would "
                 "be inside twice: if it is a cavity, reverse its faces (e.g. faces[shell_faces, ::-1]); if it "
-                "is a separate solid, move it out of the other one"
+                f"is a separate solid, move it out of the other one{WINDING_HINT}"
             )
         if not outward and depth == 0 and container >= 0:
             raise GeometryError(
@@ -770,6 +802,21 @@ def validate_mesh(vertices, faces, width: int = DEFAULT_WIDTH, *,
     GeometryError
         Any other defect; the message names the faces or edge concerned.
     """
+    W, T, F, face_ids, first_index, hint = repaired_mesh(vertices, faces, width, report)
+    try:
+        _check_closed_solid(W, T, F, face_ids, first_index)
+    except GeometryError as exc:
+        if not hint:
+            raise
+        raise GeometryError(f"{exc} -- {hint}") from None
+    return W, T
+
+
+def repaired_mesh(vertices, faces, width: int, report: dict | None = None):
+    """The first half of :func:`validate_mesh`: the arrays checked, vertices welded, collapsed faces dropped,
+    opposite pairs cancelled, flat faces split. Returns ``(W, T, F, face_ids, first_index, hint)``: the welded
+    vertices and faces, each face's input corners and input row, each vertex's first input row, and what rounding
+    did as a sentence (empty when nothing was merged, collapsed or split) for a refusal to add."""
     V = integer_array(vertices, "vertices")
     if V.ndim != 2 or V.shape[1] != 3:
         raise GeometryError(f"vertices must have shape (n, 3), got {V.shape}")
@@ -806,25 +853,20 @@ def validate_mesh(vertices, faces, width: int = DEFAULT_WIDTH, *,
     T, F, face_ids, split = _split_flat_faces(W, T, F, face_ids, first_index)
     if report is not None:
         report["flat_faces"] = split
-    try:
-        _check_closed_solid(W, T, F, face_ids, first_index)
-    except GeometryError as exc:
-        collapsed, merged = int(repeated.sum()), V.shape[0] - W.shape[0]
-        if collapsed + split + merged == 0:
-            raise
+    collapsed, merged = int(repeated.sum()), V.shape[0] - W.shape[0]
+    hint = ""
+    if collapsed + split + merged:
         # Merged vertices, collapsed and flat faces are what rounding a float mesh does when its detail is finer
-        # than the grid: the likelier cause of the defect than the mesh itself (a welded mesh gets no hint).
+        # than the grid: the likelier cause of a defect than the mesh itself (a welded mesh gets no hint).
         wider = [f"{budget(w).max_mesh_coordinate:,} at {w}" for w in (192, 256) if w > width]
         finer = (f"quantize it on a finer grid (|coordinate| <= {budget(width).max_mesh_coordinate:,} at {width} "
                  f"bits, {', '.join(wider)}) or coarsen the mesh first" if wider else
                  f"{width} bits allow no finer grid (|coordinate| <= {budget(width).max_mesh_coordinate:,}): "
                  "coarsen the mesh first (merge its near-duplicate vertices, remove its slivers)")
-        raise GeometryError(
-            f"{exc} -- before this check {merged} vertices fell on the grid points of others, "
-            f"{collapsed} faces collapsed and {split} flat ones were split: if the mesh was quantized from a float "
-            f"mesh, its detail is finer than the grid; {finer}"
-        ) from None
-    return W, T
+        hint = (f"before this check {merged} vertices fell on the grid points of others, {collapsed} faces "
+                f"collapsed and {split} flat ones were split: if the mesh was quantized from a float mesh, its "
+                f"detail is finer than the grid; {finer}")
+    return W, T, F, face_ids, first_index, hint
 
 
 def _check_closed_solid(W: np.ndarray, T: np.ndarray, F: np.ndarray, face_ids: np.ndarray,
@@ -865,7 +907,7 @@ def _check_closed_solid(W: np.ndarray, T: np.ndarray, F: np.ndarray, face_ids: n
             raise GeometryError(
                 f"the mesh is not manifold: edge {_describe_edge(first_index, W, a[s], b[s])} is shared by {c} faces "
                 f"{faces_on} that do not alternate in and out around it (parts overlapping there, or a fold); split "
-                "the solid into parts that meet in at most an edge"
+                f"the solid into parts that meet in at most an edge{WINDING_HINT}"
             )
     same = (a[starts] == a[starts + 1]) & (counts == 2)
     if np.any(same):
@@ -910,14 +952,18 @@ def _check_closed_solid(W: np.ndarray, T: np.ndarray, F: np.ndarray, face_ids: n
             f"the mesh intersects itself: faces {int(face_ids[i])} {F[i].tolist()} and "
             f"{int(face_ids[j])} {F[j].tolist()} "
             f"(corners {W[T[i]].tolist()} and {W[T[j]].tolist()}) cross or touch away from the vertices and edge "
-            "they share"
+            f"they share{WINDING_HINT}"
         )
     if n_shells > 1:
         _check_nesting(W, T, shell, n_shells, volume6, first_face)
 
 
-def bsp_from_mesh(vertices, faces, *, width: int = DEFAULT_WIDTH, seed: int = 0, label: int = 1) -> BSPTree:
+def bsp_from_mesh(vertices, faces, *, width: int = DEFAULT_WIDTH, seed: int = 0, label: int = 1,
+                  fill: str = "solid") -> BSPTree:
     """Return the BSP of the solid bounded by a closed, outward-oriented integer triangle mesh.
+
+    With ``fill="winding"``, of the points a closed mesh winds around positively instead: meshes that overlap,
+    cross or fold are accepted (:func:`csgnb.bsp.winding.winding_bsp`).
 
     Parameters
     ----------
@@ -932,6 +978,8 @@ def bsp_from_mesh(vertices, faces, *, width: int = DEFAULT_WIDTH, seed: int = 0,
         Seed of the random insertion order.
     label : int
         Label of the solid's leaves (>= 1).
+    fill : {"solid", "winding"}
+        See :data:`csgnb.bsp.winding.FILLS`.
 
     Returns
     -------
@@ -940,8 +988,12 @@ def bsp_from_mesh(vertices, faces, *, width: int = DEFAULT_WIDTH, seed: int = 0,
     Raises
     ------
     PrecisionError, GeometryError
-        See :func:`validate_mesh`.
+        See :func:`validate_mesh` (``fill="winding"``: :func:`csgnb.bsp.winding.winding_bsp`).
     """
+    from csgnb.bsp.winding import check_fill, winding_bsp
+
+    if check_fill(fill) == "winding":
+        return winding_bsp(vertices, faces, width=width, seed=seed, label=label)
     W, T = validate_mesh(vertices, faces, width)
     palette, polygons = polygons_from_triangles(W, T, width)
     return bsp_from_polygons(palette, polygons, seed=seed, label=label)

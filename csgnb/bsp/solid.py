@@ -134,7 +134,7 @@ class BSP:
 
     @classmethod
     def from_mesh(cls, vertices, faces=None, *, width: int = DEFAULT_WIDTH, seed: int = 0, margin: int = 1,
-                  lo=None, hi=None) -> BSP:
+                  lo=None, hi=None, fill: str = "solid") -> BSP:
         """Import a closed, outward, non-self-intersecting triangle mesh with integer vertices.
 
         Parameters
@@ -150,6 +150,9 @@ class BSP:
             The box defaults to the vertices' bounding box grown by ``margin``.
         lo, hi : (3,) int, optional
             An explicit box; it must contain every vertex.
+        fill : {"solid", "winding"}
+            ``"winding"`` accepts meshes that overlap, cross or fold: the solid is the points the
+            closed mesh winds around positively (:mod:`csgnb.bsp.winding`).
 
         Raises :class:`GeometryError` (open, non-manifold, inward, badly nested or
         self-intersecting meshes, a box that does not hold the mesh) or :class:`PrecisionError`
@@ -160,7 +163,7 @@ class BSP:
         margin = _non_negative(margin, "margin")
         width = check_width(width)
         seed = check_seed(seed)
-        tree = bsp_from_mesh(v, faces, width=width, seed=seed)
+        tree = bsp_from_mesh(v, faces, width=width, seed=seed, fill=fill)
         lo = tuple(int(x) - margin for x in v.min(axis=0)) if lo is None else check_corner(lo, "lo")
         hi = tuple(int(x) + margin for x in v.max(axis=0)) if hi is None else check_corner(hi, "hi")
         vmin, vmax = v.min(axis=0).tolist(), v.max(axis=0).tolist()

@@ -21,7 +21,9 @@ import numpy as np
 from csgnb._jit import jit
 from csgnb.bsp.build import bsp_from_polygons, validate_mesh
 from csgnb.bsp.polygon import PolygonSet, polygons_from_triangles
+from csgnb.bsp.winding import check_fill, winding_bsp
 from csgnb.errors import GeometryError
+from csgnb.exact.integral import integer_array
 from csgnb.exact.wide import from_wide, is_wide, to_wide, wide_dtype, width_of
 from csgnb.exact.wide_store import store_int64_at
 
@@ -209,8 +211,19 @@ class Tool:
         return self.__dict__.get("_split")
 
     @classmethod
-    def from_mesh(cls, vertices, faces, *, width: int, grid=None, seed: int = 0) -> Tool:
-        """A tool bounded by a closed, outward, non-self-intersecting integer triangle mesh (grid coordinates)."""
+    def from_mesh(cls, vertices, faces, *, width: int, grid=None, seed: int = 0, fill: str = "solid") -> Tool:
+        """A tool bounded by a closed, outward, non-self-intersecting integer triangle mesh (grid coordinates).
+
+        ``fill="winding"``: any closed mesh, overlapping, crossing or folded, as the points it winds around
+        positively (:mod:`csgnb.bsp.winding`); the tool's boundary is then that solid's, extracted exactly.
+        """
+        if check_fill(fill) == "winding":
+            from csgnb.bsp.solid import BSP
+
+            tree = winding_bsp(vertices, faces, width=width, seed=seed)
+            W = integer_array(vertices, "vertices")
+            lo, hi = W.min(axis=0) - 1, W.max(axis=0) + 1
+            return cls.from_bsp(BSP(tree, tuple(lo.tolist()), tuple(hi.tolist())), grid=grid, seed=seed)
         W, T = validate_mesh(vertices, faces, width)
         palette, polygons = polygons_from_triangles(W, T, width)
         tree = bsp_from_polygons(palette, polygons, seed=seed)

@@ -370,11 +370,12 @@ class Workpiece:
         return cls(grid, **kw)
 
     @classmethod
-    def from_mesh(cls, vertices, faces=None, *, grid: Grid | None = None, **kw) -> Workpiece:
+    def from_mesh(cls, vertices, faces=None, *, grid: Grid | None = None, fill: str = "solid", **kw) -> Workpiece:
         """A closed, outward mesh: ``(vertices, faces)`` arrays, a pyvista/trimesh mesh, or a file path (meshio).
 
         Float vertices are model units, quantized on ``grid`` (default: a grid fitted to the mesh);
-        integer vertices are grid coordinates. Validated like :meth:`csgnb.bsp.BSP.from_mesh`.
+        integer vertices are grid coordinates. Validated like :meth:`csgnb.bsp.BSP.from_mesh`;
+        ``fill="winding"`` takes any closed mesh, overlapping or folded, as the points it winds around.
         """
         V, F = _mesh_arrays(vertices, faces)
         if grid is None and V.dtype.kind == "f":
@@ -384,7 +385,7 @@ class Workpiece:
             V = w.grid.to_grid(V)
         if "min_cell" not in kw:
             w.min_cell = _stock_min_cell(V)
-        w.union(Tool.from_mesh(V, F, width=w.width, grid=w.grid))
+        w.union(Tool.from_mesh(V, F, width=w.width, grid=w.grid, fill=fill))
         return w
 
     # -- tools ------------------------------------------------------------------------

@@ -1,0 +1,244 @@
+"""``fill="winding"``: closed meshes that overlap, cross or fold, as the points they wind around positively.
+
+References are independent of csgnb: winding numbers counted by brute force over every face with Python integers
+(signed crossings of a segment to a random far point), and unit-voxel counts for unions of boxes.
+
+``tests/data/drill_sweep_manifold3d.npz`` is a real input written by another library: manifold3d 3.5.4's union
+(``Manifold.batch_boolean(..., OpType.Add)``, ``to_mesh64()``) of the 896 prisms of the paper's drill's first sweep
+(``csgnb.apps.sweep.drill_sweeps(tools.twist_drill().on(grid), feed_per_turn=1.0).steps[0]``, hull points from
+``Grid.fit([-12, -12, -16], [12, 12, 8], width)``), one mesh per width (128 and 256: ``vertices_W``, ``faces_W``,
+``volume_W`` its volume by manifold3d). Rounded back onto the grid, both fold (refused as a solid); as a winding
+fill they are the sweep.
+"""
+
+from fractions import Fraction
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from csgnb import GeometryError
+from csgnb.bsp import BSP
+from csgnb.bsp.build import bsp_from_mesh
+from csgnb.bsp.tree import ON_BOUNDARY
+from csgnb.bsp.winding import winding_bsp
+from csgnb.exact import Grid
+from csgnb.octree import Tool, Workpiece
+from tests.test_bsp_build import SOLIDS, box, inverted, soup
+
+DATA = Path(__file__).parent / "data" / "drill_sweep_manifold3d.npz"
+
+
+# ---------------------------------------------------------------------------
+# the reference: brute-force winding numbers (Python ints, every face)
+
+
+def _orient(a, b, c, d):
+    """Sign of det[b - a, c - a, d - a] for (k, 3) object arrays (rows broadcast)."""
+    u, v, w = b - a, c - a, d - a
+    det = (u[:, 0] * (v[:, 1] * w[:, 2] - v[:, 2] * w[:, 1]) - u[:, 1] * (v[:, 0] * w[:, 2] - v[:, 2] * w[:, 0])
+           + u[:, 2] * (v[:, 0] * w[:, 1] - v[:, 1] * w[:, 0]))
+    return np.array([(x > 0) - (x < 0) for x in det], np.int64)
+
+
+def reference_winding(V, F, point, rng, tries: int = 20):
+    """The winding number of the closed mesh at an integer point, or None on the surface (or undecided)."""
+    A, B, C = (V[F[:, k]].astype(object) for k in range(3))
+    keep = np.array([any(x) for x in np.cross(B - A, C - A)])  # faces of no area wind around nothing
+    A, B, C = A[keep], B[keep], C[keep]
+    p = np.array([int(x) for x in point], object)[None, :]
+    span = int(np.abs(V).max()) * 4 + 10
+    op = _orient(A, B, C, p)
+    on_plane = op == 0
+    if on_plane.any():  # on a face's plane: inside that face means on the surface
+        a, b, c = A[on_plane], B[on_plane], C[on_plane]
+        n = np.cross(b - a, c - a)
+        inside = [all(np.dot(np.cross(e1 - e0, p[0] - e0), nn) >= 0 for e0, e1 in ((x, y), (y, z), (z, x)))
+                  for x, y, z, nn in zip(a, b, c, n, strict=True)]
+        if any(inside):
+            return None
+    for _ in range(tries):
+        q = np.array([int(x) for x in rng.integers(-span, span, 3)], object)
+        q[int(rng.integers(3))] = span * 3  # far outside
+        oq = _orient(A, B, C, q[None, :])
+        if np.any(on_plane & (oq == 0)):
+            continue
+        cross = (op * oq) < 0
+        s = [_orient(np.repeat(p, cross.sum(), 0), np.repeat(q[None, :], cross.sum(), 0), X[cross], Y[cross])
+             for X, Y in ((A, B), (B, C), (C, A))]
+        s = np.stack(s, axis=1) if cross.any() else np.zeros((0, 3), np.int64)
+        through = np.all(s >= 0, axis=1) | np.all(s <= 0, axis=1)
+        if np.any(through & np.any(s == 0, axis=1)):
+            continue  # through an edge or a corner
+        return int(oq[cross][through].sum())
+    return None
+
+
+def voxel_winding_volume(boxes):
+    """Unit voxels whose winding number is > 0 for boxes ``(lo, hi, +1 outward / -1 inward)``."""
+    total = 0
+    los = np.min([b[0] for b in boxes], axis=0)
+    his = np.max([b[1] for b in boxes], axis=0)
+    for x in range(los[0], his[0]):
+        for y in range(los[1], his[1]):
+            for z in range(los[2], his[2]):
+                w = sum(s for lo, hi, s in boxes if all(lo[k] <= c < hi[k] for k, c in enumerate((x, y, z))))
+                total += w > 0
+    return total
+
+
+# ---------------------------------------------------------------------------
+# valid solids: the same solid as fill="solid"
+
+
+@pytest.mark.parametrize("name", sorted(SOLIDS))
+def test_a_valid_solid_is_the_same_solid(name):
+    V, F = SOLIDS[name]
+    solid, winding = BSP.from_mesh(V, F), BSP.from_mesh(V, F, fill="winding")
+    assert winding.volume() == solid.volume()
+    lo, hi = V.min(axis=0) - 1, V.max(axis=0) + 1
+    grid = np.stack(np.meshgrid(*(np.arange(lo[k], hi[k] + 1) for k in range(3)), indexing="ij"), -1).reshape(-1, 3)
+    a, b = solid.classify(grid), winding.classify(grid)
+    decided = (a != ON_BOUNDARY) & (b != ON_BOUNDARY)
+    assert np.array_equal(a[decided], b[decided])
+
+
+# ---------------------------------------------------------------------------
+# overlapping, crossing, inverted parts: exact against voxel counts
+
+
+def test_overlapping_boxes_are_their_union():
+    report = {}
+    V, F = soup(box([0, 0, 0], [4, 4, 4]), box([2, 1, 1], [6, 3, 3]))
+    with pytest.raises(GeometryError, match="fill='winding'"):  # refused as a solid, and told what to pass
+        bsp_from_mesh(V, F)
+    winding_bsp(V, F, width=128, report=report)
+    assert report["crossed_faces"] > 0 and report["leaves_from_pieces"] > 0
+    assert BSP.from_mesh(V, F, fill="winding").volume() == 64 + 8
+
+
+def test_inverted_parts_remove_and_cancel():
+    outer, inner = box([0, 0, 0], [4, 4, 4]), box([1, 1, 1], [3, 3, 3])
+    assert BSP.from_mesh(*soup(outer, inverted(inner)), fill="winding").volume() == 64 - 8  # a cavity
+    assert BSP.from_mesh(*soup(outer, inner), fill="winding").volume() == 64  # wound twice: inside once
+    assert BSP.from_mesh(*inverted(inner), fill="winding").volume() == 0  # inward alone: nothing
+    assert BSP.from_mesh(*soup(inner, inverted(inner)), fill="winding").volume() == 0  # cancels face by face
+
+
+_corner = st.integers(0, 5)
+
+
+@st.composite
+def _boxes(draw):
+    boxes = []
+    for _ in range(draw(st.integers(1, 4))):
+        a = [draw(_corner) for _ in range(3)]
+        b = [draw(_corner) for _ in range(3)]
+        if any(x == y for x, y in zip(a, b, strict=True)):
+            continue
+        lo, hi = np.minimum(a, b), np.maximum(a, b)
+        boxes.append((lo, hi, draw(st.sampled_from([1, 1, -1]))))
+    return boxes
+
+
+@settings(max_examples=60, deadline=None)
+@given(_boxes(), st.integers(0, 3))
+def test_any_boxes_wind_to_the_voxel_count(boxes, seed):
+    """Boxes anywhere in a 5-unit cube, overlapping, sharing planes and faces, some inward: the winding fill's
+    exact volume is the number of unit voxels the boxes wind around positively."""
+    if not boxes:
+        return
+    meshes = [box(lo, hi) if s > 0 else inverted(box(lo, hi)) for lo, hi, s in boxes]
+    V, F = soup(*meshes)
+    solid = BSP.from_mesh(V, F, fill="winding", seed=seed)
+    assert solid.volume() == voxel_winding_volume(boxes)
+
+
+def test_open_meshes_are_refused_with_the_edge():
+    V, F = box([0, 0, 0], [4, 4, 4])
+    with pytest.raises(GeometryError, match="not closed: edge .* run [+-]1 more times one way"):
+        bsp_from_mesh(V, F[1:], fill="winding")
+    with pytest.raises(ValueError, match="fill must be one of"):
+        bsp_from_mesh(V, F, fill="nonzero")
+
+
+# ---------------------------------------------------------------------------
+# a real input: manifold3d's drill sweep, rounded onto the grid
+
+
+def _drill_sweep(width):
+    data = np.load(DATA)
+    grid = Grid.fit([-12, -12, -16], [12, 12, 8], width=width)
+    return grid, grid.to_grid(data[f"vertices_{width}"]), data[f"faces_{width}"].astype(np.int64), \
+        float(data[f"volume_{width}"])
+
+
+@pytest.mark.parametrize("width", [128, 256])
+def test_manifold3ds_drill_sweep_folds_when_rounded_and_winds_to_the_sweep(width):
+    grid, V, F, volume = _drill_sweep(width)
+    with pytest.raises(GeometryError, match="not manifold|intersects itself"):
+        Tool.from_mesh(V, F, width=width, grid=grid)
+    report = {}
+    tree = winding_bsp(V, F, width=width, report=report)
+    assert report["collapsed_faces"] > 0 and report["crossed_faces"] > 0 and report["leaves_from_pieces"] > 0
+    lo, hi = V.min(axis=0) - 1, V.max(axis=0) + 1
+    solid = BSP(tree, tuple(lo.tolist()), tuple(hi.tolist()))
+    # the Tool and Workpiece paths hold the same solid, exactly
+    work = Workpiece.from_mesh(V, F, grid=grid, fill="winding")
+    assert work.volume() == solid.volume()
+    # within rounding of manifold3d's float volume (the grid: 2^-8 mm at 128 bits, 2^-22 mm at 256)
+    model = float(work.model_volume())
+    assert model == float(solid.volume() / Fraction(grid.scale) ** 3)
+    assert abs(model - volume) / volume < (1e-3 if width == 128 else 1e-7)
+    # every decided point has the label of its brute-force winding number
+    rng = np.random.default_rng(width)
+    points = rng.integers(lo, hi + 1, (60, 3))
+    points = np.r_[points, (V[F[rng.integers(0, len(F), 60)]].sum(axis=1) // 3)]  # near the surface too
+    labels = solid.classify(points)
+    seen = set()
+    for p, label in zip(points, labels, strict=True):
+        w = reference_winding(V, F, p, rng)
+        if w is None or label == ON_BOUNDARY:
+            continue
+        assert label == (1 if w > 0 else 0), (p.tolist(), w, label)
+        seen.add(label)
+    assert seen == {0, 1}
+
+
+def _hull_mesh(points):
+    """The convex hull of integer points as an outward triangle mesh (scipy's facets, oriented exactly)."""
+    from scipy.spatial import ConvexHull
+
+    hull = ConvexHull(points)
+    centre = points[hull.vertices].sum(axis=0)
+    faces = []
+    for f in hull.simplices:
+        a, b, c = (points[i].astype(object) for i in f)
+        if np.dot(np.cross(b - a, c - a), len(hull.vertices) * a - centre) < 0:
+            f = f[::-1]
+        faces.append(f)
+    return points, np.array(faces, np.int64)
+
+
+@settings(max_examples=25, deadline=None)
+@given(st.integers(0, 2**32 - 1))
+def test_crossing_hulls_classify_as_their_winding_numbers(seed):
+    """Two or three convex hulls of random integer points, crossing at any angle (pieces with rational corners),
+    one of them perhaps inward: every decided integer point has the label of its brute-force winding number."""
+    rng = np.random.default_rng(seed)
+    meshes, k = [], int(rng.integers(2, 4))
+    for i in range(k):
+        pts = rng.integers(-20, 21, (8, 3)) + rng.integers(-6, 7, 3)
+        if np.linalg.matrix_rank(pts[1:] - pts[0]) < 3:
+            return
+        mesh = _hull_mesh(pts)
+        meshes.append(inverted(mesh) if i == k - 1 and rng.random() < 0.3 else mesh)
+    V, F = soup(*meshes)
+    solid = BSP.from_mesh(V, F, fill="winding", seed=int(rng.integers(4)))
+    points = rng.integers(V.min(axis=0) - 1, V.max(axis=0) + 2, (40, 3))
+    for p, label in zip(points, solid.classify(points), strict=True):
+        w = reference_winding(V, F, p, rng)
+        if w is not None and label != ON_BOUNDARY:
+            assert label == (1 if w > 0 else 0), (p.tolist(), w, label)
