@@ -22,8 +22,10 @@ Two set-ups from the paper, built with csgnb's own tools and sweeps (``csgnb.app
   this process (``ShardedWorkpiece(work, None)``, ``--shards``), exact volume compared with ``==``.
 * **drill_mesh** (issue 22): the same drill with the 90 sweep volumes given as float
   triangle meshes (made by manifold3d before anything is timed: the input a user brings),
-  end to end -- csgnb prepares a tool from each mesh once (quantize, validate, repair flat
-  faces, BSP) and translates it per turn; manifold3d builds a ``Manifold`` per mesh.
+  end to end -- csgnb prepares a tool from each mesh once (quantize, repair, BSP) and
+  translates it per turn; manifold3d builds a ``Manifold`` per mesh. Rounded onto the grid,
+  manifold3d's unions fold in places: refused as solids (``--fill solid``), they are taken
+  as the points they wind around (``--fill winding``, the default, what the refusal advises).
 * **dome**: a hemisphere (radius 10 mm) minus 1,000 (``--dome-steps``) capsules along a
   spiral on its surface, each step building its tool from the capsule's points.
 * **lattice**: 2,000 unions/differences of cubes on a 10 x 10 x 10 lattice (coplanar faces,
@@ -198,17 +200,27 @@ def drill_mesh_workload(args) -> dict:
         union = m3.Manifold.batch_boolean([m3.Manifold.hull_points(grid.to_model(h.points)) for h in ds.steps[k]],
                                           m3.OpType.Add)
         mesh = union.to_mesh64()
-        meshes.append((np.asarray(mesh.vert_properties, np.float64)[:, :3], np.asarray(mesh.tri_verts, np.int64)))
+        # copies: manifold3d's arrays are read-only views, which Mesh64 refuses to take back
+        meshes.append((np.array(mesh.vert_properties, np.float64)[:, :3].copy(),
+                       np.array(mesh.tri_verts, np.int64)))
     lo, hi = np.array([-10.0, -10.0, -15.0]), np.array([10.0, 10.0, 6.0])
     total = args.turns * n_steps
     # -- csgnb: tools once, then the steps ------------------------------------------------
     wall, cpu = time.perf_counter(), time.process_time()
     prepared = []
+    refused = None
     for k, (V, F) in enumerate(meshes):
         try:
-            prepared.append(Tool.from_mesh(grid.to_grid(V), F, width=args.width, grid=grid))
+            # rounded onto the grid, manifold3d's unions fold in places: refused as solids, with the advice to
+            # take them as winding fills (fill="winding"), which is what a user does next
+            prepared.append(Tool.from_mesh(grid.to_grid(V), F, width=args.width, grid=grid, fill=args.fill))
         except GeometryError as exc:  # what a user gets: the reason, not a crash of the whole benchmark
             return {"refused": f"sweep {k}: {exc}", "tool_triangles": int(sum(len(F) for _, F in meshes))}
+    if args.fill == "winding":
+        try:
+            Tool.from_mesh(grid.to_grid(meshes[0][0]), meshes[0][1], width=args.width, grid=grid)
+        except GeometryError as exc:
+            refused = str(exc).split(" -- ")[0][:160]
     prep_s = time.perf_counter() - wall
     work = Workpiece.box(lo, hi, grid=grid, threshold=args.threshold)
     ts = _drill_steps(work, [prepared[k % ds.period] for k in range(n_steps)], ds.feed, total, args.verbose)
@@ -234,6 +246,8 @@ def drill_mesh_workload(args) -> dict:
             "manifold3d_s": mf_wall, "manifold3d_cpu_s": mf_cpu, "median_ms": float(np.median(ts) * 1e3),
             "first_tenth_median_ms": first * 1e3, "last_tenth_median_ms": last * 1e3,
             "manifold3d_median_ms": float(np.median(mts) * 1e3), "tool_triangles": int(sum(len(F) for _, F in meshes)),
+            "fill": args.fill, "refused_as_solids": refused,
+            "tool_polygons": int(sum(len(t.polygons) for t in prepared)),
             "faces": work.surface().n_polygons, "manifold3d_triangles": int(cube.num_tri()), "cells": work.n_cells,
             "bsp_nodes": work.n_bsp_nodes, "volume": vol, "manifold3d_volume": float(cube.volume()),
             "volume_rel_dev": abs(vol - float(cube.volume())) / vol}
@@ -438,6 +452,8 @@ def main() -> None:
                         help="the drill's grid step in mm (default: the finest its box allows at --width bits; "
                              "2**-8 = 0.00390625 is the 128-bit one)")
     parser.add_argument("--turns", type=int, default=3)
+    parser.add_argument("--fill", choices=["winding", "solid"], default="winding",
+                        help="how drill_mesh takes manifold3d's sweep meshes (Tool.from_mesh's fill)")
     parser.add_argument("--feed", type=float, default=1.0, help="drill feed per turn (mm)")
     parser.add_argument("--shards", type=int, default=None,
                         help="drill on every core: shards on threads (default one per core; 1: skip)")
@@ -515,6 +531,8 @@ def main() -> None:
                   f"{d['last_tenth_median_ms']:.0f} ms (growth <= 1.5x: {'met' if flat else 'NOT met'}); manifold3d "
                   f"median {d['manifold3d_median_ms']:.0f} ms; {d['faces']} polygons vs "
                   f"{d['manifold3d_triangles']} triangles; volume rel. dev. {d['volume_rel_dev']:.1e}")
+            print(f"  tools: fill={d['fill']!r}, {d['tool_polygons']} exact polygons from the 45 meshes; as solids "
+                  f"they are refused: {d['refused_as_solids']}")
     if "gear_sweep" in args.workloads:
         gears = {}
         for s in args.samples:
@@ -548,6 +566,8 @@ def main() -> None:
                   f"{d['faces']} polygons ({d['faces_merged']} merged: "
                   f"{d['faces_merged'] / d['manifold3d_triangles']:.2f}x, target <= 1.5x) vs "
                   f"{d['manifold3d_triangles']} triangles; volume rel. dev. {d['volume_rel_dev']:.1e}")
+            print(f"  tools: fill={d['fill']!r}, {d['tool_polygons']} exact polygons from the 45 meshes; as solids "
+                  f"they are refused: {d['refused_as_solids']}")
         result["workloads"]["dome"] = domes
     if "lattice" in args.workloads:
         d = lattice_workload(args, args.lattice_ops)

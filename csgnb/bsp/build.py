@@ -20,7 +20,9 @@ self-intersecting, its shells properly nested (cavities face inward) — and rai
 error naming the first defect it finds. Faces without area that rounding a fine mesh
 onto a grid makes are removed first, the surface unchanged: collapsed ones (two
 corners welded) dropped, flat ones (a corner rounded onto the opposite edge) dropped
-after splitting their neighbour at that corner (:func:`validate_mesh`).
+after splitting their neighbour at that corner (:func:`validate_mesh`). Meshes that
+overlap, cross or fold are refused there; ``bsp_from_mesh(..., fill="winding")`` takes
+them as the points they wind around (:mod:`csgnb.bsp.winding`).
 """
 
 from __future__ import annotations
