@@ -115,7 +115,7 @@ def test_overlapping_boxes_are_their_union():
     with pytest.raises(GeometryError, match="fill='winding'"):  # refused as a solid, and told what to pass
         bsp_from_mesh(V, F)
     winding_bsp(V, F, width=128, report=report)
-    assert report["crossed_faces"] > 0 and report["leaves_from_pieces"] > 0
+    assert report["crossed_faces"] > 0 and report["pieces"] > 0
     assert BSP.from_mesh(V, F, fill="winding").volume() == 64 + 8
 
 
@@ -182,7 +182,7 @@ def test_manifold3ds_drill_sweep_folds_when_rounded_and_winds_to_the_sweep(width
         Tool.from_mesh(V, F, width=width, grid=grid)
     report = {}
     tree = winding_bsp(V, F, width=width, report=report)
-    assert report["collapsed_faces"] > 0 and report["crossed_faces"] > 0 and report["leaves_from_pieces"] > 0
+    assert report["collapsed_faces"] > 0 and report["crossed_faces"] > 0 and report["pieces"] > 0
     lo, hi = V.min(axis=0) - 1, V.max(axis=0) + 1
     solid = BSP(tree, tuple(lo.tolist()), tuple(hi.tolist()))
     # the Tool and Workpiece paths hold the same solid, exactly

@@ -53,12 +53,8 @@ __all__ = ["bsp_from_polygons", "bsp_from_mesh", "validate_mesh", "check_seed", 
 @unlinked
 @borrowing_jit
 def build_kernel(palette, support, offsets, edges, verts, order, label,
-                  plane, neg, pos, lab, a_edges, a_verts, sides, st_node, st_start, st_k, creator):
+                  plane, neg, pos, lab, a_edges, a_verts, sides, st_node, st_start, st_k):
     """Insert polygons ``order[0], order[1], ...`` into a BSP; return the node count or a negative code.
-
-    ``creator`` (int32, as long as the node arrays, or empty to skip it) gets, for every inner
-    node, the polygon whose piece split it: both children lie against that piece
-    (:mod:`csgnb.bsp.winding` labels leaves from it).
 
     Node arrays ``plane, neg, pos, lab`` have a capacity; polygon pieces live in a
     stack-ordered arena (``a_edges``, ``a_verts``, vertices cached so that a split
@@ -106,8 +102,6 @@ def build_kernel(palette, support, offsets, edges, verts, order, label,
                     outside = n_nodes + 1 if s >= 0 else n_nodes
                     plane[node] = row
                     lab[node] = -1
-                    if creator.shape[0] > 0:
-                        creator[node] = f
                     # The polygon faces outward: behind its (possibly flipped) support is inside.
                     neg[node] = inside if s >= 0 else outside
                     pos[node] = outside if s >= 0 else inside
@@ -235,27 +229,23 @@ def bsp_from_polygons(palette: np.ndarray, polygons: PolygonSet, *, seed: int = 
                         f"{type(palette).__name__} {getattr(palette, 'shape', '')}")
     if not isinstance(polygons, PolygonSet):
         raise TypeError(f"polygons must be a csgnb.bsp.PolygonSet, got {type(polygons).__name__}")
-    return insert_polygons(palette, polygons, seed=check_seed(seed), label=check_label(label))[0]
-
-
-def insert_polygons(palette: np.ndarray, polygons: PolygonSet, *, seed: int, label: int) -> tuple[BSPTree, np.ndarray]:
-    """:func:`bsp_from_polygons` (arguments checked by the caller), and each node's creator: (nodes,) int32, the
-    polygon whose piece split the node (-1 at leaves)."""
+    label = check_label(label)
+    seed = check_seed(seed)
     verts = _checked_vertices(palette, polygons)
     palette = np.ascontiguousarray(palette)
     n = len(polygons)
     if n == 0:
-        return BSPTree.leaf(palette[:0], OUT), np.full(1, -1, np.int32)
+        return BSPTree.leaf(palette[:0], OUT)
     order = np.random.default_rng(seed).permutation(n).astype(np.int32)
     cap_nodes, cap_arena, cap_stack = _initial_capacities(n, int(polygons.sizes.max()))
     while True:
-        plane, neg, pos, lab, creator = (np.empty(cap_nodes, np.int32) for _ in range(5))
+        plane, neg, pos, lab = (np.empty(cap_nodes, np.int32) for _ in range(4))
         a_edges = np.empty(cap_arena, np.int32)
         a_verts = np.empty((cap_arena, 4), palette.dtype)
         sides = np.empty(cap_arena, np.int8)
         st = [np.empty(cap_stack, np.int32) for _ in range(3)]
         count = int(build_kernel(palette, polygons.support, polygons.offsets, polygons.edges, verts, order,
-                                  int(label), plane, neg, pos, lab, a_edges, a_verts, sides, *st, creator))
+                                  int(label), plane, neg, pos, lab, a_edges, a_verts, sides, *st))
         if count >= 0:
             break
         if count == -1:
@@ -266,13 +256,12 @@ def insert_polygons(palette: np.ndarray, polygons: PolygonSet, *, seed: int, lab
             cap_stack *= 2
     plane, neg, pos, lab = plane[:count], neg[:count], pos[:count], lab[:count]
     inner = plane >= 0
-    creator = np.where(inner, creator[:count], -1).astype(np.int32)
     used, first = np.unique(plane[inner], return_index=True)
     used = used[np.argsort(first, kind="stable")]
     remap = np.full(palette.shape[0], -1, np.int32)
     remap[used] = np.arange(used.shape[0], dtype=np.int32)
     plane = np.where(inner, remap[np.maximum(plane, 0)], -1).astype(np.int32)
-    return BSPTree(np.ascontiguousarray(palette[used]), plane, neg, pos, lab), creator
+    return BSPTree(np.ascontiguousarray(palette[used]), plane, neg, pos, lab)
 
 
 # ---------------------------------------------------------------------------

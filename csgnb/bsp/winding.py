@@ -11,22 +11,26 @@ point ``x``, counted with orientation) is defined everywhere off the surface, an
 ``fill="winding"`` takes the solid ``{x : w(x) > 0}``: overlaps count once (their union),
 folded-over slivers (``w <= 0``) are empty, a mesh that is a valid solid gives that solid.
 
-The construction is exact and reuses the BSP import (paper §3.6): every face is inserted
-(:func:`csgnb.bsp.build.insert_polygons`), so no face crosses the interior of a leaf cell
-and ``w`` is constant on each leaf. A leaf lies against the piece of the face that split
-its parent (its *creator*), on one side, so its winding number is the winding number
-just beside that piece:
+The construction is exact and ends in the ordinary import (paper §3.6): it builds the
+boundary of that solid as plane-based polygons over the mesh's own palette
+(:func:`winding_boundary`), and :func:`csgnb.bsp.build.bsp_from_polygons` imports it.
 
-* for a face that no other face crosses or touches away from their shared corners and
-  edge (:func:`csgnb.bsp.build.self_intersections`), the winding number just in front
-  of it is the same all along it, and just behind it one more. Faces joined across an
-  edge of exactly two faces share the value in front, so it is counted once per such
-  patch: the signed crossings of a segment from a face's centroid to a far point in
-  front of it (exact integer orientation tests, another direction when the segment meets
-  an edge or a corner);
-* for a face that is crossed, the piece itself is rebuilt exactly (the face clipped by
-  the planes on the path from the root, as rationals), and the segment starts at the
-  centroid of the piece, towards the leaf's side.
+* A face that no other face crosses or touches away from their shared corners and edge
+  (:func:`csgnb.bsp.build.self_intersections`) sees one winding number just in front of it
+  all along, and one more just behind: it is on the boundary, as it is, exactly when the
+  value in front is 0. Faces joined across an edge of exactly two faces see the same space
+  in front, so the value is counted once per such patch: the signed crossings of a segment
+  from a face's centroid to a far point in front (exact integer orientation tests, another
+  direction when the segment meets an edge or a corner).
+* A face that is crossed is split by the planes of the faces that cross it (by the edge
+  planes of those lying on its own plane), exactly, as homogeneous Python integers; no
+  face crosses the inside of a piece, so each piece is on the boundary or not as a whole:
+  the winding number just in front of its centroid is counted as above, the one behind
+  differs by the faces on its plane that hold the centroid. A boundary piece is kept facing
+  out of the solid, once where coplanar faces overlap.
+
+Every polygon's support and edges are planes of the mesh's triangles, so nothing leaves
+the width's budget; the pieces' vertices are checked as every import's are.
 """
 
 from __future__ import annotations
@@ -40,18 +44,18 @@ from scipy.sparse.csgraph import connected_components
 from csgnb.bsp.build import (
     _describe_edge,
     _shell_windings,
+    bsp_from_polygons,
     check_label,
     check_seed,
-    insert_polygons,
     repaired_mesh,
     self_intersections,
 )
-from csgnb.bsp.polygon import polygons_from_triangles
-from csgnb.bsp.tree import OUT, BSPTree
+from csgnb.bsp.polygon import PolygonSet, polygons_from_triangles
+from csgnb.bsp.tree import BSPTree
 from csgnb.errors import GeometryError, InternalError
 from csgnb.exact.wide import DEFAULT_WIDTH, from_wide, to_wide, wide_dtype
 
-__all__ = ["FILLS", "check_fill", "winding_bsp"]
+__all__ = ["FILLS", "check_fill", "winding_boundary", "winding_bsp"]
 
 FILLS = ("solid", "winding")
 """How a triangle mesh becomes a solid: ``"solid"`` (the default) accepts only a mesh that bounds a solid
@@ -70,34 +74,65 @@ def check_fill(fill) -> str:
 
 def winding_bsp(vertices, faces, *, width: int = DEFAULT_WIDTH, seed: int = 0, label: int = 1,
                 report: dict | None = None) -> BSPTree:
-    """The BSP of ``{x : w(x) > 0}``, ``w`` the winding number of a closed integer triangle mesh (module docstring).
+    """The BSP of ``{x : w(x) > 0}``, ``w`` the winding number of a closed integer triangle mesh: the import
+    (:func:`csgnb.bsp.build.bsp_from_polygons`) of :func:`winding_boundary`."""
+    label = check_label(label)
+    seed = check_seed(seed)
+    palette, polygons = winding_boundary(vertices, faces, width=width, report=report)
+    return bsp_from_polygons(palette, polygons, seed=seed, label=label)
+
+
+def winding_boundary(vertices, faces, *, width: int = DEFAULT_WIDTH,
+                     report: dict | None = None) -> tuple[np.ndarray, PolygonSet]:
+    """The exact boundary of ``{x : w(x) > 0}`` as outward plane-based polygons ``(palette, polygons)``.
 
     The mesh is welded and repaired as :func:`csgnb.bsp.build.validate_mesh` does (collapsed faces dropped,
     opposite pairs cancelled, flat faces split); then every edge must be run as often one way as the other (else
     the winding number is not defined: :class:`GeometryError` names the edge). Overlapping, crossing and folded
     faces are allowed. ``report`` (a dict) gets the repair counts, ``crossed_faces`` (faces another face crosses or
-    touches) and ``leaves_from_pieces`` (leaves whose winding number came from a piece of such a face).
+    touches), ``pieces`` (what they were split into) and ``boundary_polygons``.
     """
-    label = check_label(label)
-    seed = check_seed(seed)
     W, T, F, face_ids, first_index, hint = repaired_mesh(vertices, faces, width, report)
     _check_cycle(W, T, F, face_ids, first_index, hint)
-    if T.shape[0] == 0:  # every face cancelled an opposite one: the mesh winds around nothing
+    palette, polygons = polygons_from_triangles(W, T, width) if T.shape[0] else (
+        to_wide(np.zeros((0, 4), np.int64), width), None)
+    if polygons is None:  # every face cancelled an opposite one: the mesh winds around nothing
+        empty = PolygonSet(np.zeros(0, np.int32), np.zeros(1, np.int32), np.zeros(0, np.int32))
         if report is not None:
-            report["crossed_faces"] = report["leaves_from_pieces"] = 0
-        return BSPTree.leaf(to_wide(np.zeros((0, 4), np.int64), width), OUT)
+            report.update(crossed_faces=0, pieces=0, boundary_polygons=0)
+        return palette, empty
     pairs = self_intersections(W, T)
     crossed = np.zeros(T.shape[0], bool)
     crossed[pairs.reshape(-1)] = True
     front = _front_windings(W, T, crossed)
-    palette, polygons = polygons_from_triangles(W, T, width)
-    tree, creator = insert_polygons(palette, polygons, seed=seed, label=label)
-    winding, from_pieces = _leaf_windings(W, T, tree, creator, polygons.support, front, crossed)
-    lab = np.where(tree.plane >= 0, -1, np.where(winding > 0, label, 0)).astype(np.int32)
+    support, offsets, edges = polygons.support, polygons.offsets, polygons.edges
+    out_support, out_edges = [], []
+    for f in np.flatnonzero(~crossed & (front == 0)).tolist():  # uncrossed, 0 in front: boundary as they are
+        out_support.append(int(support[f]))
+        out_edges.append(edges[offsets[f]:offsets[f + 1]].tolist())
+    n_pieces = 0
+    if pairs.shape[0]:
+        pieces = _CrossedFaces(W, T, from_wide(palette).tolist(), polygons, pairs)
+        for f in np.flatnonzero(crossed).tolist():
+            for s_, e_ in pieces.boundary_of(f):
+                out_support.append(s_)
+                out_edges.append(e_)
+            n_pieces += pieces.last_count
+    sizes = np.array([len(e) for e in out_edges], np.int64)
+    support_out = np.array(out_support, np.int64)
+    edges_out = np.array([x for e in out_edges for x in e], np.int64)
+    # only the planes the boundary uses (the supports and edges of faces inside the solid drop out)
+    used = np.unique(np.r_[np.where(support_out >= 0, support_out, ~support_out), edges_out])
+    renumber = np.full(palette.shape[0], -1, np.int64)
+    renumber[used] = np.arange(used.shape[0])
+    support_out = np.where(support_out >= 0, renumber[np.maximum(support_out, 0)],
+                           ~renumber[np.maximum(~support_out, 0)])
+    palette = np.ascontiguousarray(palette[used])
+    result = PolygonSet(support_out.astype(np.int32), np.r_[0, np.cumsum(sizes)].astype(np.int32),
+                        renumber[edges_out].astype(np.int32))
     if report is not None:
-        report["crossed_faces"] = int(crossed.sum())
-        report["leaves_from_pieces"] = from_pieces
-    return BSPTree(tree.palette, tree.plane, tree.neg, tree.pos, lab, validate=False)
+        report.update(crossed_faces=int(crossed.sum()), pieces=n_pieces, boundary_polygons=len(result))
+    return palette, result
 
 
 def _check_cycle(W, T, F, face_ids, first_index, hint: str) -> None:
@@ -124,14 +159,6 @@ def _check_cycle(W, T, F, face_ids, first_index, hint: str) -> None:
             f"{int(balance[bad[0]]):+d} more times one way than the other (a hole, a crack or a face missing; the "
             f"winding number is defined only for a closed surface){' -- ' + hint if hint else ''}"
         )
-
-
-def _parents(tree: BSPTree) -> np.ndarray:
-    parent = np.full(tree.plane.shape[0], -1, np.int64)
-    inner = np.flatnonzero(tree.plane >= 0)
-    parent[tree.neg[inner]] = inner
-    parent[tree.pos[inner]] = inner
-    return parent
 
 
 def _front_windings(W: np.ndarray, T: np.ndarray, crossed: np.ndarray) -> np.ndarray:
@@ -167,6 +194,7 @@ def _front_windings(W: np.ndarray, T: np.ndarray, crossed: np.ndarray) -> np.nda
     pl = np.empty((1, 4), wide_dtype(128))
     sd = np.empty(1, wide_dtype(128))
     rng = np.random.default_rng(0)
+    everything = np.arange(m)
     values = {}
     for p, f in first.items():
         point = W[T[f]].sum(axis=0)  # 3 x the centroid: inside the face, on no other face (it is not crossed)
@@ -174,10 +202,8 @@ def _front_windings(W: np.ndarray, T: np.ndarray, crossed: np.ndarray) -> np.nda
         # a far point in front of the face: the normal scaled past the mesh, plus a random tilt
         scale = -(-2 * extent // int(np.abs(n).max()))
         VX[p_row] = point
-        everything = np.arange(m)
         for _ in range(_RETRIES):
-            tilt = rng.integers(-extent // 4 - 1, extent // 4 + 2, 3)
-            q = point + scale * n + tilt
+            q = point + scale * n + rng.integers(-extent // 4 - 1, extent // 4 + 2, 3)
             if int(np.dot(q - point, n)) <= 0:
                 continue
             VX[q_row] = q
@@ -194,59 +220,86 @@ def _front_windings(W: np.ndarray, T: np.ndarray, crossed: np.ndarray) -> np.nda
     return front
 
 
-def _leaf_windings(W, T, tree: BSPTree, creator: np.ndarray, support: np.ndarray, front: np.ndarray,
-                   crossed: np.ndarray) -> tuple[np.ndarray, int]:
-    """(nodes,) int64: each leaf's winding number (0 at inner nodes), and how many came from pieces of crossed
-    faces; see the module docstring."""
-    n = tree.plane.shape[0]
-    winding = np.zeros(n, np.int64)
-    if n == 1:
-        return winding, 0
-    parent = _parents(tree)
-    leaves = np.flatnonzero(tree.plane < 0)
-    up = parent[leaves]
-    f = creator[up]
-    # the child behind the face (its inside): the negative side of its support, the positive one when flipped
-    behind = np.where(support[f] >= 0, tree.neg[up], tree.pos[up]) == leaves
-    winding[leaves] = front[f] + behind
-    from_pieces = np.flatnonzero(crossed[f])
-    if from_pieces.size:
-        walker = _PieceWinding(W, T, from_wide(tree.palette).tolist(), tree, parent)
-        for i in from_pieces.tolist():
-            winding[leaves[i]] = walker.winding(int(leaves[i]), int(f[i]))
-    return winding, int(from_pieces.size)
+class _CrossedFaces:
+    """Crossed faces split by the planes of the faces crossing them; which pieces bound the winding solid."""
 
-
-class _PieceWinding:
-    """Winding numbers of leaves made by pieces of crossed faces: the piece rebuilt exactly, a segment from it."""
-
-    def __init__(self, W, T, planes, tree: BSPTree, parent):
-        self.W, self.T, self.planes, self.tree, self.parent = W, T, planes, tree, parent
+    def __init__(self, W, T, planes, polygons: PolygonSet, pairs: np.ndarray):
+        self.T, self.planes, self.polygons = T, planes, polygons
+        self.Wi = [[int(c) for c in row] for row in W.tolist()]
         corners = W[T]
         self.lo, self.hi = corners.min(axis=1), corners.max(axis=1)
         self.extent = int(W.max() - W.min()) + 2
         self.rng = np.random.default_rng(1)
-        self.Wi = [[int(c) for c in row] for row in W.tolist()]
+        self.partners: dict[int, list[int]] = {}
+        for i, j in pairs.tolist():
+            self.partners.setdefault(i, []).append(j)
+            self.partners.setdefault(j, []).append(i)
+        self.normal = [self._normal(f) for f in range(T.shape[0])]
+        self.last_count = 0
 
-    def winding(self, leaf: int, face: int) -> int:
-        tree = self.tree
-        node = int(self.parent[leaf])
-        side = 1 if tree.pos[node] == leaf else -1
-        piece = [self.Wi[v] + [1] for v in self.T[face].tolist()]  # homogeneous corners (x, y, z, w), w > 0
-        child = node
-        while True:
-            up = int(self.parent[child])
-            if up < 0:
-                break
-            piece = _clip(piece, self.planes[tree.plane[up]], 1 if tree.pos[up] == child else -1)
-            child = up
-        if len(piece) < 3:
-            raise InternalError(f"the piece of face {face} that split node {node} vanished when rebuilt (a bug)")
-        L = lcm(*(p[3] for p in piece))
-        X = [sum(p[k] * (L // p[3]) for p in piece) for k in range(3)]
-        D = L * len(piece)  # x = X / D, the centroid of the piece's corners: inside the piece
-        n = self.planes[tree.plane[node]][:3]
-        return self._winding_from(X, D, [side * c for c in n])
+    def _normal(self, f):
+        p, q, r = (self.Wi[v] for v in self.T[f].tolist())
+        u = [q[k] - p[k] for k in range(3)]
+        v = [r[k] - p[k] for k in range(3)]
+        return [u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]]
+
+    def _coplanar(self, f, g) -> bool:
+        n, p = self.normal[f], self.Wi[self.T[f, 0]]
+        return all(sum(n[k] * (self.Wi[v][k] - p[k]) for k in range(3)) == 0 for v in self.T[g].tolist())
+
+    def boundary_of(self, f: int):
+        """The boundary pieces on face ``f``: (signed support, edge rows) each, facing out of the solid."""
+        pg = self.polygons
+        e0, e1 = int(pg.offsets[f]), int(pg.offsets[f + 1])
+        rows = pg.edges[e0:e1].tolist()
+        # the triangle as (corner, edge plane into that corner): corner j lies on edges j and j + 1
+        piece = [(self.Wi[v] + [1], rows[j]) for j, v in enumerate(self.T[f].tolist())]
+        coplanar = [g for g in self.partners[f] if self._coplanar(f, g)]
+        cutters = {int(pg.support[g]) if pg.support[g] >= 0 else ~int(pg.support[g])
+                   for g in self.partners[f] if g not in coplanar}
+        for g in coplanar:  # a face on the same plane: split along its edges
+            cutters.update(pg.edges[pg.offsets[g]:pg.offsets[g + 1]].tolist())
+        pieces = [piece]
+        for h in sorted(cutters):
+            split = []
+            for pc in pieces:
+                split.extend(part for part in (_clip_edges(pc, self.planes[h], h, +1),
+                                               _clip_edges(pc, self.planes[h], h, -1)) if len(part) >= 3)
+            pieces = split
+        self.last_count = len(pieces)
+        s = int(pg.support[f])
+        n = self.normal[f]
+        for pc in pieces:
+            L = lcm(*(v[3] for v, _ in pc))
+            X = [sum(v[k] * (L // v[3]) for v, _ in pc) for k in range(3)]
+            D = L * len(pc)  # x = X / D: the centroid of the piece's corners, inside it
+            holders = [g for g in coplanar if self._holds(g, X, D)]
+            if any(g < f for g in holders):
+                continue  # the same piece of plane comes with a face before this one
+            w_front = self._winding_from(X, D, n)
+            jump = 1 + sum(1 if sum(a * b for a, b in zip(self.normal[g], n, strict=True)) > 0 else -1
+                           for g in holders)
+            inside_behind, inside_front = w_front + jump > 0, w_front > 0
+            if inside_behind == inside_front:
+                continue
+            edges = [e for _, e in pc]
+            if inside_behind:
+                yield s, edges
+            else:  # the solid lies in front: the piece faces the other way, its edges in reverse order
+                yield ~s, [edges[0]] + edges[:0:-1]
+
+    def _holds(self, g, X, D) -> bool:
+        """Whether x = X / D (on g's plane) lies strictly inside triangle g."""
+        n = self.normal[g]
+        corners = [[D * c for c in self.Wi[v]] for v in self.T[g].tolist()]
+        for k in range(3):
+            a, b = corners[k], corners[(k + 1) % 3]
+            u = [b[i] - a[i] for i in range(3)]
+            v = [X[i] - a[i] for i in range(3)]
+            c = [u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]]
+            if sum(c[i] * n[i] for i in range(3)) <= 0:
+                return False
+        return True
 
     def _winding_from(self, X, D, toward) -> int:
         """The winding number just beside x = X / D on the side ``toward`` points to (``toward``: a normal).
@@ -301,23 +354,51 @@ def _orient(a, b, c, d) -> int:
     return (det > 0) - (det < 0)
 
 
-def _clip(polygon, plane, side: int):
-    """The convex polygon (homogeneous Python-int corners ``[x, y, z, w]``, w > 0) cut to the closed side ``side``
-    (+1 / -1) of ``plane`` (a, b, c, d: a x + b y + c z + d)."""
+def _clip_edges(piece, plane, row: int, side: int):
+    """The convex piece ``[(corner, edge row into it), ...]`` (homogeneous Python-int corners, w > 0) cut to the
+    closed side ``side`` of ``plane`` (palette row ``row``: a, b, c, d); the cut runs along ``row``."""
     a, b, c, d = plane
-    values = [side * (a * p[0] + b * p[1] + c * p[2] + d * p[3]) for p in polygon]
-    if all(v >= 0 for v in values):
-        return polygon
+    values = [side * (a * v[0] + b * v[1] + c * v[2] + d * v[3]) for v, _ in piece]
+    if all(x >= 0 for x in values):
+        return piece
+    if all(x <= 0 for x in values):
+        return []
     out = []
-    k = len(polygon)
-    for i in range(k):
-        p, vp = polygon[i], values[i]
-        q, vq = polygon[(i + 1) % k], values[(i + 1) % k]
-        if vp >= 0:
-            out.append(p)
-        if (vp > 0 and vq < 0) or (vp < 0 and vq > 0):
-            # vp q - vq p is on the plane; its w = vp wq - vq wp has the sign of vp (wp, wq > 0)
-            r = [vp * q[j] - vq * p[j] for j in range(4)]
-            g = gcd(*r)
-            out.append([x // g for x in r] if r[3] > 0 else [-x // g for x in r])
-    return out
+    k = len(piece)
+    for j in range(k):
+        (p, _), vp = piece[j - 1], values[j - 1]
+        (q, edge), vq = piece[j], values[j]  # the segment p -> q runs along `edge`
+        if vp >= 0 and vq >= 0:
+            out.append((q, edge))
+        elif vp > 0 > vq:
+            out.append((_cross(p, vp, q, vq), edge))  # leaving: the corner on the plane, reached along `edge`
+        elif vp < 0 <= vq:
+            if vq > 0:
+                out.append((_cross(p, vp, q, vq), row))  # entering: reached along the cut
+                out.append((q, edge))
+            else:
+                out.append((q, row))
+    return _without_flat_corners(out)
+
+
+def _without_flat_corners(piece):
+    """The piece without corners in the middle of a straight run (a corner the cut landed on exactly can be one:
+    its two edge planes would meet the support in one line, and the corner would not be a point)."""
+    k = 0
+    while k < len(piece) and len(piece) >= 3:
+        a, b, c = piece[k - 1][0], piece[k][0], piece[(k + 1) % len(piece)][0]
+        u = [b[i] * a[3] - a[i] * b[3] for i in range(3)]
+        v = [c[i] * a[3] - a[i] * c[3] for i in range(3)]
+        if u[1] * v[2] == u[2] * v[1] and u[2] * v[0] == u[0] * v[2] and u[0] * v[1] == u[1] * v[0]:
+            del piece[k]  # the next corner keeps its edge: the same line
+            k = 0
+        else:
+            k += 1
+    return piece
+
+
+def _cross(p, vp, q, vq):
+    """The point of segment p q on the plane (values vp, vq of opposite signs), homogeneous, w > 0, reduced."""
+    r = [vp * q[j] - vq * p[j] for j in range(4)]
+    g = gcd(*r)
+    return [x // g for x in r] if r[3] > 0 else [-x // g for x in r]

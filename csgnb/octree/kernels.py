@@ -421,7 +421,7 @@ def import_polygons(pal, bi, n, bs, seed, t, need):
     shuffle_order(bs.order, n, seed)
     count = build_kernel(pal, bi.support[:n], bi.offsets[: n + 1], bi.edges, bi.verts, bs.order[:n], np.int64(1),
                           t.plane, t.neg, t.pos, t.label, bs.a_edges, bs.a_verts, bs.sides,
-                          bs.st_node, bs.st_start, bs.st_k, t.plane[:0])  # no creators recorded
+                          bs.st_node, bs.st_start, bs.st_k)
     if count == -1:
         need[0] = R_TREE_R
         return -1

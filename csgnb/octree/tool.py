@@ -21,7 +21,7 @@ import numpy as np
 from csgnb._jit import jit
 from csgnb.bsp.build import bsp_from_polygons, validate_mesh
 from csgnb.bsp.polygon import PolygonSet, polygons_from_triangles
-from csgnb.bsp.winding import check_fill, winding_bsp
+from csgnb.bsp.winding import check_fill, winding_boundary
 from csgnb.errors import GeometryError
 from csgnb.exact.integral import integer_array
 from csgnb.exact.wide import from_wide, is_wide, to_wide, wide_dtype, width_of
@@ -215,17 +215,16 @@ class Tool:
         """A tool bounded by a closed, outward, non-self-intersecting integer triangle mesh (grid coordinates).
 
         ``fill="winding"``: any closed mesh, overlapping, crossing or folded, as the points it winds around
-        positively (:mod:`csgnb.bsp.winding`); the tool's boundary is then that solid's, extracted exactly.
+        positively (:mod:`csgnb.bsp.winding`): the tool's polygons are that solid's exact boundary.
         """
         if check_fill(fill) == "winding":
-            from csgnb.bsp.solid import BSP
-
-            tree = winding_bsp(vertices, faces, width=width, seed=seed)
+            palette, polygons = winding_boundary(vertices, faces, width=width)
             W = integer_array(vertices, "vertices")
-            lo, hi = W.min(axis=0) - 1, W.max(axis=0) + 1
-            return cls.from_bsp(BSP(tree, tuple(lo.tolist()), tuple(hi.tolist())), grid=grid, seed=seed)
-        W, T = validate_mesh(vertices, faces, width)
-        palette, polygons = polygons_from_triangles(W, T, width)
+            if not len(polygons):  # it winds around nothing
+                return cls("empty", np.zeros((0, 4), object), np.zeros(3, np.int64), np.zeros(3, np.int64), grid=grid)
+        else:
+            W, T = validate_mesh(vertices, faces, width)
+            palette, polygons = polygons_from_triangles(W, T, width)
         tree = bsp_from_polygons(palette, polygons, seed=seed)
         # bsp_from_polygons keeps the palette rows it uses, in first-use order: map them back.
         rows = _rows_of(tree.palette, palette)
