@@ -235,6 +235,7 @@ class _CrossedFaces:
             self.partners.setdefault(i, []).append(j)
             self.partners.setdefault(j, []).append(i)
         self.normal = [self._normal(f) for f in range(T.shape[0])]
+        self.offset = [sum(n[k] * self.Wi[self.T[f, 0]][k] for k in range(3)) for f, n in enumerate(self.normal)]
         self.last_count = 0
 
     def _normal(self, f):
@@ -320,38 +321,40 @@ class _CrossedFaces:
         raise InternalError("no segment from a piece's centroid avoided every edge (a bug: please report)")
 
     def _crossings(self, X, D, q):
+        """Signed crossings of the segment from x = X / D to the integer point q with the faces, or None when it
+        passes through an edge or a corner. Orientations in integers scaled by D > 0 (signs unchanged): a face's
+        side of x is sign(n·X - D n·a), of q sign(n·q - n·a); the segment's side of an edge a -> b is
+        sign((D q - X)·((D a - X) x (b - a)))."""
         xf = [c / D for c in X]
         seg_lo = np.minimum(np.floor(xf), q) - 1
         seg_hi = np.maximum(np.ceil(xf), q) + 1
         near = np.flatnonzero(np.all((self.lo <= seg_hi) & (self.hi >= seg_lo), axis=1))
-        Q = [D * c for c in q]  # D q, so that x and q share the denominator D
+        x0, x1, x2 = X
+        q0, q1, q2 = q
+        t = (D * q0 - x0, D * q1 - x1, D * q2 - x2)
         total = 0
         for g in near.tolist():
-            a, b, c = (self.Wi[v] for v in self.T[g].tolist())
-            A, B, C = ([D * t for t in p] for p in (a, b, c))
-            op = _orient(A, B, C, X)
+            (n0, n1, n2), nd = self.normal[g], self.offset[g]
+            op = n0 * x0 + n1 * x1 + n2 * x2 - D * nd
             if op == 0:
                 continue  # x on the face's plane: the segment leaves it at once (see the module docstring)
-            oq = _orient(A, B, C, Q)
-            if op == oq or oq == 0:
+            oq = n0 * q0 + n1 * q1 + n2 * q2 - nd
+            if oq == 0 or (op > 0) == (oq > 0):
                 continue
-            s1, s2, s3 = _orient(X, Q, A, B), _orient(X, Q, B, C), _orient(X, Q, C, A)
-            if (s1 > 0 or s2 > 0 or s3 > 0) and (s1 < 0 or s2 < 0 or s3 < 0):
-                continue
-            if s1 == 0 or s2 == 0 or s3 == 0:
+            corners = [self.Wi[v] for v in self.T[g].tolist()]
+            sides = []
+            for k in range(3):
+                a, b = corners[k], corners[(k + 1) % 3]
+                r0, r1, r2 = D * a[0] - x0, D * a[1] - x1, D * a[2] - x2
+                e0, e1, e2 = b[0] - a[0], b[1] - a[1], b[2] - a[2]
+                side = t[0] * (r1 * e2 - r2 * e1) + t[1] * (r2 * e0 - r0 * e2) + t[2] * (r0 * e1 - r1 * e0)
+                sides.append((side > 0) - (side < 0))
+            if 1 in sides and -1 in sides:
+                continue  # the line passes beside the face
+            if 0 in sides:
                 return None  # through an edge or a corner: another direction
-            total += oq
+            total += 1 if oq > 0 else -1
         return total
-
-
-def _orient(a, b, c, d) -> int:
-    """Sign of det[b - a, c - a, d - a] (Python ints)."""
-    u = [b[k] - a[k] for k in range(3)]
-    v = [c[k] - a[k] for k in range(3)]
-    w = [d[k] - a[k] for k in range(3)]
-    det = (u[0] * (v[1] * w[2] - v[2] * w[1]) - u[1] * (v[0] * w[2] - v[2] * w[0])
-           + u[2] * (v[0] * w[1] - v[1] * w[0]))
-    return (det > 0) - (det < 0)
 
 
 def _clip_edges(piece, plane, row: int, side: int):
