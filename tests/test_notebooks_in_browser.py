@@ -202,9 +202,16 @@ def _run_all(page, name: str) -> None:
         "() => [...document.querySelectorAll('.jp-CodeCell .jp-InputPrompt')].every(p => !/\\d/.test(p.innerText))")
     _menu(page, "Run", "runmenu:run-all")
     deadline = time.monotonic() + RUN_ALL_TIMEOUT
+    # Run All can be lost like a key press on a loaded machine (CI, 2026-12-05: 600 s later not one of 24 cells had
+    # been queued): while no cell is queued ([*]) or run ([n]), the menu command is given again every 60 s -- it
+    # cannot run anything twice, since nothing has started
+    retry = time.monotonic() + 60
     prompts = page.locator(".jp-CodeCell .jp-InputPrompt")
     while True:
         texts = prompts.all_inner_texts()
+        if time.monotonic() > retry and not any(re.search(r"\[(\*|\d+)\]", t) for t in texts):
+            _menu(page, "Run", "runmenu:run-all")
+            retry = time.monotonic() + 60
         done = all(re.search(r"\[\d+\]", t) for t in texts)
         if done and _kernel_idle(page):
             break
