@@ -198,13 +198,16 @@ def _front_windings(W: np.ndarray, T: np.ndarray, crossed: np.ndarray) -> np.nda
     values = {}
     for p, f in first.items():
         point = W[T[f]].sum(axis=0)  # 3 x the centroid: inside the face, on no other face (it is not crossed)
-        n = normal[f]
-        # a far point in front of the face: the normal scaled past the mesh, plus a random tilt
-        scale = -(-2 * extent // int(np.abs(n).max()))
+        n = [int(c) for c in normal[f]]
+        big = max(abs(c) for c in n)
         VX[p_row] = point
         for _ in range(_RETRIES):
-            q = point + scale * n + rng.integers(-extent // 4 - 1, extent // 4 + 2, 3)
-            if int(np.dot(q - point, n)) <= 0:
+            # a far point in front of the face: the normal scaled to twice the mesh's extent, tilted at random --
+            # in Python ints (at 256 bits a normal times a distance exceeds int64), and never farther than ~3
+            # extents, which keeps _shell_windings' 128-bit orientations exact
+            tilt = rng.integers(-extent // 4 - 1, extent // 4 + 2, 3).tolist()
+            q = [int(point[k]) + (n[k] * 2 * extent) // big + tilt[k] for k in range(3)]
+            if sum((q[k] - int(point[k])) * n[k] for k in range(3)) <= 0:
                 continue
             VX[q_row] = q
             seg_lo, seg_hi = np.minimum(point, q), np.maximum(point, q)
