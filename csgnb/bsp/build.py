@@ -860,6 +860,20 @@ def repaired_mesh(vertices, faces, width: int, report: dict | None = None):
     return W, T, F, face_ids, first_index, hint
 
 
+def half_edges(W: np.ndarray, T: np.ndarray):
+    """The faces' half-edges ``a -> b`` (and their ``face``), sorted by undirected edge: ``(a, b, face, starts,
+    counts)``, each edge's half-edges at ``starts[i] : starts[i] + counts[i]``."""
+    a = T.reshape(-1)
+    b = T[:, [1, 2, 0]].reshape(-1)
+    face = np.repeat(np.arange(T.shape[0]), 3)
+    key = np.minimum(a, b) * W.shape[0] + np.maximum(a, b)
+    order = np.argsort(key, kind="stable")
+    key, a, b, face = key[order], a[order], b[order], face[order]
+    starts = np.flatnonzero(np.r_[True, key[1:] != key[:-1]])
+    counts = np.diff(np.r_[starts, key.shape[0]])
+    return a, b, face, starts, counts
+
+
 def _check_closed_solid(W: np.ndarray, T: np.ndarray, F: np.ndarray, face_ids: np.ndarray,
                         first_index: np.ndarray) -> None:
     """The topological and geometric checks of :func:`validate_mesh` on the welded, repaired faces ``T``
@@ -876,14 +890,7 @@ def _check_closed_solid(W: np.ndarray, T: np.ndarray, F: np.ndarray, face_ids: n
 
     # Half-edges (a -> b) of face f; an undirected edge must carry exactly one each way.
     m = T.shape[0]
-    a = T.reshape(-1)
-    b = T[:, [1, 2, 0]].reshape(-1)
-    face = np.repeat(np.arange(m), 3)
-    key = np.minimum(a, b) * W.shape[0] + np.maximum(a, b)
-    order = np.argsort(key, kind="stable")
-    key, a, b, face = key[order], a[order], b[order], face[order]
-    starts = np.flatnonzero(np.r_[True, key[1:] != key[:-1]])
-    counts = np.diff(np.r_[starts, key.shape[0]])
+    a, b, face, starts, counts = half_edges(W, T)
     if np.any(counts == 1):
         s = int(starts[np.argmax(counts == 1)])
         raise GeometryError(

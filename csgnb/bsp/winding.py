@@ -47,6 +47,7 @@ from csgnb.bsp.build import (
     bsp_from_polygons,
     check_label,
     check_seed,
+    half_edges,
     repaired_mesh,
     self_intersections,
 )
@@ -167,14 +168,7 @@ def _front_windings(W: np.ndarray, T: np.ndarray, crossed: np.ndarray) -> np.nda
     Faces joined across an edge of exactly two faces, neither crossed, see the same space in front of them: one
     count per such patch, at the centroid of its first face."""
     m = T.shape[0]
-    a = T.reshape(-1)
-    b = T[:, [1, 2, 0]].reshape(-1)
-    face = np.repeat(np.arange(m), 3)
-    key = np.minimum(a, b) * W.shape[0] + np.maximum(a, b)
-    order = np.argsort(key, kind="stable")
-    key, face = key[order], face[order]
-    starts = np.flatnonzero(np.r_[True, key[1:] != key[:-1]])
-    counts = np.diff(np.r_[starts, key.shape[0]])
+    _, _, face, starts, counts = half_edges(W, T)
     pair = starts[counts == 2]
     f0, f1 = face[pair], face[pair + 1]
     keep = ~crossed[f0] & ~crossed[f1]
