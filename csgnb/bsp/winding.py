@@ -94,7 +94,9 @@ def winding_boundary(vertices, faces, *, width: int = DEFAULT_WIDTH,
     touches), ``pieces`` (what they were split into) and ``boundary_polygons``.
     """
     W, T, F, face_ids, first_index, hint = repaired_mesh(vertices, faces, width, report)
-    _check_cycle(W, T, F, face_ids, first_index, hint)
+    # (q - p) x (r - p) of every face (p, q, r): int64 holds it within any width's mesh budget (<= 8 V^2)
+    normal = np.cross(W[T[:, 1]] - W[T[:, 0]], W[T[:, 2]] - W[T[:, 0]])
+    _check_cycle(W, T, F, face_ids, first_index, hint, normal)
     palette, polygons = polygons_from_triangles(W, T, width) if T.shape[0] else (
         to_wide(np.zeros((0, 4), np.int64), width), None)
     if polygons is None:  # every face cancelled an opposite one: the mesh winds around nothing
@@ -105,7 +107,7 @@ def winding_boundary(vertices, faces, *, width: int = DEFAULT_WIDTH,
     pairs = self_intersections(W, T)
     crossed = np.zeros(T.shape[0], bool)
     crossed[pairs.reshape(-1)] = True
-    front = _front_windings(W, T, crossed)
+    front = _front_windings(W, T, crossed, normal)
     support, offsets, edges = polygons.support, polygons.offsets, polygons.edges
     out_support, out_edges = [], []
     for f in np.flatnonzero(~crossed & (front == 0)).tolist():  # uncrossed, 0 in front: boundary as they are
@@ -113,12 +115,13 @@ def winding_boundary(vertices, faces, *, width: int = DEFAULT_WIDTH,
         out_edges.append(edges[offsets[f]:offsets[f + 1]].tolist())
     n_pieces = 0
     if pairs.shape[0]:
-        pieces = _CrossedFaces(W, T, from_wide(palette).tolist(), polygons, pairs)
+        pieces = _CrossedFaces(W, T, normal, from_wide(palette).tolist(), polygons, pairs)
         for f in np.flatnonzero(crossed).tolist():
-            for s_, e_ in pieces.boundary_of(f):
+            kept, count = pieces.boundary_of(f)
+            for s_, e_ in kept:
                 out_support.append(s_)
                 out_edges.append(e_)
-            n_pieces += pieces.last_count
+            n_pieces += count
     sizes = np.array([len(e) for e in out_edges], np.int64)
     support_out = np.array(out_support, np.int64)
     edges_out = np.array([x for e in out_edges for x in e], np.int64)
@@ -136,9 +139,8 @@ def winding_boundary(vertices, faces, *, width: int = DEFAULT_WIDTH,
     return palette, result
 
 
-def _check_cycle(W, T, F, face_ids, first_index, hint: str) -> None:
+def _check_cycle(W, T, F, face_ids, first_index, hint: str, normal: np.ndarray) -> None:
     """Every face has area and every undirected edge is run as often one way as the other."""
-    normal = np.cross(W[T[:, 1]] - W[T[:, 0]], W[T[:, 2]] - W[T[:, 0]])
     flat = np.flatnonzero(~normal.any(axis=1))
     if flat.size:
         f = int(flat[0])
@@ -162,7 +164,7 @@ def _check_cycle(W, T, F, face_ids, first_index, hint: str) -> None:
         )
 
 
-def _front_windings(W: np.ndarray, T: np.ndarray, crossed: np.ndarray) -> np.ndarray:
+def _front_windings(W: np.ndarray, T: np.ndarray, crossed: np.ndarray, normal: np.ndarray) -> np.ndarray:
     """(m,) int64: the winding number just in front of every face no other face crosses (0 elsewhere).
 
     Faces joined across an edge of exactly two faces, neither crossed, see the same space in front of them: one
@@ -181,7 +183,6 @@ def _front_windings(W: np.ndarray, T: np.ndarray, crossed: np.ndarray) -> np.nda
     V3 = 3 * W
     corners = V3[T]
     lo, hi = corners.min(axis=1), corners.max(axis=1)
-    normal = np.cross(W[T[:, 1]] - W[T[:, 0]], W[T[:, 2]] - W[T[:, 0]])
     extent = int(V3.max() - V3.min()) + 3
     VX = np.concatenate([V3, np.zeros((2, 3), np.int64)])
     p_row, q_row = V3.shape[0], V3.shape[0] + 1
@@ -220,7 +221,7 @@ def _front_windings(W: np.ndarray, T: np.ndarray, crossed: np.ndarray) -> np.nda
 class _CrossedFaces:
     """Crossed faces split by the planes of the faces crossing them; which pieces bound the winding solid."""
 
-    def __init__(self, W, T, planes, polygons: PolygonSet, pairs: np.ndarray):
+    def __init__(self, W, T, normal, planes, polygons: PolygonSet, pairs: np.ndarray):
         self.T, self.planes, self.polygons = T, planes, polygons
         self.Wi = [[int(c) for c in row] for row in W.tolist()]
         corners = W[T]
@@ -231,22 +232,16 @@ class _CrossedFaces:
         for i, j in pairs.tolist():
             self.partners.setdefault(i, []).append(j)
             self.partners.setdefault(j, []).append(i)
-        self.normal = [self._normal(f) for f in range(T.shape[0])]
+        self.normal = normal.tolist()  # Python ints: the offsets and every product below exceed int64 at 256 bits
         self.offset = [sum(n[k] * self.Wi[self.T[f, 0]][k] for k in range(3)) for f, n in enumerate(self.normal)]
-        self.last_count = 0
-
-    def _normal(self, f):
-        p, q, r = (self.Wi[v] for v in self.T[f].tolist())
-        u = [q[k] - p[k] for k in range(3)]
-        v = [r[k] - p[k] for k in range(3)]
-        return [u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]]
 
     def _coplanar(self, f, g) -> bool:
         n, p = self.normal[f], self.Wi[self.T[f, 0]]
         return all(sum(n[k] * (self.Wi[v][k] - p[k]) for k in range(3)) == 0 for v in self.T[g].tolist())
 
-    def boundary_of(self, f: int):
-        """The boundary pieces on face ``f``: (signed support, edge rows) each, facing out of the solid."""
+    def boundary_of(self, f: int) -> tuple[list, int]:
+        """The boundary pieces on face ``f`` -- (signed support, edge rows) each, facing out of the solid -- and
+        how many pieces ``f`` was split into."""
         pg = self.polygons
         e0, e1 = int(pg.offsets[f]), int(pg.offsets[f + 1])
         rows = pg.edges[e0:e1].tolist()
@@ -264,7 +259,7 @@ class _CrossedFaces:
                 split.extend(part for part in (_clip_edges(pc, self.planes[h], h, +1),
                                                _clip_edges(pc, self.planes[h], h, -1)) if len(part) >= 3)
             pieces = split
-        self.last_count = len(pieces)
+        kept = []
         s = int(pg.support[f])
         n = self.normal[f]
         for pc in pieces:
@@ -282,9 +277,10 @@ class _CrossedFaces:
                 continue
             edges = [e for _, e in pc]
             if inside_behind:
-                yield s, edges
+                kept.append((s, edges))
             else:  # the solid lies in front: the piece faces the other way, its edges in reverse order
-                yield ~s, [edges[0]] + edges[:0:-1]
+                kept.append((~s, [edges[0]] + edges[:0:-1]))
+        return kept, len(pieces)
 
     def _holds(self, g, X, D) -> bool:
         """Whether x = X / D (on g's plane) lies strictly inside triangle g."""
