@@ -259,3 +259,75 @@ def test_at_256_bits_the_segments_stay_in_integers_and_exact(seed):
         w = reference_winding(V, F, p, rng)
         if w is not None and label != ON_BOUNDARY:
             assert label == (1 if w > 0 else 0), (p.tolist(), w, label)
+
+
+def _fraction_crossings(V, F, x, q):
+    """Signed crossings of the segment x -> q (Fractions, ints) with every face, counted in Fractions; faces whose
+    plane holds x count 0 (the segment leaves them at once); None where it passes through an edge or a corner."""
+    def det(u, v, w):
+        return (u[0] * (v[1] * w[2] - v[2] * w[1]) - u[1] * (v[0] * w[2] - v[2] * w[0])
+                + u[2] * (v[0] * w[1] - v[1] * w[0]))
+
+    total = 0
+    for f in F.tolist():
+        a, b, c = ([int(t) for t in V[i]] for i in f)
+        u, v = [b[k] - a[k] for k in range(3)], [c[k] - a[k] for k in range(3)]
+        op = det(u, v, [x[k] - a[k] for k in range(3)])
+        oq = det(u, v, [q[k] - a[k] for k in range(3)])
+        if op == 0 or oq == 0 or (op > 0) == (oq > 0):
+            continue
+        t = [q[k] - x[k] for k in range(3)]
+        sides = [det(t, [s[k] - x[k] for k in range(3)], [e[k] - s[k] for k in range(3)])
+                 for s, e in ((a, b), (b, c), (c, a))]
+        if any(s > 0 for s in sides) and any(s < 0 for s in sides):
+            continue
+        if any(s == 0 for s in sides):
+            return None
+        total += 1 if oq > 0 else -1
+    return total
+
+
+@settings(max_examples=80, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.integers(4, 26), st.sampled_from(["inside", "near an edge", "at a corner"]),
+       st.booleans())
+def test_the_pieces_segment_counts_are_exact_at_any_magnitude(seed, bits, where, through_a_corner):
+    """The segment count a crossed face's piece is kept or dropped by (doubles first, the undecided faces in
+    integers) against Fractions over every face: from a rational point on a face's plane (where every piece's
+    centroid is: doubles cannot tell its own face's side) -- inside the face, a hair from an edge, or at a
+    corner -- to a far integer point or through a corner of another face, on crossing hulls of coordinates up to
+    2**26 (the 256-bit mesh budget). A filter bound too small for the doubles' error fails this."""
+    from csgnb.bsp.winding import _CrossedFaces
+
+    rng = np.random.default_rng(seed)
+    centre = rng.integers(-(2**26) + 2**bits, 2**26 - 2**bits, 3) if bits < 26 else np.zeros(3, np.int64)
+    meshes = []
+    for _ in range(2):
+        pts = centre + rng.integers(-(2**bits) // 2, 2**bits // 2 + 1, (8, 3))
+        if np.linalg.matrix_rank(pts[1:] - pts[0]) < 3:
+            return
+        meshes.append(_hull_mesh(pts))
+    V, F = soup(*meshes)
+    V = np.asarray(V, np.int64)
+    normal = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])
+    faces = _CrossedFaces(V, F, normal, None, None, np.zeros((0, 2), np.int64))
+    for _ in range(6):
+        f = int(rng.integers(F.shape[0]))
+        weights = [int(w) for w in rng.integers(1, 2**20, 3)]
+        if where == "near an edge":
+            weights[int(rng.integers(3))] = 1
+            weights = [w * 2**30 if w > 1 else w for w in weights]
+        elif where == "at a corner":
+            weights = [1, 0, 0]
+        corners = [[int(c) for c in V[i]] for i in F[f]]
+        D = sum(weights)
+        X = [sum(w * c[k] for w, c in zip(weights, corners, strict=True)) for k in range(3)]
+        if through_a_corner:  # beyond a corner a of any face: q = a + D a - X passes through it
+            a = [int(c) for c in V[int(rng.integers(V.shape[0]))]]
+            q = [(D + 1) * a[k] - X[k] for k in range(3)]
+            if max(abs(c) for c in q) >= 2**52 or q == [X[k] // D for k in range(3)]:
+                continue
+        else:
+            reach = 4 * int(V.max() - V.min())
+            q = [X[k] // D + int(c) for k, c in enumerate(rng.integers(-reach, reach + 1, 3))]
+        x = [Fraction(X[k], D) for k in range(3)]
+        assert faces._crossings(X, D, q) == _fraction_crossings(V, F, x, q), (f, X, D, q)

@@ -25,8 +25,10 @@ boundary of that solid as plane-based polygons over the mesh's own palette
 * A face that is crossed is split by the planes of the faces that cross it (by the edge
   planes of those lying on its own plane), exactly, as homogeneous Python integers; no
   face crosses the inside of a piece, so each piece is on the boundary or not as a whole:
-  the winding number just in front of its centroid is counted as above, the one behind
-  differs by the faces on its plane that hold the centroid. A boundary piece is kept facing
+  the winding number just in front of its centroid is counted as above (doubles with a
+  certified error bound decide each face they can; the centroid's own plane and close calls
+  are decided in integers), the one behind differs by the faces on its plane that hold the
+  centroid. A boundary piece is kept facing
   out of the solid, once where coplanar faces overlap.
 
 Every polygon's support and edges are planes of the mesh's triangles, so nothing leaves
@@ -41,6 +43,7 @@ import numpy as np
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
+from csgnb._jit import jit
 from csgnb.bsp.build import (
     _describe_edge,
     _shell_windings,
@@ -109,10 +112,12 @@ def winding_boundary(vertices, faces, *, width: int = DEFAULT_WIDTH,
     crossed[pairs.reshape(-1)] = True
     front = _front_windings(W, T, crossed, normal)
     support, offsets, edges = polygons.support, polygons.offsets, polygons.edges
-    out_support, out_edges = [], []
-    for f in np.flatnonzero(~crossed & (front == 0)).tolist():  # uncrossed, 0 in front: boundary as they are
-        out_support.append(int(support[f]))
-        out_edges.append(edges[offsets[f]:offsets[f + 1]].tolist())
+    # uncrossed faces with 0 in front: on the boundary as they are
+    whole = np.flatnonzero(~crossed & (front == 0))
+    whole_sizes = (offsets[whole + 1] - offsets[whole]).astype(np.int64)
+    starts = np.repeat(offsets[whole].astype(np.int64) - np.r_[0, np.cumsum(whole_sizes)[:-1]], whole_sizes)
+    whole_edges = edges[starts + np.arange(int(whole_sizes.sum()))]
+    out_support, out_sizes, out_edges = [], [], []
     n_pieces = 0
     if pairs.shape[0]:
         pieces = _CrossedFaces(W, T, normal, from_wide(palette).tolist(), polygons, pairs)
@@ -120,11 +125,12 @@ def winding_boundary(vertices, faces, *, width: int = DEFAULT_WIDTH,
             kept, count = pieces.boundary_of(f)
             for s_, e_ in kept:
                 out_support.append(s_)
-                out_edges.append(e_)
+                out_sizes.append(len(e_))
+                out_edges.extend(e_)
             n_pieces += count
-    sizes = np.array([len(e) for e in out_edges], np.int64)
-    support_out = np.array(out_support, np.int64)
-    edges_out = np.array([x for e in out_edges for x in e], np.int64)
+    sizes = np.r_[whole_sizes, np.array(out_sizes, np.int64)]
+    support_out = np.r_[support[whole].astype(np.int64), np.array(out_support, np.int64)]
+    edges_out = np.r_[whole_edges.astype(np.int64), np.array(out_edges, np.int64)]
     # only the planes the boundary uses (the supports and edges of faces inside the solid drop out)
     used = np.unique(np.r_[np.where(support_out >= 0, support_out, ~support_out), edges_out])
     renumber = np.full(palette.shape[0], -1, np.int64)
@@ -234,6 +240,9 @@ class _CrossedFaces:
             self.partners.setdefault(j, []).append(i)
         self.normal = normal.tolist()  # Python ints: the offsets and every product below exceed int64 at 256 bits
         self.offset = [sum(n[k] * self.Wi[self.T[f, 0]][k] for k in range(3)) for f, n in enumerate(self.normal)]
+        # the segment tests' doubles: vertices exact (a mesh's coordinates stay below 2**31), normals rounded once
+        self.Vf, self.Nf = W.astype(np.float64), normal.astype(np.float64)
+        self.unsure = np.empty(T.shape[0], np.int64)
 
     def _coplanar(self, f, g) -> bool:
         n, p = self.normal[f], self.Wi[self.T[f, 0]]
@@ -315,39 +324,126 @@ class _CrossedFaces:
 
     def _crossings(self, X, D, q):
         """Signed crossings of the segment from x = X / D to the integer point q with the faces, or None when it
-        passes through an edge or a corner. Orientations in integers scaled by D > 0 (signs unchanged): a face's
-        side of x is sign(n·X - D n·a), of q sign(n·q - n·a); the segment's side of an edge a -> b is
-        sign((D q - X)·((D a - X) x (b - a)))."""
-        xf = [c / D for c in X]
-        seg_lo = np.minimum(np.floor(xf), q) - 1
-        seg_hi = np.maximum(np.ceil(xf), q) + 1
-        near = np.flatnonzero(np.all((self.lo <= seg_hi) & (self.hi >= seg_lo), axis=1))
-        x0, x1, x2 = X
-        q0, q1, q2 = q
-        t = (D * q0 - x0, D * q1 - x1, D * q2 - x2)
-        total = 0
-        for g in near.tolist():
-            (n0, n1, n2), nd = self.normal[g], self.offset[g]
-            op = n0 * x0 + n1 * x1 + n2 * x2 - D * nd
-            if op == 0:
-                continue  # x on the face's plane: the segment leaves it at once (see the module docstring)
-            oq = n0 * q0 + n1 * q1 + n2 * q2 - nd
-            if oq == 0 or (op > 0) == (oq > 0):
-                continue
-            corners = [self.Wi[v] for v in self.T[g].tolist()]
-            sides = []
-            for k in range(3):
-                a, b = corners[k], corners[(k + 1) % 3]
-                r0, r1, r2 = D * a[0] - x0, D * a[1] - x1, D * a[2] - x2
-                e0, e1, e2 = b[0] - a[0], b[1] - a[1], b[2] - a[2]
-                side = t[0] * (r1 * e2 - r2 * e1) + t[1] * (r2 * e0 - r0 * e2) + t[2] * (r0 * e1 - r1 * e0)
-                sides.append((side > 0) - (side < 0))
-            if 1 in sides and -1 in sides:
-                continue  # the line passes beside the face
-            if 0 in sides:
-                return None  # through an edge or a corner: another direction
-            total += 1 if oq > 0 else -1
+        passes through an edge or a corner. Doubles decide every face they can (:func:`_filtered_crossings`); the
+        faces they leave undecided -- those x lies on or near, the segment's close calls -- are decided exactly."""
+        xf = np.array([c / D for c in X])  # each correctly rounded (Python's int / int)
+        qa = np.array(q, np.float64)
+        total, n_unsure = _filtered_crossings(xf, qa, self.Vf, self.Nf, self.T, self.lo, self.hi, self.unsure)
+        t = (D * q[0] - X[0], D * q[1] - X[1], D * q[2] - X[2])
+        for g in self.unsure[:n_unsure].tolist():
+            c = self._exact_crossing(g, X, D, q, t)
+            if c is None:
+                return None
+            total += c
         return total
+
+    def _exact_crossing(self, g, X, D, q, t):
+        """+1 / -1 where the segment x = X / D -> q (t = D q - X) leaves / enters through face g, 0 where it misses
+        it, None where it passes through an edge or a corner. Orientations in integers scaled by D > 0 (signs
+        unchanged): a face's side of x is sign(n·X - D n·a), of q sign(n·q - n·a); the segment's side of an edge
+        a -> b is sign((D q - X)·((D a - X) x (b - a)))."""
+        x0, x1, x2 = X
+        (n0, n1, n2), nd = self.normal[g], self.offset[g]
+        op = n0 * x0 + n1 * x1 + n2 * x2 - D * nd
+        if op == 0:
+            return 0  # x on the face's plane: the segment leaves it at once (see the module docstring)
+        oq = n0 * q[0] + n1 * q[1] + n2 * q[2] - nd
+        if oq == 0 or (op > 0) == (oq > 0):
+            return 0
+        corners = [self.Wi[v] for v in self.T[g].tolist()]
+        sides = []
+        for k in range(3):
+            a, b = corners[k], corners[(k + 1) % 3]
+            r0, r1, r2 = D * a[0] - x0, D * a[1] - x1, D * a[2] - x2
+            e0, e1, e2 = b[0] - a[0], b[1] - a[1], b[2] - a[2]
+            side = t[0] * (r1 * e2 - r2 * e1) + t[1] * (r2 * e0 - r0 * e2) + t[2] * (r0 * e1 - r1 * e0)
+            sides.append((side > 0) - (side < 0))
+        if 1 in sides and -1 in sides:
+            return 0  # the line passes beside the face
+        if 0 in sides:
+            return None  # through an edge or a corner: another direction
+        return 1 if oq > 0 else -1
+
+
+#: Relative bound of the doubles in :func:`_filtered_crossings`. x is within 1 unit of 2**-53 (u) of X / D, a
+#: rounded normal within 1 u, vertices and q exact. n·(x - a): each difference within u|x| + u|x - a|, each product
+#: one more u, the sum two: within ~5 u of sum |n_k| (|x_k| + |a_k|); n·(q - a) within ~4 u of sum |n_k| |q_k - a_k|;
+#: (q - x)·((a - x) x e): t and r within 2 u of |q| + |x| and |a| + |x| a coordinate, the cross product within 5 u
+#: of R_j E_k + R_k E_j, the dot product within ~10 u of its terms' magnitudes. 2**-48 is 32 u: sound with room; a
+#: value within it goes to the exact integers.
+CROSSING_FILTER_BOUND = 2.0**-48
+
+
+@jit
+def _filtered_crossings(x, q, V, N, T, lo, hi, unsure):
+    """Signed crossings of the segment x -> q with the faces that doubles decide with certainty.
+
+    ``x`` (3,) float64: the start, within 1 unit of 2**-53 of the exact point; ``q`` (3,) float64: the integer end
+    (exact); ``V`` (n, 3) float64: the vertices (exact: below 2**53); ``N`` (m, 3) float64: the faces' normals
+    (q - p) x (r - p), each rounded once; ``T`` (m, 3) int64; ``lo``, ``hi`` (m, 3) int64: the faces' boxes.
+    Returns ``(total, k)``: the sum of +1 (leaving through a face along its normal) and -1 (entering) over the
+    decided faces, and the number ``k`` of faces written to ``unsure[:k]`` that doubles could not decide (an
+    orientation within :data:`CROSSING_FILTER_BOUND` of zero: x on or near the face's plane, the segment near an
+    edge or a corner); a face decided as missed adds nothing.
+    """
+    seg_lo = np.empty(3)
+    seg_hi = np.empty(3)
+    for k in range(3):
+        seg_lo[k] = min(x[k], q[k]) - 1.0
+        seg_hi[k] = max(x[k], q[k]) + 1.0
+    total = 0
+    n_unsure = 0
+    for g in range(T.shape[0]):
+        if (lo[g, 0] > seg_hi[0] or hi[g, 0] < seg_lo[0] or lo[g, 1] > seg_hi[1] or hi[g, 1] < seg_lo[1]
+                or lo[g, 2] > seg_hi[2] or hi[g, 2] < seg_lo[2]):
+            continue
+        a = T[g, 0]
+        op = 0.0
+        op_size = 0.0
+        oq = 0.0
+        oq_size = 0.0
+        for k in range(3):
+            n = N[g, k]
+            op += n * (x[k] - V[a, k])
+            op_size += abs(n) * (abs(x[k]) + abs(V[a, k]))
+            oq += n * (q[k] - V[a, k])
+            oq_size += abs(n) * abs(q[k] - V[a, k])
+        if abs(op) <= CROSSING_FILTER_BOUND * op_size or abs(oq) <= CROSSING_FILTER_BOUND * oq_size:
+            unsure[n_unsure] = g
+            n_unsure += 1
+            continue
+        if (op > 0.0) == (oq > 0.0):
+            continue  # both ends on one side of the face's plane
+        positive = False
+        negative = False
+        close = False
+        for k in range(3):
+            a = T[g, k]
+            b = T[g, (k + 1) % 3]
+            side = 0.0
+            size = 0.0
+            for i in range(3):
+                j = (i + 1) % 3
+                m = (i + 2) % 3
+                c = (V[a, j] - x[j]) * (V[b, m] - V[a, m]) - (V[a, m] - x[m]) * (V[b, j] - V[a, j])
+                c_size = ((abs(V[a, j]) + abs(x[j])) * abs(V[b, m] - V[a, m])
+                          + (abs(V[a, m]) + abs(x[m])) * abs(V[b, j] - V[a, j]))
+                side += (q[i] - x[i]) * c
+                size += (abs(q[i]) + abs(x[i])) * c_size
+            if abs(side) <= CROSSING_FILTER_BOUND * size:
+                close = True
+            elif side > 0.0:
+                positive = True
+            else:
+                negative = True
+        if positive and negative:
+            continue  # the line passes beside the face
+        if close:
+            unsure[n_unsure] = g
+            n_unsure += 1
+            continue
+        total += 1 if oq > 0.0 else -1
+    return total, n_unsure
 
 
 def _clip_edges(piece, plane, row: int, side: int):

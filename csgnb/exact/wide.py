@@ -218,8 +218,14 @@ def from_wide(arr: np.ndarray) -> np.ndarray:
     """Return the wide array ``arr`` as an object array of Python ints of the same shape."""
     width_of(arr)
     size = arr.dtype.itemsize
-    buf = np.ascontiguousarray(arr).tobytes()
-    ints = [int.from_bytes(buf[i : i + size], "little", signed=True) for i in range(0, len(buf), size)]
-    out = np.empty(arr.shape, dtype=object)
-    out.reshape(-1)[:] = ints
-    return out
+    flat = np.ascontiguousarray(arr).reshape(-1)
+    limbs = flat["limbs"]
+    low = limbs[:, 0].view(np.int64)
+    # most values fit one word (the upper limbs repeat its sign): numpy makes those Python ints in one pass
+    fits = np.all(limbs[:, 1:] == (low >> 63).view(np.uint64)[:, None], axis=1)
+    out = low.astype(object)
+    if not fits.all():
+        buf = flat.tobytes()
+        for i in np.flatnonzero(~fits).tolist():
+            out[i] = int.from_bytes(buf[i * size:(i + 1) * size], "little", signed=True)
+    return out.reshape(arr.shape)
