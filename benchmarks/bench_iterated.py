@@ -561,7 +561,7 @@ def main() -> None:
                   f"they are refused: {d['refused_as_solids']}")
             par = d["every_core"]
             if par is not None:
-                print(f"  on {len(par['shards'])} shards (threads): steps {par['wall_s']:.1f} s wall / "
+                print(f"  on {par['shards']} shards (threads): steps {par['wall_s']:.1f} s wall / "
                       f"{par['cpu_s']:.1f} s CPU ({par['speed_up']:.2f}x one workpiece; the same exact volume: "
                       f"{par['same_volume']}); end to end with the tools {par['end_to_end_s']:.1f} s (<= 30 s: "
                       f"{'met' if par['end_to_end_s'] <= 30 else 'NOT met'})")
