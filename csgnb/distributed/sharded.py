@@ -58,7 +58,8 @@ from pathlib import Path
 import numpy as np
 
 from csgnb.errors import CsgnbError, GeometryError
-from csgnb.exact.rational import fraction_text, parse_fraction
+from csgnb.exact.rational import fraction_text, parse_fraction, times_power_of_two
+from csgnb.mesh.volume import sum_fractions
 
 __all__ = ["Shard", "ShardFailure", "ShardedWorkpiece", "combine_shard_trees", "shard_boxes"]
 
@@ -482,11 +483,12 @@ class ShardedWorkpiece:
         """Exact volume (grid units³): the shards' volumes inside their boxes, gathered and added."""
         self.flush()
         calls = [a.volume() for a in self.actors]
-        return sum((parse_fraction(c.result()) for c in calls), Fraction(0))
+        return sum_fractions(parse_fraction(c.result()) for c in calls)
 
     def model_volume(self) -> Fraction:
         """Exact volume in model units cubed."""
-        return self.volume() / Fraction(self.grid.scale) ** 3
+        # the grid's scale is 2**exponent: a shift of the exact value, no gcd of its (possibly huge) parts
+        return times_power_of_two(self.volume(), -3 * self.grid.exponent)
 
     def classify(self, points) -> np.ndarray:
         """Labels of integer grid points ``(n, 3)`` (-2: on the boundary), each asked of a shard whose box holds it."""

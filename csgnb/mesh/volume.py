@@ -15,7 +15,6 @@ added in limbs by a kernel; only one Fraction per distinct denominator is formed
 
 from __future__ import annotations
 
-import math
 from fractions import Fraction
 
 import numpy as np
@@ -26,6 +25,7 @@ from numba.extending import intrinsic
 from csgnb._jit import jit
 from csgnb._views import unmanaged, unmanaged_tuple
 from csgnb.exact.lowering import load_row, row_pointer, wide_width
+from csgnb.exact.rational import coprime_fraction, reduced_fraction, sum_fraction_pairs
 from csgnb.mesh.halfedge import FACE, HE, NEXT, VERT, collect_cell_halfedges
 
 __all__ = ["cells_volume", "sum_fractions", "term_limbs"]
@@ -151,42 +151,23 @@ def cells_volume(store, handles) -> Fraction:
     # The sum of a group fits: at most n terms of at most 2^(3b) each, far below 2^(4b - 1).
     _group_sums(terms, order, starts, L, sums)
     # Sums of equal-denominator groups as plain integers, added pairwise (a gcd of the two denominators, one of
-    # the result): an octree cell has ~170 distinct denominators whose common multiple is ~1,200 bits, so the cost is
-    # Python overhead per term; incremental Fraction additions took twice as long (benchmarks/bench_milling.py).
+    # the result): an octree cell has ~170 distinct denominators whose common multiple is ~1,200 bits at 128 bits
+    # (up to ~50,000 at 256); incremental Fraction additions took twice as long (benchmarks/bench_milling.py).
     k = 8 * L
     nb = sums.tobytes()
     db = np.ascontiguousarray(terms[order[starts[:-1]], L:]).tobytes()
     frac = [(int.from_bytes(nb[i * k:(i + 1) * k], "little", signed=True),
              int.from_bytes(db[i * k:(i + 1) * k], "little", signed=True)) for i in range(uniq.shape[0])]
-    num, den = _sum_pairs(frac)
-    return Fraction(num, 6 * den)
-
-
-def _sum_pairs(frac: list[tuple[int, int]]) -> tuple[int, int]:
-    """The reduced sum of fractions ``(numerator, denominator > 0)``, added pairwise."""
-    gcd = math.gcd
-    if not frac:
-        return 0, 1
-    while len(frac) > 1:
-        nxt = []
-        for i in range(0, len(frac) - 1, 2):
-            (a, b), (c, d) = frac[i], frac[i + 1]
-            g = gcd(b, d)
-            q = d // g
-            num, den = a * q + c * (b // g), b * q
-            g = gcd(num, den)
-            nxt.append((num // g, den // g))
-        if len(frac) % 2:
-            nxt.append(frac[-1])
-        frac = nxt
-    return frac[0]
+    num, den = sum_fraction_pairs(frac)
+    return reduced_fraction(num, 6 * den)
 
 
 def sum_fractions(values) -> Fraction:
     """The exact sum of Fractions: numerators of equal denominators added first, then the groups pairwise.
 
     A running sum of n terms whose denominators share little costs O(n²) digit operations (its
-    denominator grows with every term); pairwise costs about O(n log n).
+    denominator grows with every term); pairwise costs about O(n log n), in GMP
+    (:func:`csgnb.exact.rational.sum_fraction_pairs`).
 
     >>> sum_fractions([Fraction(1, 3), Fraction(1, 6), Fraction(1, 2)])
     Fraction(1, 1)
@@ -194,5 +175,5 @@ def sum_fractions(values) -> Fraction:
     groups: dict[int, int] = {}
     for v in values:
         groups[v.denominator] = groups.get(v.denominator, 0) + v.numerator
-    num, den = _sum_pairs(list((n, d) for d, n in groups.items()))
-    return Fraction(num, den)
+    num, den = sum_fraction_pairs([(n, d) for d, n in groups.items()])
+    return coprime_fraction(num, den)
