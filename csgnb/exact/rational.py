@@ -127,16 +127,16 @@ def sum_fraction_pairs(fractions: list[tuple[int, int]]) -> tuple[int, int]:
         nxt = []
         for i in range(0, len(level) - 1, 2):
             (a, b), (c, d) = level[i], level[i + 1]
+            # over lcm(b, d): the denominators stay the common multiple, not the product; the sum's own common
+            # factor with it (rare, small) is taken out once at the end
             g = gcd(b, d)
             q = d // g
-            num, den = a * q + c * (b // g), b * q
-            g = gcd(num, den)
-            nxt.append((num // g, den // g))
+            nxt.append((a * q + c * (b // g), b * q))
         if len(level) % 2:
             nxt.append(level[-1])
         level = nxt
     num, den = level[0]
-    g = gcd(num, den)  # a single term arrives unreduced
+    g = gcd(num, den)
     return int(num // g), int(den // g)
 
 
