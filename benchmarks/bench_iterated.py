@@ -98,6 +98,22 @@ def _drill_grid(args) -> Grid:
     return Grid.from_resolution(args.resolution, origin=fitted.origin, width=args.width)
 
 
+def _drill_on_shards(args, grid, box, step_tools, feed, total: int):
+    """The drill's ``total`` steps (step i: tool ``i mod len(step_tools)`` moved ``i // len(step_tools)`` feeds) on a
+    stock ``box`` split into ``args.shards`` shards on threads (``ShardedWorkpiece``): ``(figures, exact volume)``."""
+    from csgnb.distributed.sharded import ShardedWorkpiece
+
+    with ShardedWorkpiece(Workpiece.box(*box, grid=grid, threshold=args.threshold), None, args.shards) as sharded:
+        t0, c0 = time.perf_counter(), time.process_time()
+        for i in range(total):
+            turn, k = divmod(i, len(step_tools))
+            sharded.difference(step_tools[k].translated(feed * turn))
+        sharded.flush()
+        par = {"shards": list(sharded.counts), "wall_s": time.perf_counter() - t0, "cpu_s": time.process_time() - c0,
+               "cells": sum(st["cells"] for st in sharded.stats())}
+        return par, sharded.model_volume()
+
+
 def drill_workload(args) -> dict:
     import manifold3d as m3
 
@@ -126,21 +142,7 @@ def drill_workload(args) -> dict:
     # on threads of this process), first, in the state the precompute leaves the process in --------------------
     total = args.turns * n_steps
     lo, hi = np.array([-10.0, -10.0, -15.0]), np.array([10.0, 10.0, 6.0])
-    par = None
-    if args.shards != 1:
-        from csgnb.distributed.sharded import ShardedWorkpiece
-
-        with ShardedWorkpiece(Workpiece.box(lo, hi, grid=grid, threshold=args.threshold), None,
-                              args.shards) as sharded:
-            t0, c0 = time.perf_counter(), time.process_time()
-            for i in range(total):
-                turn, k = divmod(i, n_steps)
-                sharded.difference(tools_c[k].translated(ds.feed * turn))
-            sharded.flush()
-            par_wall, par_cpu = time.perf_counter() - t0, time.process_time() - c0
-            par_vol = sharded.model_volume()
-            par = {"shards": list(sharded.counts), "wall_s": par_wall, "cpu_s": par_cpu,
-                   "cells": sum(st["cells"] for st in sharded.stats())}
+    par, par_vol = _drill_on_shards(args, grid, (lo, hi), tools_c, ds.feed, total) if args.shards != 1 else (None, None)
     # -- the same steps on one workpiece, one core (the speed-up's reference) --------------------------------------
     work = Workpiece.box(lo, hi, grid=grid, threshold=args.threshold)
     c0 = time.process_time()
@@ -225,20 +227,10 @@ def drill_mesh_workload(args) -> dict:
             refused = str(exc).split(" -- ")[0][:160]
     prep_s, prep_cpu = time.perf_counter() - wall, time.process_time() - cpu
     step_tools = [prepared[k % ds.period] for k in range(n_steps)]
-    par = None
+    par, par_vol = None, None
     if args.shards != 1:  # what a user runs on every core: the workpiece in spatial shards on threads, same tools
-        from csgnb.distributed.sharded import ShardedWorkpiece
-
-        with ShardedWorkpiece(Workpiece.box(lo, hi, grid=grid, threshold=args.threshold), None,
-                              args.shards) as sharded:
-            t0, c0 = time.perf_counter(), time.process_time()
-            for i in range(total):
-                turn, k = divmod(i, n_steps)
-                sharded.difference(step_tools[k].translated(ds.feed * turn))
-            sharded.flush()
-            par = {"shards": list(sharded.counts), "wall_s": time.perf_counter() - t0,
-                   "cpu_s": time.process_time() - c0, "end_to_end_s": prep_s + time.perf_counter() - t0}
-            par_vol = sharded.model_volume()
+        par, par_vol = _drill_on_shards(args, grid, (lo, hi), step_tools, ds.feed, total)
+        par["end_to_end_s"] = prep_s + par["wall_s"]
     # -- the same steps on one workpiece, one core ---------------------------------------
     c0 = time.process_time()
     work = Workpiece.box(lo, hi, grid=grid, threshold=args.threshold)
