@@ -25,6 +25,7 @@ from csgnb.bsp.build import bsp_from_mesh
 from csgnb.bsp.tree import ON_BOUNDARY
 from csgnb.bsp.winding import winding_bsp
 from csgnb.exact import Grid
+from csgnb.exact.budgets import budget
 from csgnb.octree import Tool, Workpiece
 from tests.test_bsp_build import SOLIDS, box, inverted, soup
 
@@ -294,12 +295,13 @@ def test_the_pieces_segment_counts_are_exact_at_any_magnitude(seed, bits, where,
     """The segment count a crossed face's piece is kept or dropped by (doubles first, the undecided faces in
     integers) against Fractions over every face: from a rational point on a face's plane (where every piece's
     centroid is: doubles cannot tell its own face's side) -- inside the face, a hair from an edge, or at a
-    corner -- to a far integer point or through a corner of another face, on crossing hulls of coordinates up to
-    2**26 (the 256-bit mesh budget). A filter bound too small for the doubles' error fails this."""
+    corner -- to a far integer point or through a corner of another face, on crossing hulls of coordinates out to
+    the 256-bit mesh budget's edge (~2**26.4). A filter bound too small for the doubles' error fails this."""
     from csgnb.bsp.winding import _CrossedFaces
 
     rng = np.random.default_rng(seed)
-    centre = rng.integers(-(2**26) + 2**bits, 2**26 - 2**bits, 3) if bits < 26 else np.zeros(3, np.int64)
+    reach = budget(256).max_mesh_coordinate - 2**bits  # centres out to the 256-bit mesh budget's edge
+    centre = rng.integers(-reach, reach + 1, 3)
     meshes = []
     for _ in range(2):
         pts = centre + rng.integers(-(2**bits) // 2, 2**bits // 2 + 1, (8, 3))

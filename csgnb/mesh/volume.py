@@ -15,6 +15,7 @@ added in limbs by a kernel; only one Fraction per distinct denominator is formed
 
 from __future__ import annotations
 
+import math
 from fractions import Fraction
 
 import numpy as np
@@ -25,7 +26,7 @@ from numba.extending import intrinsic
 from csgnb._jit import jit
 from csgnb._views import unmanaged, unmanaged_tuple
 from csgnb.exact.lowering import load_row, row_pointer, wide_width
-from csgnb.exact.rational import coprime_fraction, reduced_fraction, sum_fraction_pairs
+from csgnb.exact.rational import coprime_fraction, sum_fraction_pairs
 from csgnb.mesh.halfedge import FACE, HE, NEXT, VERT, collect_cell_halfedges
 
 __all__ = ["cells_volume", "sum_fractions", "term_limbs"]
@@ -158,8 +159,9 @@ def cells_volume(store, handles) -> Fraction:
     db = np.ascontiguousarray(terms[order[starts[:-1]], L:]).tobytes()
     frac = [(int.from_bytes(nb[i * k:(i + 1) * k], "little", signed=True),
              int.from_bytes(db[i * k:(i + 1) * k], "little", signed=True)) for i in range(uniq.shape[0])]
-    num, den = sum_fraction_pairs(frac)
-    return reduced_fraction(num, 6 * den)
+    num, den = sum_fraction_pairs(frac)  # reduced: only the factors of 6 can cancel against the numerator
+    g = math.gcd(num, 6)
+    return coprime_fraction(num // g, (6 // g) * den)
 
 
 def sum_fractions(values) -> Fraction:
