@@ -11,6 +11,8 @@ from hypothesis import strategies as st
 from csgnb import GeometryError, PrecisionError, exact
 from csgnb.bsp.polygon import (
     PolygonSet,
+    classify_polygon,
+    negative_piece_into,
     polygon_set_vertices,
     polygon_vertices,
     polygons_from_triangles,
@@ -312,3 +314,26 @@ def test_split_kernels_callable_from_numba_code():
     assert cartesian(verts[4:9]) == cartesian(polygon_vertices(palette, ref_neg, 0))
     assert cartesian(verts[10:13]) == cartesian(polygon_vertices(palette, ref_pos, 0))
     assert split_polygon(palette, 0, 0, edges, verts, 0, 4, sides, 4, 10) == (0, 0, 0)
+
+
+@pytest.mark.parametrize("plane", [[1, -1, 0, -2], [-1, 1, 0, 2], [1, 1, 0, -3], [0, 1, 0, -1], [2, 3, 0, -7]])
+def test_the_inner_piece_alone_is_split_polygons_negative_piece(plane):
+    """negative_piece_into (clipping a tool polygon to a cell wall keeps only the inner piece) writes the piece
+    split_polygon writes on the negative side, edges and vertices bit for bit, and nothing else."""
+    palette = exact.to_wide([[0, 0, 1, 0], [1, 0, 0, 0], [0, 1, 0, 0], [1, 0, 0, -4], [0, 1, 0, -4], plane], WIDTH)
+    work = np.empty((4, 4), palette.dtype)
+    sides = np.empty(4, np.int8)
+    split_polygon_planes(palette, 0, 5, np.array([1, 2, 3, 4], np.int32), 4, np.empty(5, np.int32),
+                         np.empty(5, np.int32), work, sides)
+    edges = np.zeros(16, np.int32)
+    verts = np.zeros((16, 4), palette.dtype)
+    edges[:4] = [1, 2, 3, 4]
+    verts[:4] = work
+    alone_edges, alone_verts = edges.copy(), verts.copy()
+    assert classify_polygon(palette, verts, 0, 4, 5, sides) == 2
+    k = negative_piece_into(palette, 0, 5, alone_edges, alone_verts, 0, 4, sides, 4)
+    side_, kn, _ = split_polygon(palette, 0, 5, edges, verts, 0, 4, sides, 4, 10)
+    assert side_ == 2 and k == kn
+    assert alone_edges[4:4 + k].tolist() == edges[4:4 + kn].tolist()
+    assert alone_verts[4:4 + k].tobytes() == verts[4:4 + kn].tobytes()
+    assert not alone_edges[4 + k:].any() and not alone_verts[4 + k:]["limbs"].any()  # no outer piece written

@@ -30,7 +30,8 @@ pair ``edges (cap,) int32``, ``verts (cap, 4) wide`` in which a polygon occupies
 ``start .. start + k - 1``, row ``j`` holding edge ``j`` and vertex ``j``):
 
 * :func:`polygon_vertices_into`, :func:`classify_polygon`, :func:`split_polygon`
-  (vertices cached in the store), :func:`split_polygon_planes` (edge planes only).
+  (vertices cached in the store), :func:`split_polygon_planes` (edge planes only), :func:`negative_piece_into`
+  (the inner piece only, for clipping to a box).
 """
 
 from __future__ import annotations
@@ -58,6 +59,7 @@ __all__ = [
     "classify_polygon",
     "split_polygon",
     "split_polygon_planes",
+    "negative_piece_into",
 ]
 
 #: classify_polygon / split results: entirely negative, coplanar, entirely positive, properly split.
@@ -209,6 +211,21 @@ def split_polygon(palette, support_row, plane, edges, verts, start, k, sides, o_
     k_pos = _write_piece(palette, support_row, plane, edges, start, verts, start, k, sides, np.int64(-1),
                          edges, o_pos, verts, o_pos, np.bool_(True))
     return side, k_neg, k_pos
+
+
+@jit
+def negative_piece_into(palette, support_row, plane, edges, verts, start, k, sides, o_neg):
+    """Write only the negative piece of a properly split polygon; return its size.
+
+    The polygon and ``sides[:k]`` (its vertices' sides, e.g. from :func:`classify_polygon`, with vertices strictly
+    on both sides) are as :func:`split_polygon` takes them; the piece is the one ``split_polygon`` writes at
+    ``o_neg``, bit for bit. For clipping to a box, where the outer piece is discarded: it is not built (its two new
+    vertices are two three-plane intersections).
+    """
+    support_row, plane, start, k, o_neg = np.int64(support_row), np.int64(plane), np.int64(start), np.int64(k), \
+        np.int64(o_neg)
+    return _write_piece(palette, support_row, plane, edges, start, verts, start, k, sides, np.int64(1),
+                        edges, o_neg, verts, o_neg, np.bool_(True))
 
 
 @jit

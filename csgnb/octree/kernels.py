@@ -48,7 +48,7 @@ from csgnb._views import unmanaged, unmanaged_tuple
 from csgnb.bsp.build import build_kernel
 from csgnb.bsp.extract import PIECES, TreeArrays, clip_cell, extract_into
 from csgnb.bsp.merging import CHANGED, merge_cells, merge_changes_a
-from csgnb.bsp.polygon import copy_point, split_polygon
+from csgnb.bsp.polygon import classify_polygon, copy_point, negative_piece_into
 from csgnb.exact.intrinsics import classify_at, signed_distance_into, wide_sign_at
 from csgnb.exact.wide_store import store_int64_at
 from csgnb.mesh.float_box import cell_float_box
@@ -363,20 +363,25 @@ def clip_tool_polygons(pal, tool, cand, lo, size, brows, arena, bi, need):
         if k + 7 > cap:
             need[0] = R_TOOL_ARENA
             return -1
-        start = 0
+        start = np.int64(0)
         for j in range(k):
             arena.edges[j] = tool.edges[e0 + j]
             copy_point(tool.verts, e0 + j, arena.verts, j)
         keep = True
         for w in range(6):
-            o_neg = cap if start == 0 else 0
-            side, k_neg, k_pos = split_polygon(pal, srow, brows[w], arena.edges, arena.verts, start, k, arena.sides,
-                                               o_neg, 2 * cap)
+            # A wall the polygon's box lies strictly inside of leaves it whole (every vertex strictly on the inner
+            # side): no classification. Walls are x_a >= lo_a (w = 2a) and x_a <= lo_a + size (w = 2a + 1).
+            a = w >> 1
+            if (tool.plo[i, a] > lo[a]) if w & 1 == 0 else (tool.phi[i, a] < lo[a] + size):
+                continue
+            side = classify_polygon(pal, arena.verts, start, np.int64(k), np.int64(brows[w]), arena.sides)
             if side == -1:
                 continue
             if side == 2:
+                # only the inner (negative) piece is kept: the outer one is never written
+                o_neg = np.int64(cap if start == 0 else 0)
+                k = negative_piece_into(pal, srow, brows[w], arena.edges, arena.verts, start, k, arena.sides, o_neg)
                 start = o_neg
-                k = k_neg
                 continue
             keep = False  # outside, or on the wall
             break
