@@ -70,7 +70,7 @@ NEGATIVE, COPLANAR, POSITIVE, SPLIT = -1, 0, 1, 2
 # kernels
 
 
-@jit
+@jit(inline="always")
 def copy_point(src, i, dst, j):
     """Copy the wide homogeneous point ``src[i]`` into ``dst[j]``."""
     for c in range(4):

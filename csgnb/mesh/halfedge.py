@@ -93,7 +93,7 @@ def new_mesh_arrays(palette: np.ndarray, vertices: int, loop: int = 64) -> MeshA
     return MeshArrays(pal, np.zeros((v, 4), dtype), np.zeros(v, dtype), np.zeros(v, np.int64),
                       np.full((4 * v, 4), -1, np.int32), np.zeros(4 * v, np.int64), np.full((2 * v, 3), -1, np.int32),
                       counts, np.empty(v, np.int32), np.empty(4 * v, np.int32), np.empty(2 * v, np.int32),
-                      np.empty((max(int(loop), 16), 5), np.int64))
+                      np.empty((max(int(loop), BOX_HALFEDGES), 5), np.int64))
 
 
 def grown_mesh_arrays(m: MeshArrays, vertices: int, halfedges: int, faces: int, loop: int = 0,
@@ -301,43 +301,50 @@ def collect_cell_halfedges(he, hmark, counts, h0, out):
 
 _CUBE_CYCLES = np.array([cycle for _, cycle in _CUBE_FACES], np.int64)
 
+BOX_HALFEDGES = 24
+"""Half-edges of a box cell; the loop scratch has at least this many rows (:func:`add_box_cell` uses it)."""
+
+
+def _cube_twins(cycles: np.ndarray) -> np.ndarray:
+    """For each of the box's 24 directed edges (4 f + i: corner i to i + 1 of face f), the edge running back."""
+    index = {(int(cycles[f, i]), int(cycles[f, (i + 1) % 4])): 4 * f + i for f in range(6) for i in range(4)}
+    return np.array([index[(int(cycles[f, (i + 1) % 4]), int(cycles[f, i]))] for f in range(6) for i in range(4)],
+                    np.int64)
+
+
+_CUBE_TWINS = _cube_twins(_CUBE_CYCLES)
+
 
 @jit(inline="always")
 def add_box_cell(m, rows, opp):
     """Build the box with outward palette planes ``rows`` (x lo, x hi, y lo, y hi, z lo, z hi); return a handle.
 
     Rows come from the free lists when possible; the caller checked room for 8 vertices,
-    24 half-edges and 6 faces.
+    24 half-edges and 6 faces. The new rows are held in the loop scratch while the box is
+    wired (no cut runs meanwhile): nothing is allocated, so kernels compiled without
+    reference counting can build boxes.
     """
-    verts = np.empty(8, np.int64)
+    scratch = m.loop
     for k in range(8):
         v = _new_vertex(m)
-        verts[k] = v
+        scratch[k, 0] = v
         intersect_into(m.palette, rows[(k & 1)], m.palette, rows[2 + ((k >> 1) & 1)], m.palette,
                        rows[4 + ((k >> 2) & 1)], m.vx, v)
         m.vmark[v] = 0
-    hs = np.empty(24, np.int64)
-    for i in range(24):
-        hs[i] = _new_halfedge(m)
-    # twin of the directed edge (a, b): found by scanning the 24 edges (tiny).
+    for i in range(BOX_HALFEDGES):
+        scratch[i, 1] = _new_halfedge(m)
     for f in range(6):
         face = _new_face(m)
         m.fc[face, PLANE] = rows[f]
-        m.fc[face, HE] = hs[4 * f]
+        m.fc[face, HE] = scratch[4 * f, 1]
         m.fc[face, OPP] = opp
         for i in range(4):
-            h = hs[4 * f + i]
-            m.he[h, NEXT] = hs[4 * f + (i + 1) % 4]
-            m.he[h, VERT] = verts[_CUBE_CYCLES[f, i]]
+            h = scratch[4 * f + i, 1]
+            m.he[h, NEXT] = scratch[4 * f + (i + 1) % 4, 1]
+            m.he[h, VERT] = scratch[_CUBE_CYCLES[f, i], 0]
             m.he[h, FACE] = face
-    for e in range(24):
-        fe, ie = e // 4, e % 4
-        a, b = _CUBE_CYCLES[fe, ie], _CUBE_CYCLES[fe, (ie + 1) % 4]
-        for g in range(24):
-            fg, ig = g // 4, g % 4
-            if _CUBE_CYCLES[fg, ig] == b and _CUBE_CYCLES[fg, (ig + 1) % 4] == a:
-                m.he[hs[e], TWIN] = hs[g]
-    return hs[0]
+            m.he[h, TWIN] = scratch[_CUBE_TWINS[4 * f + i], 1]
+    return scratch[0, 1]
 
 
 @jit

@@ -40,7 +40,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from csgnb._jit import jit
+from csgnb._jit import borrowing_jit, jit
 from csgnb._resumable import DONE, FAILED, NEED_ROOM
 from csgnb._shuffle import shuffle_order
 from csgnb._unlinked import unlinked
@@ -328,7 +328,7 @@ def _append_import_polygon(bi, n_out, e_out, support, edges, verts, first, k, ne
 
 
 @unlinked
-@jit
+@borrowing_jit
 def clip_tool_polygons(pal, tool, cand, lo, size, brows, arena, bi, need):
     """Clip the candidate polygons ``cand`` (indices) whose boxes meet the cell box to it; write the pieces into ``bi``.
 
@@ -441,7 +441,7 @@ def import_polygons(pal, bi, n, bs, seed, t, need):
 
 
 @unlinked
-@jit
+@borrowing_jit
 def simplify_in_box(pal, m, src, box, ws, seed, need):
     """The solid of tree ``src`` inside the box whose walls are ``box`` (6 rows), rebuilt from its boundary.
 
@@ -508,7 +508,7 @@ def _start_at_box(m, box, ms, st):
 
 
 @unlinked
-@jit
+@borrowing_jit
 def merge_and_simplify(pal, m, ta, tb, table, constant, box, ws, seed, need):
     """A ∘ B inside the box (``table`` is the label function): merge by cutting, then redundancy removal.
 
@@ -682,7 +682,7 @@ def _centre_point(lo, size, pt):
 
 
 @unlinked
-@jit
+@borrowing_jit
 def boolean_cell(pal, oc, pool, amap, node, tool_kind, tool, cand, table, constant, ws, seed, need):
     """Apply the Boolean to one leaf cell and write its result. Returns 1 done, 0 short of room."""
     if oc.kind[node] == UNIFORM and constant[oc.label[node]] >= 0:
@@ -783,7 +783,7 @@ def _alloc_children(oc, node):
 
 
 @unlinked
-@jit
+@borrowing_jit
 def split_step(pal, oc, pool, amap, node, st, ws, threshold, min_size, seed, need):
     """Split cell ``node`` into its 8 children (resumable per child). Returns 1 done, 0 short of room."""
     if oc.child[node] < 0:
@@ -1004,7 +1004,7 @@ def _boolean_kernel(pal, oc, pool, amap, work, cand, done, tool_kind, tool, tlo,
 
 
 @unlinked
-@jit
+@borrowing_jit
 def combine_parent(pal, oc, pool, amap, node, ws, threshold, seed, need):
     """Replace the 8 leaf children of ``node`` by one cell if their solid fits ``threshold`` nodes.
 
