@@ -23,7 +23,9 @@ fit: an axis-BSP over the children's BSPs, then redundancy removal in the parent
 
 The big per-cell steps (tool clipping, merge + redundancy removal, extraction in a box, one
 cell of a Boolean, a split, a combine) are separately compiled functions rather than inlined
-ones: they run once per cell, their call costs a few microseconds on unmanaged views, and
+ones, compiled without reference counting (``borrowing_jit``: they allocate nothing; with it, each
+binding of a workspace array was an opaque ``NRT_incref``/``NRT_decref`` pair, dozens a cell): they
+run once per cell, their call costs a few microseconds on unmanaged views, and
 compiling them once instead of inlining them into every kernel keeps the first run's compile
 time reasonable (issue 21: the inlined version took minutes; ``benchmarks/bench_compile.py``). They, and the
 merge, extraction, clipping and BSP building they call, are ``@unlinked`` (:mod:`csgnb._unlinked`): called by
