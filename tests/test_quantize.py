@@ -39,3 +39,17 @@ def test_quantize_refuses_bad_input():
         quantize(np.zeros((4, 2)))
     with pytest.raises(ValueError, match="max_coordinate"):
         quantize(np.zeros((1, 3)), 128, max_coordinate=10**9)
+
+
+@given(num=st.integers(-(2**300), 2**300), den=st.integers(1, 2**300), exponent=st.integers(-1100, 1100))
+def test_grid_volumes_in_model_units_are_the_exact_quotient(num, den, exponent):
+    """``Grid.model_volume`` (a shift: the scale is 2**exponent) equals volume / scale**3 in exact arithmetic, also where
+    the scale as a double would be inf (exponent > 1023) or underflow."""
+    from fractions import Fraction
+
+    from csgnb.exact import Grid
+
+    grid = Grid(exponent=exponent, width=256) if abs(exponent) > 60 else Grid(2.0**exponent, width=256)
+    volume = Fraction(num, den)
+    assert grid.model_volume(volume) == volume / Fraction(2) ** (3 * exponent)
+    assert grid.model_volume(num) == Fraction(num) / Fraction(2) ** (3 * exponent)

@@ -14,7 +14,6 @@ from __future__ import annotations
 import time
 from collections.abc import Iterator
 from dataclasses import dataclass
-from fractions import Fraction
 
 import numpy as np
 
@@ -206,13 +205,12 @@ def carve(workpiece, carving: Carving, *, progress: bool = True, limit: int | No
     if not carving.grid.same_as(workpiece.grid):
         raise GeometryError("the carving and the workpiece lie on different grids")
     k = len(carving) if limit is None else min(int(limit), len(carving))
-    unit = Fraction(carving.grid.scale) ** 3
     removed, seconds = ([] if track_volume else None), []
     for i in tqdm(range(k), disable=not progress, desc="carving", unit="solid"):
         t0 = time.perf_counter()
         hull = carving.hull(i)
         report = workpiece.difference(hull, track_volume=track_volume)
         if track_volume:
-            removed.append(report.removed / unit)
+            removed.append(carving.grid.model_volume(report.removed))
         seconds.append(time.perf_counter() - t0)
     return removed, seconds

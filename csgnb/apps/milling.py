@@ -127,7 +127,7 @@ class MillingResult:
 
 
 def _mm3(volume: Fraction, grid) -> Fraction:
-    return volume / Fraction(grid.scale) ** 3
+    return grid.model_volume(volume)
 
 
 def _move_time(move: Move, length: float, rapid_rate: float) -> float:

@@ -167,7 +167,7 @@ class BSPWorkpiece:
 
     def model_volume(self) -> Fraction:
         """Exact volume in model units cubed (the grid scale is a power of two)."""
-        return self.volume() / Fraction(self.grid.scale) ** 3
+        return self.grid.model_volume(self.volume())
 
     @property
     def n_nodes(self) -> int:

@@ -58,7 +58,7 @@ from pathlib import Path
 import numpy as np
 
 from csgnb.errors import CsgnbError, GeometryError
-from csgnb.exact.rational import fraction_text, parse_fraction, times_power_of_two
+from csgnb.exact.rational import fraction_text, parse_fraction
 from csgnb.mesh.volume import sum_fractions
 
 __all__ = ["Shard", "ShardFailure", "ShardedWorkpiece", "combine_shard_trees", "shard_boxes"]
@@ -487,8 +487,7 @@ class ShardedWorkpiece:
 
     def model_volume(self) -> Fraction:
         """Exact volume in model units cubed."""
-        # the grid's scale is 2**exponent: a shift of the exact value, no gcd of its (possibly huge) parts
-        return times_power_of_two(self.volume(), -3 * self.grid.exponent)
+        return self.grid.model_volume(self.volume())
 
     def classify(self, points) -> np.ndarray:
         """Labels of integer grid points ``(n, 3)`` (-2: on the boundary), each asked of a shard whose box holds it."""

@@ -10,12 +10,14 @@ from __future__ import annotations
 
 import math
 import numbers
+from fractions import Fraction
 
 import numpy as np
 
 from csgnb.errors import GeometryError, PrecisionError
 from csgnb.exact.budgets import budget
 from csgnb.exact.integral import exact_int, integer_scalar
+from csgnb.exact.rational import times_power_of_two
 from csgnb.exact.wide import DEFAULT_WIDTH, check_width
 
 __all__ = ["Grid", "Quantization", "quantize"]
@@ -143,6 +145,15 @@ class Grid:
     def scale(self) -> float:
         """Grid units per model unit, ``2.0**exponent`` (``inf`` beyond the double range)."""
         return math.ldexp(1.0, self.exponent) if self.exponent <= 1023 else math.inf
+
+    def model_volume(self, volume):
+        """An exact volume in grid units cubed (a Fraction or an int) in model units cubed, exactly.
+
+        The scale is ``2**exponent``, so this is a shift of the exact value (``times_power_of_two``): no gcd of its
+        parts, which run to millions of bits for a 256-bit part carved by float meshes, and no double of the scale
+        (``inf`` beyond 2**1023).
+        """
+        return times_power_of_two(Fraction(volume), -3 * self.exponent)
 
     @property
     def resolution(self) -> float:

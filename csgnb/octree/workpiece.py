@@ -45,7 +45,6 @@ from csgnb.exact.budgets import budget
 from csgnb.exact.integral import integer_array, max_abs
 from csgnb.exact.predicates import homogeneous_points, to_double_position
 from csgnb.exact.quantization import Grid
-from csgnb.exact.rational import times_power_of_two
 from csgnb.exact.wide import DEFAULT_WIDTH, to_wide, wide_dtype
 from csgnb.mesh.hull import ConvexHull
 from csgnb.octree import kernels as K
@@ -1317,8 +1316,7 @@ class Workpiece:
 
     def model_volume(self) -> Fraction:
         """Exact volume in model units cubed (the grid scale is a power of two)."""
-        # the grid's scale is 2**exponent: a shift of the exact value, no gcd of its (possibly huge) parts
-        return times_power_of_two(self.volume(), -3 * self.grid.exponent)
+        return self.grid.model_volume(self.volume())
 
     def surface(self, *, merged: bool = False) -> BoundarySurface:
         """The exact, closed, conforming boundary (faces between solid cells removed, no T-junctions).
