@@ -43,8 +43,8 @@ def test_quantize_refuses_bad_input():
 
 @given(num=st.integers(-(2**300), 2**300), den=st.integers(1, 2**300), exponent=st.integers(-1100, 1100))
 def test_grid_volumes_in_model_units_are_the_exact_quotient(num, den, exponent):
-    """``Grid.model_volume`` (a shift: the scale is 2**exponent) equals volume / scale**3 in exact arithmetic, also where
-    the scale as a double would be inf (exponent > 1023) or underflow."""
+    """``Grid.model_volume`` (a shift: the scale is 2**exponent) equals volume / scale**3 in exact arithmetic, also
+    where the scale as a double would be inf (exponent > 1023) or underflow."""
     from fractions import Fraction
 
     from csgnb.exact import Grid
@@ -53,3 +53,11 @@ def test_grid_volumes_in_model_units_are_the_exact_quotient(num, den, exponent):
     volume = Fraction(num, den)
     assert grid.model_volume(volume) == volume / Fraction(2) ** (3 * exponent)
     assert grid.model_volume(num) == Fraction(num) / Fraction(2) ** (3 * exponent)
+
+
+def test_grid_model_volume_refuses_inexact_volumes():
+    from csgnb.exact import Grid
+
+    for bad in (1.5, float("nan"), "abc", None):
+        with pytest.raises(TypeError, match="exact volume"):
+            Grid(1.0).model_volume(bad)

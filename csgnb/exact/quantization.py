@@ -151,8 +151,12 @@ class Grid:
 
         The scale is ``2**exponent``, so this is a shift of the exact value (``times_power_of_two``): no gcd of its
         parts, which run to millions of bits for a 256-bit part carved by float meshes, and no double of the scale
-        (``inf`` beyond 2**1023).
+        (``inf`` beyond 2**1023). Anything but an exact rational (a float, a string) is refused: a float volume
+        would already have lost what this keeps.
         """
+        if not isinstance(volume, numbers.Rational):
+            raise TypeError(f"model_volume needs an exact volume (a Fraction or an int in grid units cubed, as "
+                            f"Workpiece.volume() gives), got {type(volume).__name__} {volume!r:.40}")
         return times_power_of_two(Fraction(volume), -3 * self.exponent)
 
     @property
