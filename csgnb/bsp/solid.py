@@ -58,6 +58,12 @@ def SYMMETRIC_DIFFERENCE(a: int, b: int) -> int:  # noqa: N802
     return (a or b) if not (a and b) else 0
 
 
+# Functions of the two labels alone: csgnb.bsp.merging.merge_table tabulates each once per label range.
+for _fn in (UNION, INTERSECTION, DIFFERENCE, SYMMETRIC_DIFFERENCE):
+    _fn.pure_label_function = True
+del _fn
+
+
 def _non_negative(value, name: str) -> int:
     v = exact_int(value, name)
     if v < 0:
