@@ -38,9 +38,10 @@ def grown(arr: np.ndarray, rows: int | None = None, fill=None) -> np.ndarray:
     New rows are uninitialised unless ``fill`` is given: kernels write rows before they read them.
     """
     size = max(2 * arr.shape[0], int(rows or 0), 16)
-    out = np.empty((size,) + arr.shape[1:], arr.dtype) if fill is None else np.full((size,) + arr.shape[1:], fill,
-                                                                                     arr.dtype)
+    out = np.empty((size,) + arr.shape[1:], arr.dtype)
     out[: arr.shape[0]] = arr
+    if fill is not None:
+        out[arr.shape[0]:] = fill  # the new rows only: the old ones are copied over
     return out
 
 

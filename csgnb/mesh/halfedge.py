@@ -633,7 +633,8 @@ def _classify_rows(vx, rows, palette, plane) -> np.ndarray:
 def _grown(arr: np.ndarray, rows: int, fill=None) -> np.ndarray:
     """A copy of ``arr`` with ``rows`` rows; the new rows hold ``fill``, or are uninitialised when it is None
     (free lists only: they are written before they are read)."""
-    shape = (rows,) + arr.shape[1:]
-    out = np.empty(shape, arr.dtype) if fill is None else np.full(shape, fill, arr.dtype)
+    out = np.empty((rows,) + arr.shape[1:], arr.dtype)
     out[: arr.shape[0]] = arr
+    if fill is not None:
+        out[arr.shape[0]:] = fill  # the new rows only: the old ones are copied over
     return out
