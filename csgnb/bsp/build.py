@@ -265,7 +265,8 @@ def bsp_from_polygons(palette: np.ndarray, polygons: PolygonSet, *, seed: int = 
     remap = np.full(palette.shape[0], -1, np.int32)
     remap[used] = np.arange(used.shape[0], dtype=np.int32)
     plane = np.where(inner, remap[np.maximum(plane, 0)], -1).astype(np.int32)
-    return BSPTree(np.ascontiguousarray(palette[used]), plane, neg, pos, lab)
+    # built here, valid by construction (its palette was checked with the polygons): not re-validated
+    return BSPTree(np.ascontiguousarray(palette[used]), plane, neg, pos, lab, validate=False)
 
 
 # ---------------------------------------------------------------------------
