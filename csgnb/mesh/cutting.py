@@ -89,11 +89,11 @@ def _side(m, v, s):
     """Cached exact side (-1, 0, +1) of vertex ``v`` against palette plane ``s`` in this cut."""
     counts = m.counts
     stamp = counts[STAMP]
-    mk = m.vmark[v]
+    mk = m.vmark[np.uint64(v)]  # unsigned row indices here and below: numba wraps a signed one around
     if (mk >> 2) == stamp:
         return (mk & 3) - 1
     side = np.int64(plane_value_into(m.vx, v, m.palette, s, m.vdot, v))
-    m.vmark[v] = stamp * 4 + side + 1
+    m.vmark[np.uint64(v)] = stamp * 4 + side + 1
     counts[N_CLASSIFY] += 1
     return side
 
@@ -120,7 +120,7 @@ def _descend(m, h0, s, path):
     ``value`` is the side (+1/-1) the polytope lies on.
     """
     he = m.he
-    v = np.int64(he[h0, VERT])
+    v = np.int64(he[np.uint64(h0), VERT])
     hv = h0
     _record(path, v)
     sv = _side(m, v, s)
@@ -168,7 +168,7 @@ def _descend(m, h0, s, path):
             # A global minimum of sign0 * f on the polytope, at distance >= 0.
             return 0, sign0
         v = halfedge_dest(he, best)
-        hv = np.int64(he[best, TWIN])  # runs from the new v back: an outgoing half-edge of v
+        hv = np.int64(he[np.uint64(best), TWIN])  # runs from the new v back: an outgoing half-edge of v
         _record(path, v)
         sv = _side(m, v, s)
 
@@ -241,7 +241,7 @@ def _march_and_separate(m, z0, hz0, s, opp_neg, opp_pos):
             # Walk G from b to its other on-plane point (Figure 4a: split an edge there).
             e = r
             while _side(m, halfedge_dest(he, e), s) > 0:
-                e = np.int64(he[e, NEXT])
+                e = np.int64(he[np.uint64(e), NEXT])
             if _side(m, halfedge_dest(he, e), s) < 0:
                 _split_edge(m, e, s)
             w = halfedge_dest(he, e)
@@ -262,8 +262,8 @@ def _march_and_separate(m, z0, hz0, s, opp_neg, opp_pos):
             he[prev_r, NEXT] = d2
             k = r
             while k != d1:
-                he[k, FACE] = g_plus
-                k = np.int64(he[k, NEXT])
+                he[np.uint64(k), FACE] = g_plus
+                k = np.int64(he[np.uint64(k), NEXT])
             fc[g_plus, PLANE] = fc[g, PLANE]
             fc[g_plus, HE] = r
             fc[g_plus, OPP] = fc[g, OPP]
@@ -291,7 +291,7 @@ def _march_and_separate(m, z0, hz0, s, opp_neg, opp_pos):
         h = _rot(he, loop[i, LOOP_H])
         zc = loop[i, LOOP_C]
         while True:
-            he[h, VERT] = zc
+            he[np.uint64(h), VERT] = zc
             if h == stop:
                 break
             h = _rot(he, h)

@@ -166,12 +166,13 @@ _INT64_CORNER = 1 << 62
 @jit(inline="always")
 def _rot(he, h):
     """The next outgoing half-edge around the origin of ``h``."""
-    return he[he[h, TWIN], NEXT]
+    # Unsigned row indices: numba wraps a signed index around (sar, and, add on every hop of a walk).
+    return he[np.uint64(he[np.uint64(h), TWIN]), NEXT]
 
 
 @jit(inline="always")
 def halfedge_dest(he, h):
-    return he[he[h, NEXT], VERT]
+    return he[np.uint64(he[np.uint64(h), NEXT]), VERT]
 
 
 @jit(inline="always")
@@ -295,11 +296,11 @@ def collect_cell_halfedges(he, hmark, counts, h0, out):
     n = 1
     i = 0
     while i < n:
-        h = out[i]
+        h = np.uint64(out[i])  # unsigned: no wrap-around of a negative index on every step of the walk
         i += 1
         for g in (he[h, NEXT], he[h, TWIN]):
-            if hmark[g] != stamp:
-                hmark[g] = stamp
+            if hmark[np.uint64(g)] != stamp:
+                hmark[np.uint64(g)] = stamp
                 out[n] = g
                 n += 1
     return n
