@@ -191,10 +191,11 @@ def clip_face(m, f, lab, tree, sc, out):
     while True:
         if k >= rows.shape[0]:
             return False
-        rows[k] = he[g, VERT]
-        edges[k] = face_plane_row(fc, he[he[g, TWIN], FACE])
+        # unsigned row indices: numba wraps a signed one around on every step of the walk
+        rows[k] = he[np.uint64(g), VERT]
+        edges[k] = face_plane_row(fc, he[np.uint64(he[np.uint64(g), TWIN]), FACE])
         k += 1
-        g = np.int64(he[g, NEXT])
+        g = np.int64(he[np.uint64(g), NEXT])
         if g == fc[f, HE]:
             break
     o = fc[f, OPP]
@@ -321,8 +322,8 @@ def clip_cell(m, h, lab, tree, sc, out, walls):
     nh = collect_cell_halfedges(m.he, m.hmark, m.counts, h, sc.work)
     for i in range(nh):
         g = np.int64(sc.work[i])
-        f = np.int64(m.he[g, FACE])
-        if m.fc[f, HE] != g:
+        f = np.int64(m.he[np.uint64(g), FACE])
+        if m.fc[np.uint64(f), HE] != g:
             continue
         if not walls and m.fc[f, OPP] < 0:
             continue

@@ -177,7 +177,7 @@ def halfedge_dest(he, h):
 
 @jit(inline="always")
 def face_plane_row(fc, f):
-    p = fc[f, PLANE]
+    p = fc[np.uint64(f), PLANE]
     return p if p >= 0 else ~p
 
 
