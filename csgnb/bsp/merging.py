@@ -72,18 +72,20 @@ def merge_cells(m, a, b, b_offset, table, constant, stack, state, o, cells, no_p
     filtering = boxes.shape[0] > stack.shape[0] and not naive
     while state[0] > 0:
         top = state[0] - 1
-        in_b = stack[top, _TREE] == 1
-        node = stack[top, _NODE]
-        h = stack[top, _HANDLE]
-        bound = stack[top, _BOUND]
-        out = stack[top, _OUT]
-        plane = b.plane[node] if in_b else a.plane[node]
+        ut = np.uint64(top)  # unsigned row indices: numba wraps a signed one around on every access
+        in_b = stack[ut, _TREE] == 1
+        node = stack[ut, _NODE]
+        un = np.uint64(node)
+        h = stack[ut, _HANDLE]
+        bound = stack[ut, _BOUND]
+        out = stack[ut, _OUT]
+        plane = b.plane[un] if in_b else a.plane[un]
         if plane < 0:
             if in_b:
-                la = stack[top, _ALABEL]
-                lab = table[la, b.label[node]]
+                la = stack[ut, _ALABEL]
+                lab = table[la, b.label[un]]
             else:
-                la = a.label[node]
+                la = a.label[un]
                 if constant[la] < 0:
                     stack[top, _TREE] = 1  # walk the cell through B
                     stack[top, _NODE] = 0
