@@ -44,6 +44,7 @@ from typing import NamedTuple
 import numpy as np
 
 from csgnb._jit import jit
+from csgnb._resumable import grown
 from csgnb._views import unmanaged_tuple
 from csgnb.errors import GeometryError
 from csgnb.exact.budgets import budget, check_planes
@@ -107,19 +108,19 @@ def grown_mesh_arrays(m: MeshArrays, vertices: int, halfedges: int, faces: int, 
     pal, vx, vdot, vmark, free_v = m.palette, m.vx, m.vdot, m.vmark, m.free_v
     he, hmark, free_h, fc, free_f, lp = m.he, m.hmark, m.free_h, m.fc, m.free_f, m.loop
     if c[NP] + planes > pal.shape[0]:
-        pal = _grown(pal, max(2 * pal.shape[0], int(c[NP]) + planes))
+        pal = grown(pal, max(2 * pal.shape[0], int(c[NP]) + planes))
     if c[NV] - c[FREE_V] + vertices > vx.shape[0]:
         size = max(2 * vx.shape[0], int(c[NV] - c[FREE_V]) + vertices)
         # New rows of the stamp arrays must hold no stamp: a traversal or classification cache that
         # met a leftover value equal to a future stamp would skip a half-edge or reuse a stale side.
-        vx, vdot, vmark = _grown(vx, size, 0), _grown(vdot, size, 0), _grown(vmark, size, 0)
-        free_v = _grown(free_v, size)
+        vx, vdot, vmark = grown(vx, size, 0), grown(vdot, size, 0), grown(vmark, size, 0)
+        free_v = grown(free_v, size)
     if c[NH] - c[FREE_H] + halfedges > he.shape[0]:
         size = max(2 * he.shape[0], int(c[NH] - c[FREE_H]) + halfedges)
-        he, hmark, free_h = _grown(he, size, -1), _grown(hmark, size, 0), _grown(free_h, size)
+        he, hmark, free_h = grown(he, size, -1), grown(hmark, size, 0), grown(free_h, size)
     if c[NF] - c[FREE_F] + faces > fc.shape[0]:
         size = max(2 * fc.shape[0], int(c[NF] - c[FREE_F]) + faces)
-        fc, free_f = _grown(fc, size, -1), _grown(free_f, size)
+        fc, free_f = grown(fc, size, -1), grown(free_f, size)
     if loop > lp.shape[0]:
         lp = np.empty((max(2 * lp.shape[0], loop), 5), np.int64)
     return MeshArrays(pal, vx, vdot, vmark, he, hmark, fc, c, free_v, free_h, free_f, lp)
@@ -629,13 +630,3 @@ def _classify_rows(vx, rows, palette, plane) -> np.ndarray:
     out = np.empty(len(rows), np.int8)
     _classify_rows_kernel(vx, np.asarray(rows, np.int64), palette, int(plane), out)
     return out.astype(np.int64)
-
-
-def _grown(arr: np.ndarray, rows: int, fill=None) -> np.ndarray:
-    """A copy of ``arr`` with ``rows`` rows; the new rows hold ``fill``, or are uninitialised when it is None
-    (free lists only: they are written before they are read)."""
-    out = np.empty((rows,) + arr.shape[1:], arr.dtype)
-    out[: arr.shape[0]] = arr
-    if fill is not None:
-        out[arr.shape[0]:] = fill  # the new rows only: the old ones are copied over
-    return out
