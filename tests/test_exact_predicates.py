@@ -9,8 +9,15 @@ from hypothesis import strategies as st
 
 from csgnb import GeometryError, PrecisionError, exact
 from csgnb._jit import jit
-from csgnb.exact import budget, integer_root
-from csgnb.exact.intrinsics import compare_cached_values_at, cross_sign, plane_side_sign, wide_filter_double_at
+from csgnb.exact import budget, integer_root, intrinsics
+from csgnb.exact.intrinsics import (
+    compare_cached_values_at,
+    compare_filtered_values_at,
+    cross_sign,
+    plane_side_sign,
+    plane_value_filtered_into,
+    wide_filter_double_at,
+)
 from tests.exact_reference import cross, det3, side, solve_3_planes
 
 WIDTHS = exact.WIDTHS
@@ -426,6 +433,43 @@ def test_distance_comparison_is_the_sign_of_the_exact_difference(width, data):
     out = np.zeros(n, np.int8)
     _compare_all(D, X, np.arange(n), np.arange(n) + n, out)
     assert out.tolist() == [_reference_compare(*c) for c in cases]
+
+
+@jit
+def _classify_and_compare_filtered(X, S, D, F, iu, iv, sides, out):
+    for k in range(X.shape[0]):
+        sides[k] = plane_value_filtered_into(X, k, S, 0, D, k, F)
+    for k in range(iu.shape[0]):
+        out[k] = compare_filtered_values_at(D, F, iu[k], iv[k], X)
+
+
+@settings(max_examples=300)
+@given(width=widths, data=st.data())
+def test_distance_comparison_from_kept_filter_doubles_is_exact(width, data):
+    """The cut's classification keeps x·s and the filter doubles of x·s and x4 (``plane_value_filtered_into``);
+    ``compare_filtered_values_at`` decides from them: the same signs as the exact products (Python ints) over the
+    whole width, the same doubles ``compare_cached_values_at`` converts (so the same close calls go exact)."""
+    cases = data.draw(st.lists(quotient_pairs(width), min_size=1, max_size=16))
+    n = len(cases)
+    # vertices (d, 0, 0, w) against the plane x1 = 0: x·s = d exactly
+    X = exact.to_wide([[c[0], 0, 0, c[1]] for c in cases] + [[c[2], 0, 0, c[3]] for c in cases], width)
+    S = exact.to_wide([[1, 0, 0, 0]], width)
+    D = exact.to_wide([0] * (2 * n), width)
+    F = np.full((2 * n, 2), np.nan)
+    sides, out = np.zeros(2 * n, np.int8), np.zeros(n, np.int8)
+    _classify_and_compare_filtered(X, S, D, F, np.arange(n), np.arange(n) + n, sides, out)
+    values = [(c[0], c[1]) for c in cases] + [(c[2], c[3]) for c in cases]
+    assert exact.from_wide(D).tolist() == [d for d, _ in values]
+    assert sides.tolist() == [((d > 0) - (d < 0)) * ((w > 0) - (w < 0)) for d, w in values]
+    if width >= intrinsics.FILTER_COMPARISONS_FROM_BITS:
+        converted = np.zeros(2 * n), np.zeros(2 * n)
+        _filter_doubles(D.reshape(-1, 1) if D.ndim == 1 else D, converted[0])
+        _filter_doubles(np.ascontiguousarray(X[:, 3:4]), converted[1])
+        assert F[:, 0].tobytes() == converted[0].tobytes() and F[:, 1].tobytes() == converted[1].tobytes()
+    assert out.tolist() == [_reference_compare(*c) for c in cases]
+    reference = np.zeros(n, np.int8)
+    _compare_all(D, X, np.arange(n), np.arange(n) + n, reference)
+    assert out.tolist() == reference.tolist()
 
 
 @jit

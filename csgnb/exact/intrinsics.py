@@ -49,6 +49,8 @@ __all__ = [
     "compare_plane_values_at",
     "plane_value_into",
     "compare_cached_values_at",
+    "compare_filtered_values_at",
+    "plane_value_filtered_into",
     "wide_sign_at",
     "wide_to_float_at",
     "wide_filter_double_at",
@@ -401,6 +403,74 @@ def compare_cached_values_at(typingctx, D, iu, iv, X):
         return lw.quotient_difference_sign(builder, du, wu, dv, wv, exact)
 
     return types.int8(D, iu, iv, X), codegen
+
+
+def _float_pair_pointers(context, builder, aty, aval, row, row_ty):
+    """Pointers to F[row, 0] and F[row, 1] of a C-contiguous (n, 2) float64 array."""
+    base = builder.bitcast(lw.row_pointer(context, builder, aty, aval, row, row_ty), F64.as_pointer())
+    return base, builder.gep(base, [ir.Constant(I64, 1)])
+
+
+def _filter_doubles_array(F, name):
+    if not (isinstance(F, types.Array) and F.dtype == types.float64 and F.ndim == 2 and F.layout == "C"):
+        raise TypingError(f"{name}: expected a C-contiguous (n, 2) float64 array of filter doubles, got {F}")
+
+
+@intrinsic
+def plane_value_filtered_into(typingctx, X, i, S, j, out, io, F):
+    """:func:`plane_value_into`, also keeping ``F[io] = (d, w)``: the filter doubles of x·s and of x4.
+
+    ``F`` is a C-contiguous (n, 2) float64 array beside ``out``; :func:`compare_filtered_values_at` reads it instead
+    of converting the wide values again at every comparison (doubles are written only from
+    :data:`FILTER_COMPARISONS_FROM_BITS`, the widths that compare through them).
+    """
+    bits = lw.same_width("plane_value_filtered_into", X, S, out)
+    T = _T(bits)
+    _filter_doubles_array(F, "plane_value_filtered_into")
+
+    def codegen(context, builder, sig, args):
+        x = lw.load_row(context, builder, sig.args[0], args[0], args[1], sig.args[1], T, 4)
+        s = lw.load_plane(context, builder, sig.args[2], args[2], args[3], sig.args[3])
+        value = lw.plane_dot(builder, x, s, T)
+        lw.store_row(context, builder, sig.args[4], args[4], args[5], sig.args[5], T, [value])
+        if bits >= FILTER_COMPARISONS_FROM_BITS:
+            pd, pw = _float_pair_pointers(context, builder, sig.args[6], args[6], args[5], sig.args[5])
+            builder.store(lw.filter_double(builder, value), pd, align=8)
+            builder.store(lw.filter_double(builder, x[3]), pw, align=8)
+        return builder.mul(lw.sign(builder, value), lw.sign(builder, x[3]))
+
+    return types.int8(X, i, S, j, out, io, F), codegen
+
+
+@intrinsic
+def compare_filtered_values_at(typingctx, D, F, iu, iv, X):
+    """:func:`compare_cached_values_at` with the filter doubles :func:`plane_value_filtered_into` kept in ``F``.
+
+    The same sign, decided the same way: the doubles are the ones :func:`compare_cached_values_at` would compute,
+    the same bound, the exact products for the same close calls.
+    """
+    bits = lw.same_width("compare_filtered_values_at", D, X)
+    T = _T(bits)
+    T2 = _T(2 * bits)
+    _filter_doubles_array(F, "compare_filtered_values_at")
+
+    def codegen(context, builder, sig, args):
+        def exact(builder):
+            du = lw.load_row(context, builder, sig.args[0], args[0], args[2], sig.args[2], T, 1)[0]
+            dv = lw.load_row(context, builder, sig.args[0], args[0], args[3], sig.args[3], T, 1)[0]
+            wu = lw.load(builder, lw.row_pointer(context, builder, sig.args[4], args[4], args[2], sig.args[2]), 3, T)
+            wv = lw.load(builder, lw.row_pointer(context, builder, sig.args[4], args[4], args[3], sig.args[3]), 3, T)
+            diff = builder.sub(lw.mul_exact(builder, du, wv, T2), lw.mul_exact(builder, dv, wu, T2))
+            return builder.mul(builder.mul(lw.sign(builder, diff), lw.sign(builder, wu)), lw.sign(builder, wv))
+
+        if bits < FILTER_COMPARISONS_FROM_BITS:
+            return exact(builder)
+        pdu, pwu = _float_pair_pointers(context, builder, sig.args[1], args[1], args[2], sig.args[2])
+        pdv, pwv = _float_pair_pointers(context, builder, sig.args[1], args[1], args[3], sig.args[3])
+        fdu, fwu, fdv, fwv = (builder.load(p, align=8) for p in (pdu, pwu, pdv, pwv))
+        return lw.quotient_difference_sign_of_doubles(builder, fdu, fwu, fdv, fwv, exact)
+
+    return types.int8(D, F, iu, iv, X), codegen
 
 
 # ---------------------------------------------------------------------------

@@ -354,6 +354,12 @@ def quotient_difference_sign(builder, a, b, c, d, exact):
     bounds hold. Products, not quotients: two multiplications instead of two divisions (~4 vs ~13 cycles of latency).
     """
     fa, fb, fc, fd = (filter_double(builder, v) for v in (a, b, c, d))
+    return quotient_difference_sign_of_doubles(builder, fa, fb, fc, fd, exact)
+
+
+def quotient_difference_sign_of_doubles(builder, fa, fb, fc, fd, exact):
+    """:func:`quotient_difference_sign` from the :func:`filter_double` values of a, b, c, d (computed before, e.g.
+    kept beside the integers): the same decisions, the same close calls sent to ``exact(builder)``."""
     p = builder.fmul(fa, fd)
     q = builder.fmul(fc, fb)
     diff = builder.fsub(p, q)

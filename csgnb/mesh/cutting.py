@@ -5,8 +5,8 @@ in place, each closed by a new face on the cutting plane (Figure 3):
 
 1. *Edge descent* from the handle's vertex: move to the neighbour that is strictly
    closer to the plane (exact comparison of (x·s)/x4 from the dot products cached by the
-   classification, :func:`compare_cached_values_at`: doubles decide where they certainly can,
-   the products at twice the width the close calls)
+   classification, :func:`compare_filtered_values_at`: doubles, converted once per vertex
+   and cut, decide where they certainly can, the products at twice the width the close calls)
    until a vertex on the far side of the plane is seen. A linear function on a convex
    polytope has no local minima, so a vertex without a closer neighbour is the global
    minimum: the plane then has no *proper* intersection (one part would have zero
@@ -35,7 +35,7 @@ import numpy as np
 from csgnb._jit import borrowing_jit, jit
 from csgnb._views import unmanaged, unmanaged_tuple
 from csgnb.errors import GeometryError, InternalError
-from csgnb.exact.intrinsics import compare_cached_values_at, intersect_into, plane_value_into
+from csgnb.exact.intrinsics import compare_filtered_values_at, intersect_into, plane_value_filtered_into
 from csgnb.mesh.halfedge import (
     FACE,
     HE,
@@ -92,7 +92,7 @@ def _side(m, v, s):
     mk = m.vmark[np.uint64(v)]  # unsigned row indices here and below: numba wraps a signed one around
     if (mk >> 2) == stamp:
         return (mk & 3) - 1
-    side = np.int64(plane_value_into(m.vx, v, m.palette, s, m.vdot, v))
+    side = np.int64(plane_value_filtered_into(m.vx, v, m.palette, s, m.vdot, v, m.vdf))
     m.vmark[np.uint64(v)] = stamp * 4 + side + 1
     counts[N_CLASSIFY] += 1
     return side
@@ -158,8 +158,8 @@ def _descend(m, h0, s, path):
                 if best < 0 or best_side != 0:
                     best = h
                     best_side = 0
-            elif best_side != 0 and sign0 * compare_cached_values_at(m.vdot, u, v, m.vx) < 0:
-                if best < 0 or sign0 * compare_cached_values_at(m.vdot, u, halfedge_dest(he, best), m.vx) < 0:
+            elif best_side != 0 and sign0 * compare_filtered_values_at(m.vdot, m.vdf, u, v, m.vx) < 0:
+                if best < 0 or sign0 * compare_filtered_values_at(m.vdot, m.vdf, u, halfedge_dest(he, best), m.vx) < 0:
                     best = h
             h = _rot(he, h)
             if h == hv:
