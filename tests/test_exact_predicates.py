@@ -11,6 +11,7 @@ from csgnb import GeometryError, PrecisionError, exact
 from csgnb._jit import jit
 from csgnb.exact import budget, integer_root, intrinsics
 from csgnb.exact.intrinsics import (
+    box_plane_sides,
     compare_cached_values_at,
     compare_filtered_values_at,
     cross_sign,
@@ -470,6 +471,41 @@ def test_distance_comparison_from_kept_filter_doubles_is_exact(width, data):
     reference = np.zeros(n, np.int8)
     _compare_all(D, X, np.arange(n), np.arange(n) + n, reference)
     assert out.tolist() == reference.tolist()
+
+
+@jit
+def _box_sides_all(corners, sizes, planes, out):
+    for k in range(corners.shape[0]):
+        out[k] = box_plane_sides(corners, k, sizes[k], planes, k)
+
+
+@settings(max_examples=300)
+@given(width=widths, data=st.data())
+def test_box_plane_sides_are_the_corners_signs(width, data):
+    """``box_plane_sides`` (a cell box against a convex tool's face plane, from its two extreme corners) against the
+    eight corners' n·v + d in Python ints: boxes up to the int64 range, normals and offsets over the whole width
+    (every corner value fitting it, as the budget guarantees), values on the plane, planes through a corner."""
+    top = (1 << (width - 1)) - 1
+    cases = []
+    for _ in range(data.draw(st.integers(1, 12))):
+        e = data.draw(st.integers(0, 61))
+        size = 1 << e
+        lo = [data.draw(st.integers(-(1 << 62), (1 << 62) - size)) for _ in range(3)]
+        n_bits = data.draw(st.sampled_from([1, 8, 46, 63, 64, width - 66]))
+        n = [data.draw(st.one_of(st.integers(-(1 << n_bits), 1 << n_bits), st.just(0))) for _ in range(3)]
+        corners = [[lo[c] + (size if k >> c & 1 else 0) for c in range(3)] for k in range(8)]
+        through = data.draw(st.integers(-1, 7))  # -1: an offset of any size; k: the plane through corner k
+        if through >= 0:
+            d = -sum(a * b for a, b in zip(n, corners[through], strict=True)) + data.draw(st.integers(-1, 1))
+        else:
+            d = data.draw(st.integers(-top // 2, top // 2))
+        values = [sum(a * b for a, b in zip(n, v, strict=True)) + d for v in corners]
+        assume(all(-top - 1 <= x <= top for x in values) and all(-top - 1 <= x <= top for x in n + [d]))
+        cases.append((lo, size, n + [d], values))
+    lows = np.array([c[0] for c in cases], np.int64)
+    out = np.zeros(len(cases), np.int8)
+    _box_sides_all(lows, np.array([c[1] for c in cases], np.int64), exact.to_wide([c[2] for c in cases], width), out)
+    assert out.tolist() == [int(min(v) < 0) | 2 * int(max(v) > 0) for *_, v in cases]
 
 
 @jit

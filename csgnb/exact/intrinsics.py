@@ -48,6 +48,7 @@ __all__ = [
     "points_equal_at",
     "compare_plane_values_at",
     "plane_value_into",
+    "box_plane_sides",
     "compare_cached_values_at",
     "compare_filtered_values_at",
     "plane_value_filtered_into",
@@ -266,6 +267,40 @@ def signed_distance_into(typingctx, pts, i, planes, j, out, io):
         return context.get_dummy_value()
 
     return types.none(pts, i, planes, j, out, io), codegen
+
+
+@intrinsic
+def box_plane_sides(typingctx, pts, i, size, planes, j):
+    """Which sides of plane ``planes[j]`` the corners of the cube ``pts[i] + [0, size]^3`` reach (``pts`` (n, 3) int64).
+
+    Returns int8 ``1`` (a corner strictly negative) ``| 2`` (a corner strictly positive). The linear function
+    n·v + d takes its extremes over the box at corners: at ``lo`` plus ``size`` times the negative (positive) normal
+    components, so ``min = n·lo + d + size·Σ min(n_k, 0)``, ``max = n·lo + d + size·Σ max(n_k, 0)``: five products
+    instead of the 24 of eight :func:`signed_distance_into` calls. Exact whenever those are: both values are corner
+    distances, and the arithmetic modulo ``2**width`` gives any value that fits exactly, whatever the partial sums.
+    """
+    lw.int_array(pts, "box_plane_sides")
+    T = _T(lw.same_width("box_plane_sides", planes, planes))
+
+    def codegen(context, builder, sig, args):
+        lo = lw.load_row(context, builder, sig.args[0], args[0], args[1], sig.args[1], I64, 3)
+        w = context.cast(builder, args[2], sig.args[2], types.int64)
+        s = lw.load_plane(context, builder, sig.args[3], args[3], args[4], sig.args[4])
+        base = builder.add(lw.dot(builder, lo, s[:3], T), lw.resize(builder, s[3], T))
+        zero = ir.Constant(T, 0)
+        low, high = zero, zero
+        for n in s[:3]:
+            n = lw.resize(builder, n, T)
+            negative = builder.icmp_signed("<", n, zero)
+            low = builder.add(low, builder.select(negative, n, zero))
+            high = builder.add(high, builder.select(negative, zero, n))
+        vmin = builder.add(base, lw.mul_exact(builder, w, low, T))
+        vmax = builder.add(base, lw.mul_exact(builder, w, high, T))
+        neg = builder.zext(builder.icmp_signed("<", vmin, zero), I8)
+        pos = builder.zext(builder.icmp_signed(">", vmax, zero), I8)
+        return builder.or_(neg, builder.shl(pos, ir.Constant(I8, 1)))
+
+    return types.int8(pts, i, size, planes, j), codegen
 
 
 @intrinsic

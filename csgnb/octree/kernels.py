@@ -51,7 +51,7 @@ from csgnb.bsp.build import build_kernel
 from csgnb.bsp.extract import PIECES, TreeArrays, clip_cell, extract_into
 from csgnb.bsp.merging import CHANGED, merge_cells, merge_changes_a
 from csgnb.bsp.polygon import classify_polygon, copy_point, negative_piece_into
-from csgnb.exact.intrinsics import classify_at, signed_distance_into, wide_sign_at
+from csgnb.exact.intrinsics import box_plane_sides, classify_at, wide_sign_at
 from csgnb.exact.wide_store import store_int64_at
 from csgnb.mesh.float_box import cell_float_box
 from csgnb.mesh.halfedge import FREE_F, FREE_H, FREE_V, NF, NH, NV, add_box_cell
@@ -260,20 +260,15 @@ def classify_perturbed(pal, t, pt):
 
 
 @jit(inline="always")
-def _corner_signs(pal, row, corners, dist):
-    """(any corner strictly negative, any strictly positive) of the 8 box corners against palette ``row``."""
-    neg = False
-    pos = False
-    for k in range(8):
-        signed_distance_into(corners, k, pal, row, dist, 0)
-        s = wide_sign_at(dist, 0, 0)
-        neg = neg or s < 0
-        pos = pos or s > 0
-    return neg, pos
+def _corner_signs(pal, row, corners):
+    """(any corner strictly negative, any strictly positive) of the box ``corners`` (:func:`_box_corners`: corner 0
+    is lo, corner 7 lo + size) against palette ``row``: from the two extreme corners (``box_plane_sides``)."""
+    sides = box_plane_sides(corners, 0, corners[7, 0] - corners[0, 0], pal, row)
+    return (sides & 1) != 0, (sides & 2) != 0
 
 
 @jit(inline="always")
-def convex_tool_in_box(pal, rows, corners, dist, tb):
+def convex_tool_in_box(pal, rows, corners, tb):
     """Localise a convex tool (outward palette ``rows``) to the box with ``corners``.
 
     Returns (relation, nodes): relation 0 = the box interior is outside the tool, 1 = inside,
@@ -282,7 +277,7 @@ def convex_tool_in_box(pal, rows, corners, dist, tb):
     """
     k = 0
     for i in range(rows.shape[0]):
-        neg, pos = _corner_signs(pal, rows[i], corners, dist)
+        neg, pos = _corner_signs(pal, rows[i], corners)
         if not neg:
             return 0, 0  # the whole box is on the outer side of a face plane
         if pos:
@@ -294,7 +289,7 @@ def convex_tool_in_box(pal, rows, corners, dist, tb):
         return 2, -1
     j = 0
     for i in range(rows.shape[0]):
-        neg, pos = _corner_signs(pal, rows[i], corners, dist)
+        neg, pos = _corner_signs(pal, rows[i], corners)
         if neg and pos:
             node = 2 * j
             tb.plane[node] = rows[i]
@@ -705,7 +700,7 @@ def boolean_cell(pal, oc, pool, amap, node, tool_kind, tool, cand, table, consta
     relation = 2
     nb = 0
     if tool_kind == CONVEX_TOOL:
-        relation, nb = convex_tool_in_box(pal, tool.rows, ws.corners, ws.dist, ws.tb)
+        relation, nb = convex_tool_in_box(pal, tool.rows, ws.corners, ws.tb)
         if nb < 0:
             need[0] = R_TREE_B
             return 0

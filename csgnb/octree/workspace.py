@@ -117,7 +117,6 @@ class Workspace(NamedTuple):
     box: np.ndarray
     corners: np.ndarray
     axis3: np.ndarray
-    dist: np.ndarray
     point: np.ndarray
     cells: np.ndarray
     merge_stack: np.ndarray
@@ -134,7 +133,7 @@ def unmanaged_workspace(ws):
     return Workspace(unmanaged_tuple(ws.m), unmanaged_tuple(ws.sc), unmanaged_tuple(ws.out), unmanaged_tuple(ws.bi),
                      unmanaged_tuple(ws.bs), unmanaged_tuple(ws.arena), unmanaged_tuple(ws.ta),
                      unmanaged_tuple(ws.tb), unmanaged_tuple(ws.to), unmanaged_tuple(ws.tr), unmanaged(ws.box),
-                     unmanaged(ws.corners), unmanaged(ws.axis3), unmanaged(ws.dist), unmanaged(ws.point),
+                     unmanaged(ws.corners), unmanaged(ws.axis3), unmanaged(ws.point),
                      unmanaged(ws.cells), unmanaged(ws.merge_stack), unmanaged(ws.merge_state),
                      unmanaged(ws.merge_boxes), unmanaged(ws.ext_stack), unmanaged(ws.ext_state), unmanaged(ws.path))
 
@@ -165,7 +164,7 @@ def new_workspace(palette: np.ndarray, threshold: int) -> Workspace:
         arena=ToolArena(np.zeros(3 * 64, np.int32), np.zeros((3 * 64, 4), dtype), np.zeros(64, np.int8)),
         ta=new_tree_arrays(8 * t), tb=new_tree_arrays(8 * t), to=new_tree_arrays(64 * t), tr=new_tree_arrays(32 * t),
         box=np.zeros(6, np.int64), corners=np.zeros((8, 3), np.int64), axis3=np.zeros(3, np.int64),
-        dist=np.zeros(1, dtype), point=np.zeros((1, 4), dtype),
+        point=np.zeros((1, 4), dtype),
         cells=np.zeros((64 * t, 2), np.int64), merge_stack=np.zeros((16 * t, 6), np.int64),
         merge_state=np.zeros(7, np.int64), merge_boxes=np.zeros((16 * t + 1, BOX_COLUMNS)),
         ext_stack=np.zeros((16 * t, 3), np.int64), ext_state=np.zeros(4, np.int64),
