@@ -115,17 +115,33 @@ def build_kernel(palette, support, offsets, edges, verts, order, label,
                     break
                 # Most visits pass a piece down one side: classify inline (an intrinsic, no
                 # call) and call the splitter, whose array arguments cost reference
-                # counting, only for proper splits.
+                # counting, only for proper splits. (Passing it the sides found here instead of
+                # classifying again measured 3 % slower on the drill's steps.)
                 q = plane[node]
-                has_neg = False
-                has_pos = False
-                for j in range(start, start + k):
-                    c = classify_at(a_verts, j, palette, q)
-                    if c < 0:
-                        has_neg = True
-                    elif c > 0:
-                        has_pos = True
-                side = 2 if has_neg and has_pos else (-1 if has_neg else (1 if has_pos else 0))
+                side = 9  # not decided yet
+                if q == row:
+                    side = 0  # the piece's own support
+                else:
+                    # A piece with an edge on q (a neighbour's support, met often: the surface is closed) lies on
+                    # one closed side of it (convex); vertex j is support ∩ edge j ∩ edge j + 1, so edge j holds
+                    # vertices j - 1 and j, and vertex j + 1 decides, unless it is on q too (collinear corners).
+                    for j in range(start, start + k):
+                        if a_edges[j] == q:
+                            after = j + 1 if j + 1 < start + k else start
+                            side = classify_at(a_verts, after, palette, q)
+                            if side == 0:
+                                side = 9
+                            break
+                if side == 9:
+                    has_neg = False
+                    has_pos = False
+                    for j in range(start, start + k):
+                        c = classify_at(a_verts, j, palette, q)
+                        if c < 0:
+                            has_neg = True
+                        elif c > 0:
+                            has_pos = True
+                    side = 2 if has_neg and has_pos else (-1 if has_neg else (1 if has_pos else 0))
                 if side == 2:
                     o_pos = start + k
                     o_neg = start + 2 * k + 1
