@@ -45,7 +45,7 @@ PAPER_BYTES_PER_NODE = (600, 850)
 EXTENT = 64
 OPS = {"union": UNION, "intersection": INTERSECTION, "difference": DIFFERENCE}
 # The store's arrays by the count of rows in use (the others -- counts, the loop scratch -- count whole).
-_ROWS_IN_USE = {"palette": NP, "vx": NV, "vdot": NV, "vmark": NV, "free_v": NV, "he": NH, "hmark": NH, "free_h": NH,
+_ROWS_IN_USE = {"palette": NP, "vx": NV, "vdf": NV, "vmark": NV, "free_v": NV, "he": NH, "hmark": NH, "free_h": NH,
                 "fc": NF, "free_f": NF}
 
 

@@ -437,34 +437,34 @@ def test_distance_comparison_is_the_sign_of_the_exact_difference(width, data):
 
 
 @jit
-def _classify_and_compare_filtered(X, S, D, F, iu, iv, sides, out):
+def _classify_and_compare_filtered(X, S, F, iu, iv, sides, out):
     for k in range(X.shape[0]):
-        sides[k] = plane_value_filtered_into(X, k, S, 0, D, k, F)
+        sides[k] = plane_value_filtered_into(X, k, S, 0, F)
     for k in range(iu.shape[0]):
-        out[k] = compare_filtered_values_at(D, F, iu[k], iv[k], X)
+        out[k] = compare_filtered_values_at(F, iu[k], iv[k], X, S, 0)
 
 
 @settings(max_examples=300)
 @given(width=widths, data=st.data())
 def test_distance_comparison_from_kept_filter_doubles_is_exact(width, data):
-    """The cut's classification keeps x·s and the filter doubles of x·s and x4 (``plane_value_filtered_into``);
-    ``compare_filtered_values_at`` decides from them: the same signs as the exact products (Python ints) over the
-    whole width, the same doubles ``compare_cached_values_at`` converts (so the same close calls go exact)."""
+    """The cut's classification keeps the filter doubles of x·s and x4 (``plane_value_filtered_into``);
+    ``compare_filtered_values_at`` decides from them and forms the products again for close calls: the same signs as
+    the exact products (Python ints) over the whole width, from the same doubles ``compare_cached_values_at``
+    converts from stored dot products (so the same close calls go exact)."""
     cases = data.draw(st.lists(quotient_pairs(width), min_size=1, max_size=16))
     n = len(cases)
     # vertices (d, 0, 0, w) against the plane x1 = 0: x·s = d exactly
-    X = exact.to_wide([[c[0], 0, 0, c[1]] for c in cases] + [[c[2], 0, 0, c[3]] for c in cases], width)
+    values = [(c[0], c[1]) for c in cases] + [(c[2], c[3]) for c in cases]
+    X = exact.to_wide([[d, 0, 0, w] for d, w in values], width)
     S = exact.to_wide([[1, 0, 0, 0]], width)
-    D = exact.to_wide([0] * (2 * n), width)
     F = np.full((2 * n, 2), np.nan)
     sides, out = np.zeros(2 * n, np.int8), np.zeros(n, np.int8)
-    _classify_and_compare_filtered(X, S, D, F, np.arange(n), np.arange(n) + n, sides, out)
-    values = [(c[0], c[1]) for c in cases] + [(c[2], c[3]) for c in cases]
-    assert exact.from_wide(D).tolist() == [d for d, _ in values]
+    _classify_and_compare_filtered(X, S, F, np.arange(n), np.arange(n) + n, sides, out)
     assert sides.tolist() == [((d > 0) - (d < 0)) * ((w > 0) - (w < 0)) for d, w in values]
+    D = exact.to_wide([d for d, _ in values], width)
     if width >= intrinsics.FILTER_COMPARISONS_FROM_BITS:
         converted = np.zeros(2 * n), np.zeros(2 * n)
-        _filter_doubles(D.reshape(-1, 1) if D.ndim == 1 else D, converted[0])
+        _filter_doubles(D.reshape(-1, 1), converted[0])
         _filter_doubles(np.ascontiguousarray(X[:, 3:4]), converted[1])
         assert F[:, 0].tobytes() == converted[0].tobytes() and F[:, 1].tobytes() == converted[1].tobytes()
     assert out.tolist() == [_reference_compare(*c) for c in cases]

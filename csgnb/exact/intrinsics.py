@@ -452,14 +452,15 @@ def _filter_doubles_array(F, name):
 
 
 @intrinsic
-def plane_value_filtered_into(typingctx, X, i, S, j, out, io, F):
-    """:func:`plane_value_into`, also keeping ``F[io] = (d, w)``: the filter doubles of x·s and of x4.
+def plane_value_filtered_into(typingctx, X, i, S, j, F):
+    """The side of ``X[i]`` against ``S[j]`` (as :func:`classify_at`), keeping ``F[i] = (d, w)``: the filter doubles
+    (:func:`csgnb.exact.lowering.filter_double`) of x·s and of x4.
 
-    ``F`` is a C-contiguous (n, 2) float64 array beside ``out``; :func:`compare_filtered_values_at` reads it instead
-    of converting the wide values again at every comparison (doubles are written only from
+    ``F`` is a C-contiguous (n, 2) float64 array beside ``X``; :func:`compare_filtered_values_at` reads it instead of
+    converting wide values again at every comparison (doubles are written only from
     :data:`FILTER_COMPARISONS_FROM_BITS`, the widths that compare through them).
     """
-    bits = lw.same_width("plane_value_filtered_into", X, S, out)
+    bits = lw.same_width("plane_value_filtered_into", X, S)
     T = _T(bits)
     _filter_doubles_array(F, "plane_value_filtered_into")
 
@@ -467,45 +468,47 @@ def plane_value_filtered_into(typingctx, X, i, S, j, out, io, F):
         x = lw.load_row(context, builder, sig.args[0], args[0], args[1], sig.args[1], T, 4)
         s = lw.load_plane(context, builder, sig.args[2], args[2], args[3], sig.args[3])
         value = lw.plane_dot(builder, x, s, T)
-        lw.store_row(context, builder, sig.args[4], args[4], args[5], sig.args[5], T, [value])
         if bits >= FILTER_COMPARISONS_FROM_BITS:
-            pd, pw = _float_pair_pointers(context, builder, sig.args[6], args[6], args[5], sig.args[5])
+            pd, pw = _float_pair_pointers(context, builder, sig.args[4], args[4], args[1], sig.args[1])
             builder.store(lw.filter_double(builder, value), pd, align=8)
             builder.store(lw.filter_double(builder, x[3]), pw, align=8)
-        return builder.mul(lw.sign(builder, value), lw.sign(builder, x[3]))
+        return lw.sign_times_sign(builder, value, x[3])
 
-    return types.int8(X, i, S, j, out, io, F), codegen
+    return types.int8(X, i, S, j, F), codegen
 
 
 @intrinsic
-def compare_filtered_values_at(typingctx, D, F, iu, iv, X):
-    """:func:`compare_cached_values_at` with the filter doubles :func:`plane_value_filtered_into` kept in ``F``.
+def compare_filtered_values_at(typingctx, F, iu, iv, X, S, j):
+    """Sign of (x_u·s)/x_u4 - (x_v·s)/x_v4 for ``X[iu]``, ``X[iv]`` and plane ``S[j]``, from the filter doubles
+    :func:`plane_value_filtered_into` kept in ``F``.
 
-    The same sign, decided the same way: the doubles are the ones :func:`compare_cached_values_at` would compute,
-    the same bound, the exact products for the same close calls.
+    Decided as :func:`compare_cached_values_at` decides it -- the same doubles, the same bound
+    (:func:`csgnb.exact.lowering.quotient_difference_sign`) -- and a close call forms both dot products again and
+    the cross products at twice the width: no wide value is kept per vertex for the rare close call.
     """
-    bits = lw.same_width("compare_filtered_values_at", D, X)
+    bits = lw.same_width("compare_filtered_values_at", X, S)
     T = _T(bits)
     T2 = _T(2 * bits)
     _filter_doubles_array(F, "compare_filtered_values_at")
 
     def codegen(context, builder, sig, args):
         def exact(builder):
-            du = lw.load_row(context, builder, sig.args[0], args[0], args[2], sig.args[2], T, 1)[0]
-            dv = lw.load_row(context, builder, sig.args[0], args[0], args[3], sig.args[3], T, 1)[0]
-            wu = lw.load(builder, lw.row_pointer(context, builder, sig.args[4], args[4], args[2], sig.args[2]), 3, T)
-            wv = lw.load(builder, lw.row_pointer(context, builder, sig.args[4], args[4], args[3], sig.args[3]), 3, T)
+            xu = lw.load_row(context, builder, sig.args[3], args[3], args[1], sig.args[1], T, 4)
+            xv = lw.load_row(context, builder, sig.args[3], args[3], args[2], sig.args[2], T, 4)
+            s = lw.load_plane(context, builder, sig.args[4], args[4], args[5], sig.args[5])
+            du, dv = lw.plane_dot(builder, xu, s, T), lw.plane_dot(builder, xv, s, T)
+            wu, wv = xu[3], xv[3]
             diff = builder.sub(lw.mul_exact(builder, du, wv, T2), lw.mul_exact(builder, dv, wu, T2))
             return builder.mul(builder.mul(lw.sign(builder, diff), lw.sign(builder, wu)), lw.sign(builder, wv))
 
         if bits < FILTER_COMPARISONS_FROM_BITS:
             return exact(builder)
-        pdu, pwu = _float_pair_pointers(context, builder, sig.args[1], args[1], args[2], sig.args[2])
-        pdv, pwv = _float_pair_pointers(context, builder, sig.args[1], args[1], args[3], sig.args[3])
+        pdu, pwu = _float_pair_pointers(context, builder, sig.args[0], args[0], args[1], sig.args[1])
+        pdv, pwv = _float_pair_pointers(context, builder, sig.args[0], args[0], args[2], sig.args[2])
         fdu, fwu, fdv, fwv = (builder.load(p, align=8) for p in (pdu, pwu, pdv, pwv))
         return lw.quotient_difference_sign_of_doubles(builder, fdu, fwu, fdv, fwv, exact)
 
-    return types.int8(D, F, iu, iv, X), codegen
+    return types.int8(F, iu, iv, X, S, j), codegen
 
 
 # ---------------------------------------------------------------------------

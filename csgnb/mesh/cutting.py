@@ -4,9 +4,9 @@
 in place, each closed by a new face on the cutting plane (Figure 3):
 
 1. *Edge descent* from the handle's vertex: move to the neighbour that is strictly
-   closer to the plane (exact comparison of (x·s)/x4 from the dot products cached by the
-   classification, :func:`compare_filtered_values_at`: doubles, converted once per vertex
-   and cut, decide where they certainly can, the products at twice the width the close calls)
+   closer to the plane (exact comparison of (x·s)/x4, :func:`compare_filtered_values_at`:
+   the doubles the classification kept decide where they certainly can; a close call forms
+   both dot products again and compares their products at twice the width)
    until a vertex on the far side of the plane is seen. A linear function on a convex
    polytope has no local minima, so a vertex without a closer neighbour is the global
    minimum: the plane then has no *proper* intersection (one part would have zero
@@ -92,7 +92,7 @@ def _side(m, v, s):
     mk = m.vmark[np.uint64(v)]  # unsigned row indices here and below: numba wraps a signed one around
     if (mk >> 2) == stamp:
         return (mk & 3) - 1
-    side = np.int64(plane_value_filtered_into(m.vx, v, m.palette, s, m.vdot, v, m.vdf))
+    side = np.int64(plane_value_filtered_into(m.vx, v, m.palette, s, m.vdf))
     m.vmark[np.uint64(v)] = stamp * 4 + side + 1
     counts[N_CLASSIFY] += 1
     return side
@@ -151,15 +151,16 @@ def _descend(m, h0, s, path):
                     return 1, h
                 return 2, hv
             # Strictly closer to the plane: sign0 * (f(u) - f(v)) < 0. Both sides are known
-            # here, so their dot products are cached in vdot; an on-plane u (f = 0) is the closest.
+            # here, so their doubles are kept in vdf; an on-plane u (f = 0) is the closest.
             if sv == 0:
                 pass  # f(v) = 0 and no neighbour across: nothing is strictly closer
             elif su == 0:
                 if best < 0 or best_side != 0:
                     best = h
                     best_side = 0
-            elif best_side != 0 and sign0 * compare_filtered_values_at(m.vdot, m.vdf, u, v, m.vx) < 0:
-                if best < 0 or sign0 * compare_filtered_values_at(m.vdot, m.vdf, u, halfedge_dest(he, best), m.vx) < 0:
+            elif best_side != 0 and sign0 * compare_filtered_values_at(m.vdf, u, v, m.vx, m.palette, s) < 0:
+                closest = halfedge_dest(he, best) if best >= 0 else u
+                if best < 0 or sign0 * compare_filtered_values_at(m.vdf, u, closest, m.vx, m.palette, s) < 0:
                     best = h
             h = _rot(he, h)
             if h == hv:

@@ -16,11 +16,10 @@ Arrays (``int32`` unless noted; rows ``[:counts[NV]]`` etc. are in use):
   ``OPP`` (the BSP node on the other side of the face, ``-1`` outside the domain);
 * ``vmark`` ``(V,)`` int64 -- classification cache: ``stamp * 4 + side + 1`` of the
   cut that last classified the vertex;
-* ``vdot`` ``(V,)`` wide -- x·s of the vertex with the cut plane that classified it
-  (valid with its ``vmark`` stamp), for exact distance comparisons;
-* ``vdf`` ``(V, 2)`` float64 -- beside ``vdot``, the filter doubles of x·s and of x4
-  (:func:`csgnb.exact.lowering.filter_double`), so the descent's comparisons convert
-  each wide value once per cut, not once per comparison;
+* ``vdf`` ``(V, 2)`` float64 -- the filter doubles (:func:`csgnb.exact.lowering.filter_double`)
+  of x·s, with the cut plane that classified the vertex (valid with its ``vmark`` stamp),
+  and of x4: the descent's distance comparisons convert each wide value once per cut, not
+  once per comparison, and form the exact products again only for close calls;
 * ``hmark`` ``(H,)`` int64 -- traversal stamps;
 * ``counts`` int64 -- ``NV, NH, NF`` (rows ever used: the high-water marks), ``STAMP``
   (cut counter), ``N_CLASSIFY``, ``N_CONSTRUCT`` (statistics), ``NP`` (palette rows in
@@ -67,14 +66,13 @@ N_COUNTS = 16
 class MeshArrays(NamedTuple):
     """The arrays of a :class:`MeshStore`, as one argument for kernels (see the module docstring).
 
-    palette : (P, 4) wide; vx : (V, 4) wide; vdot : (V,) wide; vdf : (V, 2) float64; vmark : (V,) int64;
+    palette : (P, 4) wide; vx : (V, 4) wide; vdf : (V, 2) float64; vmark : (V,) int64;
     he : (H, 4) int32; hmark : (H,) int64; fc : (F, 3) int32; counts : (16,) int64;
     free_v : (V,) int32; free_h : (H,) int32; free_f : (F,) int32; loop : (L, 5) int64.
     """
 
     palette: np.ndarray
     vx: np.ndarray
-    vdot: np.ndarray
     vdf: np.ndarray
     vmark: np.ndarray
     he: np.ndarray
@@ -95,7 +93,7 @@ def new_mesh_arrays(palette: np.ndarray, vertices: int, loop: int = 64) -> MeshA
     pal[: palette.shape[0]] = palette
     counts = np.zeros(N_COUNTS, np.int64)
     counts[NP] = palette.shape[0]
-    return MeshArrays(pal, np.zeros((v, 4), dtype), np.zeros(v, dtype), np.zeros((v, 2)), np.zeros(v, np.int64),
+    return MeshArrays(pal, np.zeros((v, 4), dtype), np.zeros((v, 2)), np.zeros(v, np.int64),
                       np.full((4 * v, 4), -1, np.int32), np.zeros(4 * v, np.int64), np.full((2 * v, 3), -1, np.int32),
                       counts, np.empty(v, np.int32), np.empty(4 * v, np.int32), np.empty(2 * v, np.int32),
                       np.empty((max(int(loop), BOX_HALFEDGES), 5), np.int64))
@@ -109,7 +107,7 @@ def grown_mesh_arrays(m: MeshArrays, vertices: int, halfedges: int, faces: int, 
     geometrically larger ones.
     """
     c = m.counts
-    pal, vx, vdot, vdf, vmark, free_v = m.palette, m.vx, m.vdot, m.vdf, m.vmark, m.free_v
+    pal, vx, vdf, vmark, free_v = m.palette, m.vx, m.vdf, m.vmark, m.free_v
     he, hmark, free_h, fc, free_f, lp = m.he, m.hmark, m.free_h, m.fc, m.free_f, m.loop
     if c[NP] + planes > pal.shape[0]:
         pal = grown(pal, max(2 * pal.shape[0], int(c[NP]) + planes))
@@ -117,7 +115,7 @@ def grown_mesh_arrays(m: MeshArrays, vertices: int, halfedges: int, faces: int, 
         size = max(2 * vx.shape[0], int(c[NV] - c[FREE_V]) + vertices)
         # New rows of the stamp arrays must hold no stamp: a traversal or classification cache that
         # met a leftover value equal to a future stamp would skip a half-edge or reuse a stale side.
-        vx, vdot, vdf, vmark = grown(vx, size, 0), grown(vdot, size, 0), grown(vdf, size, 0), grown(vmark, size, 0)
+        vx, vdf, vmark = grown(vx, size, 0), grown(vdf, size, 0), grown(vmark, size, 0)
         free_v = grown(free_v, size)
     if c[NH] - c[FREE_H] + halfedges > he.shape[0]:
         size = max(2 * he.shape[0], int(c[NH] - c[FREE_H]) + halfedges)
@@ -127,7 +125,7 @@ def grown_mesh_arrays(m: MeshArrays, vertices: int, halfedges: int, faces: int, 
         fc, free_f = grown(fc, size, -1), grown(free_f, size)
     if loop > lp.shape[0]:
         lp = np.empty((max(2 * lp.shape[0], loop), 5), np.int64)
-    return MeshArrays(pal, vx, vdot, vdf, vmark, he, hmark, fc, c, free_v, free_h, free_f, lp)
+    return MeshArrays(pal, vx, vdf, vmark, he, hmark, fc, c, free_v, free_h, free_f, lp)
 
 # A cube: vertex k has coordinates (k & 1, k >> 1 & 1, k >> 2 & 1) in {lo, hi};
 # faces listed counter-clockwise seen from outside, with the palette row of their plane.
@@ -389,7 +387,7 @@ class MeshStore:
     # The arrays, by name (kernels take ``self.m`` whole).
     palette = property(lambda self: self.m.palette)
     vx = property(lambda self: self.m.vx)
-    vdot = property(lambda self: self.m.vdot)
+    vdf = property(lambda self: self.m.vdf)
     vmark = property(lambda self: self.m.vmark)
     he = property(lambda self: self.m.he)
     hmark = property(lambda self: self.m.hmark)
