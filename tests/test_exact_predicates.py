@@ -12,6 +12,8 @@ from csgnb._jit import jit
 from csgnb.exact import budget, integer_root, intrinsics
 from csgnb.exact.intrinsics import (
     box_plane_sides,
+    classify_at,
+    classify_wall_at,
     compare_cached_values_at,
     compare_filtered_values_at,
     cross_sign,
@@ -506,6 +508,49 @@ def test_box_plane_sides_are_the_corners_signs(width, data):
     out = np.zeros(len(cases), np.int8)
     _box_sides_all(lows, np.array([c[1] for c in cases], np.int64), exact.to_wide([c[2] for c in cases], width), out)
     assert out.tolist() == [int(min(v) < 0) | 2 * int(max(v) > 0) for *_, v in cases]
+
+
+@jit
+def _wall_sides(points, planes, axes, out, reference):
+    for k in range(points.shape[0]):
+        out[k] = classify_wall_at(points, k, planes, k, axes[k])
+        reference[k] = classify_at(points, k, planes, k)
+
+
+@settings(max_examples=300)
+@given(width=widths, data=st.data())
+def test_wall_classification_is_the_exact_side(width, data):
+    """``classify_wall_at`` (a cell box's wall: two wide-by-word products) against Python ints and ``classify_at``,
+    over the whole width: axis planes with offsets in and beyond 64 bits, normals +-1 and beyond 64 bits, points on
+    the wall, and rows that are not axis planes (or name another axis): the general path, the same sign."""
+    top = (1 << (width - 1)) - 1
+    word = st.integers(-(1 << 63), (1 << 63) - 1)
+    rows, points, axes = [], [], []
+    for _ in range(data.draw(st.integers(1, 12))):
+        axis = data.draw(st.integers(0, 2))
+        kind = data.draw(st.sampled_from(["wall", "wide offset", "wide normal", "not a wall", "other axis"]))
+        n = [0, 0, 0]
+        n[axis] = data.draw(st.sampled_from([1, -1])) if kind != "wide normal" else data.draw(
+            st.integers(1 << 64, 1 << 70))
+        d = data.draw(st.integers(1 << 64, 1 << 90)) if kind == "wide offset" else data.draw(word)
+        if kind == "not a wall":
+            n[(axis + 1) % 3] = data.draw(st.integers(1, 1 << 20))
+        x = [data.draw(st.integers(-(1 << (width // 2 - 40)), 1 << (width // 2 - 40))) for _ in range(3)]
+        w = data.draw(st.integers(-(1 << (width // 2 - 40)), 1 << (width // 2 - 40)).filter(bool))
+        if data.draw(st.booleans()) and n[axis] in (1, -1) and kind in ("wall", "other axis"):
+            x[axis] = -n[axis] * d * w  # on the wall: n_a x_a + d w = 0
+        rows.append(n + [d])
+        points.append(x + [w])
+        axes.append((axis + 1) % 3 if kind == "other axis" else axis)
+    values = [sum(a * b for a, b in zip(r[:3], p[:3], strict=True)) + r[3] * p[3]
+              for r, p in zip(rows, points, strict=True)]
+    assume(all(-top - 1 <= v <= top for v in values)
+           and all(-top - 1 <= c <= top for row in rows + points for c in row))
+    out, reference = np.zeros(len(rows), np.int8), np.zeros(len(rows), np.int8)
+    _wall_sides(exact.to_wide(points, width), exact.to_wide(rows, width), np.array(axes, np.int64), out, reference)
+    expected = [((v > 0) - (v < 0)) * ((p[3] > 0) - (p[3] < 0)) for v, p in zip(values, points, strict=True)]
+    assert out.tolist() == expected
+    assert reference.tolist() == expected
 
 
 @jit

@@ -40,6 +40,7 @@ from csgnb.exact.lowering import F64, I8, I64
 
 __all__ = [
     "classify_at",
+    "classify_wall_at",
     "intersect_into",
     "plane_from_points_into",
     "plane_from_normal_into",
@@ -105,6 +106,38 @@ def classify_at(typingctx, points, i, planes, j):
         return lw.sign_times_sign(builder, lw.plane_dot(builder, x, s, T), x[3])
 
     return types.int8(points, i, planes, j), codegen
+
+
+@intrinsic
+def classify_wall_at(typingctx, points, i, planes, j, axis):
+    """:func:`classify_at` for a plane ``planes[j]`` expected on a coordinate axis (a cell box's wall): when its
+    other two normal coefficients are zero and its ``axis`` coefficient and offset fit in 64 bits, x·s is
+    ``x[axis]·a + x4·d``, two wide-by-word products instead of three and a wide-by-wide one; any other row takes
+    :func:`classify_at`'s path (checked at run time: the same sign either way).
+    """
+    T = _T(lw.same_width("classify_wall_at", points, planes))
+
+    def codegen(context, builder, sig, args):
+        x = lw.load_row(context, builder, sig.args[0], args[0], args[1], sig.args[1], T, 4)
+        s = lw.load_plane(context, builder, sig.args[2], args[2], args[3], sig.args[3])
+        k = context.cast(builder, args[4], sig.args[4], types.int64)
+        at = [builder.icmp_signed("==", k, ir.Constant(I64, c)) for c in range(3)]
+        xa = builder.select(at[0], x[0], builder.select(at[1], x[1], x[2]))
+        na = builder.select(at[0], s[0], builder.select(at[1], s[1], s[2]))
+        wide = [v for v in (na, s[3]) if v.type.width > 64]  # narrow plane fields are words already
+        wall = lw.fits_in_word(builder, wide) if wide else ir.Constant(ir.IntType(1), 1)
+        for c in range(3):  # the other two coefficients are zero
+            zero = builder.icmp_signed("==", s[c], ir.Constant(s[c].type, 0))
+            wall = builder.and_(wall, builder.or_(at[c], zero))
+        value = lw.branch_values(
+            builder, wall,
+            lambda: [builder.add(lw.mul_exact(builder, xa, builder.trunc(na, I64) if na.type.width > 64 else na, T),
+                                 lw.mul_exact(builder, x[3], builder.trunc(s[3], I64) if s[3].type.width > 64
+                                              else s[3], T))],
+            lambda: [lw.plane_dot(builder, x, s, T)])[0]
+        return lw.sign_times_sign(builder, value, x[3])
+
+    return types.int8(points, i, planes, j, axis), codegen
 
 
 def _intersect_full(builder, p, q, r):

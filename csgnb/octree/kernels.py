@@ -50,8 +50,8 @@ from csgnb._views import unmanaged, unmanaged_tuple
 from csgnb.bsp.build import build_kernel
 from csgnb.bsp.extract import PIECES, TreeArrays, clip_cell, extract_into
 from csgnb.bsp.merging import CHANGED, merge_cells, merge_changes_a
-from csgnb.bsp.polygon import classify_polygon, copy_point, negative_piece_into
-from csgnb.exact.intrinsics import box_plane_sides, classify_at, wide_sign_at
+from csgnb.bsp.polygon import copy_point, negative_piece_into
+from csgnb.exact.intrinsics import box_plane_sides, classify_at, classify_wall_at, wide_sign_at
 from csgnb.exact.wide_store import store_int64_at
 from csgnb.mesh.float_box import cell_float_box
 from csgnb.mesh.halfedge import FREE_F, FREE_H, FREE_V, NF, NH, NV, add_box_cell
@@ -324,6 +324,21 @@ def _append_import_polygon(bi, n_out, e_out, support, edges, verts, first, k, ne
     return e_out + k
 
 
+@jit(inline="always")
+def _classify_against_wall(pal, verts, start, k, row, axis, sides):
+    """:func:`csgnb.bsp.polygon.classify_polygon` against the cell box wall ``row`` on ``axis`` (classify_wall_at)."""
+    has_neg = False
+    has_pos = False
+    for j in range(k):
+        c = classify_wall_at(verts, start + j, pal, row, axis)
+        sides[j] = c
+        has_neg = has_neg or c < 0
+        has_pos = has_pos or c > 0
+    if has_neg and has_pos:
+        return 2
+    return -1 if has_neg else (1 if has_pos else 0)
+
+
 @unlinked
 @borrowing_jit
 def clip_tool_polygons(pal, tool, cand, lo, size, brows, arena, bi, need):
@@ -371,7 +386,7 @@ def clip_tool_polygons(pal, tool, cand, lo, size, brows, arena, bi, need):
             a = w >> 1
             if (tool.plo[i, a] > lo[a]) if w & 1 == 0 else (tool.phi[i, a] < lo[a] + size):
                 continue
-            side = classify_polygon(pal, arena.verts, start, np.int64(k), np.int64(brows[w]), arena.sides)
+            side = _classify_against_wall(pal, arena.verts, start, k, np.int64(brows[w]), a, arena.sides)
             if side == -1:
                 continue
             if side == 2:
