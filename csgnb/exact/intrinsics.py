@@ -48,7 +48,6 @@ __all__ = [
     "planes_parallel_at",
     "points_equal_at",
     "compare_plane_values_at",
-    "plane_value_into",
     "box_plane_sides",
     "compare_cached_values_at",
     "compare_filtered_values_at",
@@ -131,9 +130,8 @@ def classify_wall_at(typingctx, points, i, planes, j, axis):
             wall = builder.and_(wall, builder.or_(at[c], zero))
         value = lw.branch_values(
             builder, wall,
-            lambda: [builder.add(lw.mul_exact(builder, xa, builder.trunc(na, I64) if na.type.width > 64 else na, T),
-                                 lw.mul_exact(builder, x[3], builder.trunc(s[3], I64) if s[3].type.width > 64
-                                              else s[3], T))],
+            lambda: [builder.add(lw.mul_exact(builder, xa, lw.resize(builder, na, I64), T),
+                                 lw.mul_exact(builder, x[3], lw.resize(builder, s[3], I64), T))],
             lambda: [lw.plane_dot(builder, x, s, T)])[0]
         return lw.sign_times_sign(builder, value, x[3])
 
@@ -313,7 +311,7 @@ def box_plane_sides(typingctx, pts, i, size, planes, j):
     distances, and the arithmetic modulo ``2**width`` gives any value that fits exactly, whatever the partial sums.
     """
     lw.int_array(pts, "box_plane_sides")
-    T = _T(lw.same_width("box_plane_sides", planes, planes))
+    T = _T(lw.same_width("box_plane_sides", planes))
 
     def codegen(context, builder, sig, args):
         lo = lw.load_row(context, builder, sig.args[0], args[0], args[1], sig.args[1], I64, 3)
@@ -419,26 +417,8 @@ def compare_plane_values_at(typingctx, X, iu, iv, S, j):
     return types.int8(X, iu, iv, S, j), codegen
 
 
-@intrinsic
-def plane_value_into(typingctx, X, i, S, j, out, io):
-    """Store x·s of point ``X[i]`` and plane ``S[j]`` into the 1-D wide ``out[io]``; return the side.
-
-    The side is sign(x·s)·sign(x4) as in :func:`classify_at`; keeping x·s lets later
-    distance comparisons (:func:`compare_cached_values_at`) skip the dot product.
-    """
-    T = _T(lw.same_width("plane_value_into", X, S, out))
-
-    def codegen(context, builder, sig, args):
-        x = lw.load_row(context, builder, sig.args[0], args[0], args[1], sig.args[1], T, 4)
-        s = lw.load_plane(context, builder, sig.args[2], args[2], args[3], sig.args[3])
-        value = lw.plane_dot(builder, x, s, T)
-        lw.store_row(context, builder, sig.args[4], args[4], args[5], sig.args[5], T, [value])
-        return builder.mul(lw.sign(builder, value), lw.sign(builder, x[3]))
-
-    return types.int8(X, i, S, j, out, io), codegen
-
-
-#: Widths from which :func:`compare_cached_values_at` asks doubles first (:func:`lowering.quotient_difference_sign`).
+#: Widths from which :func:`compare_cached_values_at` and :func:`compare_filtered_values_at` ask doubles first
+#: (:func:`lowering.quotient_difference_sign`).
 FILTER_COMPARISONS_FROM_BITS = 128
 
 
@@ -446,7 +426,8 @@ FILTER_COMPARISONS_FROM_BITS = 128
 def compare_cached_values_at(typingctx, D, iu, iv, X):
     """Sign of D[iu]/X[iu, 3] - D[iv]/X[iv, 3]: :func:`compare_plane_values_at` from stored dot products.
 
-    ``D`` is the 1-D wide array :func:`plane_value_into` filled; products at twice the width.
+    ``D`` is a 1-D wide array of dot products x·s; products at twice the width. (The cut keeps doubles instead:
+    :func:`compare_filtered_values_at`.)
     """
     bits = lw.same_width("compare_cached_values_at", D, X)
     T = _T(bits)

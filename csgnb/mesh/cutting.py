@@ -159,8 +159,8 @@ def _descend(m, h0, s, path):
                     best = h
                     best_side = 0
             elif best_side != 0 and sign0 * compare_filtered_values_at(m.vdf, u, v, m.vx, m.palette, s) < 0:
-                closest = halfedge_dest(he, best) if best >= 0 else u
-                if best < 0 or sign0 * compare_filtered_values_at(m.vdf, u, closest, m.vx, m.palette, s) < 0:
+                if best < 0 or sign0 * compare_filtered_values_at(m.vdf, u, halfedge_dest(he, best), m.vx,
+                                                                  m.palette, s) < 0:
                     best = h
             h = _rot(he, h)
             if h == hv:
