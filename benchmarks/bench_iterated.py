@@ -30,6 +30,10 @@ Two set-ups from the paper, built with csgnb's own tools and sweeps (``csgnb.app
   spiral on its surface, each step building its tool from the capsule's points.
 * **lattice**: 2,000 unions/differences of cubes on a 10 x 10 x 10 lattice (coplanar faces,
   touching edges), csgnb's exact volume change of every step checked against a voxel count.
+* **boxes** (issue 22's "aligned boxes, 200 steps"): a 20 mm block minus 200 (``--box-steps``) axis-aligned boxes
+  of random sizes (1-6 mm a side) at random places on a fine grid, each step building its tool from the box's eight
+  corners (csgnb: the exact hull; manifold3d: ``Manifold.cube`` on the same grid points); the final exact volume
+  checked against an independent count over the boxes' compressed coordinates.
 
 Printed per workload: per-step times (median, max, first vs last tenth), totals, faces,
 BSP work, exact volume vs manifold3d's. ``--json PATH`` writes the figures; ``--sweep``
@@ -359,8 +363,8 @@ def lattice_ops(n: int, seed: int = 7) -> list[tuple[str, np.ndarray, np.ndarray
     return ops
 
 
-def _box_points(lo, hi) -> np.ndarray:
-    return np.array([[(hi if k & (1 << a) else lo)[a] for a in range(3)] for k in range(8)], np.int64)
+def _box_points(lo, hi, dtype=np.int64) -> np.ndarray:
+    return np.array([[(hi if k & (1 << a) else lo)[a] for a in range(3)] for k in range(8)], dtype)
 
 
 def lattice_workload(args, n: int) -> dict:
@@ -403,6 +407,86 @@ def lattice_workload(args, n: int) -> dict:
             "manifold3d_volume_rel_dev": mf_dev, "cells": w.n_cells, "bsp_nodes": w.n_bsp_nodes,
             "faces": w.surface().n_polygons, "faces_merged": w.surface(merged=True).n_polygons,
             "manifold3d_triangles": int(solid.num_tri())}
+
+
+def boxes_setup(n: int, width: int, seed: int = 3):
+    """A 20 mm block and ``n`` axis-aligned boxes (centres anywhere in it, half-sides 0.5-3 mm) as grid corner points
+    on the finest grid of ``width`` bits for the 24 mm cube around them: ``(grid, block, [box corners])``."""
+    rng = np.random.default_rng(seed)
+    grid = Grid.fit([-12.0] * 3, [12.0] * 3, width=width)
+    block = grid.to_grid(_box_points(np.full(3, -10.0), np.full(3, 10.0), float))
+    boxes = []
+    for _ in range(n):
+        centre, half = rng.uniform(-10.0, 10.0, 3), rng.uniform(0.5, 3.0, 3)
+        boxes.append(grid.to_grid(_box_points(centre - half, centre + half, float)))
+    return grid, block, boxes
+
+
+def boxes_exact_volume(block: np.ndarray, boxes: list[np.ndarray]) -> int:
+    """The block minus the boxes, in grid units cubed, independently of csgnb: every box's faces are grid planes, so
+    between consecutive distinct x coordinates the solid is a prism over a 2-D region, whose area is counted over the
+    compressed y and z coordinates of the boxes spanning that slab (Python ints: exact)."""
+    lo, hi = block.min(0), block.max(0)
+    clipped = [(bl, bh) for bl, bh in ((np.maximum(b.min(0), lo), np.minimum(b.max(0), hi)) for b in boxes)
+               if np.all(bl < bh)]
+    xs = np.unique(np.concatenate([[lo[0], hi[0]]] + [[bl[0], bh[0]] for bl, bh in clipped]))
+    volume = 0
+    for x0, x1 in zip(xs[:-1], xs[1:], strict=True):
+        active = [(bl, bh) for bl, bh in clipped if bl[0] <= x0 and bh[0] >= x1]
+        ys, zs = (np.unique(np.concatenate([[lo[a], hi[a]]] + [[bl[a], bh[a]] for bl, bh in active])) for a in (1, 2))
+        solid = np.ones((len(ys) - 1, len(zs) - 1), bool)
+        for bl, bh in active:
+            (j0, j1), (k0, k1) = np.searchsorted(ys, (bl[1], bh[1])), np.searchsorted(zs, (bl[2], bh[2]))
+            solid[j0:j1, k0:k1] = False
+        heights = solid.astype(np.int64) @ np.diff(zs)  # each at most the block's height: int64
+        area = sum(int(dy) * int(h) for dy, h in zip(np.diff(ys), heights, strict=True))
+        volume += int(x1 - x0) * area
+    return volume
+
+
+def boxes_workload(args, n: int) -> dict:
+    """The block minus ``n`` boxes; each step builds its tool from the box's corners, both libraries timed alike."""
+    import manifold3d as m3
+
+    grid, block, boxes = boxes_setup(n, args.width)
+    warm = Workpiece.empty(grid, threshold=args.threshold)  # kernels loaded (splits and combines too) before timing
+    warm |= convex_hull(block, grid=grid)
+    for b in boxes[:40]:
+        warm -= convex_hull(b, grid=grid)
+    w = Workpiece.empty(grid, threshold=args.threshold)
+    w |= convex_hull(block, grid=grid)
+    wall, cpu = time.perf_counter(), time.process_time()
+    ts = []
+    for b in boxes:
+        t = time.perf_counter()
+        w -= convex_hull(b, grid=grid)
+        ts.append(time.perf_counter() - t)
+    csg_wall, csg_cpu = time.perf_counter() - wall, time.process_time() - cpu
+
+    def cube(points):
+        m = grid.to_model(points)
+        return m3.Manifold.cube((m.max(0) - m.min(0)).tolist()).translate(m.min(0).tolist())
+
+    solid = cube(block)
+    wall, cpu = time.perf_counter(), time.process_time()
+    mts = []
+    for b in boxes:
+        t = time.perf_counter()
+        solid = solid - cube(b)
+        solid.num_tri()  # manifold3d evaluates lazily: force the Boolean
+        mts.append(time.perf_counter() - t)
+    mf_wall, mf_cpu = time.perf_counter() - wall, time.process_time() - cpu
+    exact = boxes_exact_volume(block, boxes)
+    vol = float(w.model_volume())
+    first, last = _tenths(ts)
+    return {"steps": n, "csgnb_s": csg_wall, "csgnb_cpu_s": csg_cpu, "manifold3d_s": mf_wall,
+            "manifold3d_cpu_s": mf_cpu, "median_ms": float(np.median(ts) * 1e3),
+            "manifold3d_median_ms": float(np.median(mts) * 1e3), "first_tenth_median_ms": first * 1e3,
+            "last_tenth_median_ms": last * 1e3, "exact_volume_equal": bool(w.volume() == exact),
+            "faces": w.surface().n_polygons, "faces_merged": w.surface(merged=True).n_polygons,
+            "manifold3d_triangles": int(solid.num_tri()), "cells": w.n_cells, "bsp_nodes": w.n_bsp_nodes,
+            "volume": vol, "manifold3d_volume": float(solid.volume()),
+            "volume_rel_dev": abs(vol - float(solid.volume())) / vol}
 
 
 def gear_hulls(samples: int, width: int):
@@ -464,8 +548,9 @@ def gear_workload(args, samples: int, threshold: int, with_manifold: bool = True
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--workloads", nargs="+", default=["drill", "drill_mesh", "gear_sweep", "dome", "lattice"],
-                        choices=["drill", "drill_mesh", "gear_sweep", "dome", "lattice"])
+    parser.add_argument("--workloads", nargs="+",
+                        default=["drill", "drill_mesh", "gear_sweep", "dome", "lattice", "boxes"],
+                        choices=["drill", "drill_mesh", "gear_sweep", "dome", "lattice", "boxes"])
     parser.add_argument("--width", type=int, default=128)
     parser.add_argument("--threshold", type=int, default=150)
     parser.add_argument("--resolution", type=float, default=None,
@@ -483,6 +568,7 @@ def main() -> None:
     parser.add_argument("--faces", action="store_true", help="extract the gear sweep's surface to count faces")
     parser.add_argument("--dome-steps", type=int, nargs="+", default=[1000], help="capsules per dome carve")
     parser.add_argument("--lattice-ops", type=int, default=2000, help="cube lattice Booleans")
+    parser.add_argument("--box-steps", type=int, default=200, help="boxes subtracted from the block")
     parser.add_argument("--perf-map", action="store_true",
                         help="name the compiled kernels for perf (run under perf record; see _perf_map.py)")
     parser.add_argument("--no-memo", action="store_true",
@@ -610,6 +696,18 @@ def main() -> None:
               f"{'equal' if d['exact_final_volume'] else 'DIFFERENT'}; manifold3d final rel. dev. "
               f"{d['manifold3d_volume_rel_dev']:.1e}; {d['faces']} polygons ({d['faces_merged']} merged) vs "
               f"{d['manifold3d_triangles']} triangles")
+    if "boxes" in args.workloads:
+        d = boxes_workload(args, args.box_steps)
+        result["workloads"]["boxes"] = d
+        half = d["csgnb_cpu_s"] <= 0.5 * d["manifold3d_cpu_s"]
+        print(f"\naligned boxes, a block minus {d['steps']}: csgnb {d['csgnb_s']:.3f} s / {d['csgnb_cpu_s']:.3f} s CPU "
+              f"(hulls included), manifold3d {d['manifold3d_s']:.3f} s / {d['manifold3d_cpu_s']:.3f} s CPU (target "
+              f"csgnb CPU <= 0.5x: {'met' if half else 'NOT met'}); median {d['median_ms']:.2f} vs "
+              f"{d['manifold3d_median_ms']:.2f} ms, first/last tenth {d['first_tenth_median_ms']:.2f}/"
+              f"{d['last_tenth_median_ms']:.2f} ms")
+        same = "equal" if d["exact_volume_equal"] else "DIFFERENT"
+        print(f"  exact volume vs the compressed-coordinate count: {same}; manifold3d rel. dev. {d['volume_rel_dev']:.1e}; {d['faces']} polygons ({d['faces_merged']} merged) "
+              f"vs {d['manifold3d_triangles']} triangles; {d['cells']} cells, {d['bsp_nodes']} BSP nodes")
     if args.sweep:
         print(f"\nFigure 11: gear sweep (S = {args.samples[0]}) total time by BSP threshold")
         rows = []

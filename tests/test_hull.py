@@ -719,3 +719,38 @@ def test_split_planes_equal_python_ints_when_offsets_and_shifts_near_int64(d_bit
                     for n, d in zip(N, d_local, strict=True)]
         assert got[0].tolist() == N.tolist() and [int(v) for v in got[1]] == expected
         assert hull.planes[:, 3].tolist() == expected
+
+
+@settings(max_examples=200)
+@given(st.sampled_from([128, 192, 256]), st.data())
+def test_axis_aligned_boxes_take_their_six_planes_directly(width, data):
+    """Eight corners of an axis-aligned box (anywhere in the budget, at its bounds too) skip the triple enumeration:
+    the same sorted planes, dtype and faces as the enumeration and the Python-int reference; a box with a corner
+    moved by one unit, or a flat one, is not taken for a box."""
+    from csgnb.mesh.hull import _box_facets, _enumerate_facets
+
+    V = budget(width).max_mesh_coordinate
+    edge = st.integers(-V, V)
+    lo = [data.draw(edge) for _ in range(3)]
+    hi = [data.draw(st.integers(c, V)) for c in lo]
+    P = np.array([[(hi if k & (1 << a) else lo)[a] for a in range(3)] for k in range(8)], np.int64)
+    moved = data.draw(st.booleans())
+    if moved:
+        P[data.draw(st.integers(0, 7)), data.draw(st.integers(0, 2))] += data.draw(st.sampled_from([-1, 1]))
+        P = np.clip(P, -V, V)
+    if not full_dimensional(P):
+        with pytest.raises(GeometryError, match="degenerate"):
+            convex_hull(P, width=width)
+        return
+    Q = np.unique(P, axis=0)
+    L = Q - Q[0]
+    fast = _box_facets(L)
+    is_box = all(len(set(Q[:, a].tolist())) == 2 for a in range(3)) and len(Q) == 8
+    assert (fast is not None) == is_box
+    h = convex_hull(P, width=width)
+    assert hull_planes(h) == reference_planes(P)
+    if fast is not None:
+        N, d = _enumerate_facets(L)
+        assert N.dtype == fast[0].dtype and d.dtype == fast[1].dtype
+        assert N.tolist() == fast[0].tolist() and d.tolist() == fast[1].tolist()
+        assert len(h.faces) == 6 and all(len(f) == 4 for f in h.faces)
