@@ -706,7 +706,8 @@ def main() -> None:
               f"{d['manifold3d_median_ms']:.2f} ms, first/last tenth {d['first_tenth_median_ms']:.2f}/"
               f"{d['last_tenth_median_ms']:.2f} ms")
         same = "equal" if d["exact_volume_equal"] else "DIFFERENT"
-        print(f"  exact volume vs the compressed-coordinate count: {same}; manifold3d rel. dev. {d['volume_rel_dev']:.1e}; {d['faces']} polygons ({d['faces_merged']} merged) "
+        print(f"  exact volume vs the compressed-coordinate count: {same}; manifold3d rel. dev. "
+              f"{d['volume_rel_dev']:.1e}; {d['faces']} polygons ({d['faces_merged']} merged) "
               f"vs {d['manifold3d_triangles']} triangles; {d['cells']} cells, {d['bsp_nodes']} BSP nodes")
     if args.sweep:
         print(f"\nFigure 11: gear sweep (S = {args.samples[0]}) total time by BSP threshold")
