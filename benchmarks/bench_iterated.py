@@ -307,44 +307,55 @@ def dome_setup(steps: int, width: int, radius: float = 10.0, groove: float = 0.6
     return grid, grid.to_grid(dome), caps
 
 
+def _carve(args, grid, stock, tools_, warm: int, mf_stock, mf_tool):
+    """The hull of the grid points ``stock`` minus the hull of each of ``tools_`` (point arrays), the hull built in its
+    step and both timed; then manifold3d's ``mf_stock`` minus ``mf_tool(points)`` the same way (``warm`` steps run on
+    a scratch workpiece first, so that no kernel loads inside the timed loop).
+
+    Returns the workpiece and the figures both workloads print (times, faces, volumes).
+    """
+    scratch = Workpiece.empty(grid, threshold=args.threshold)
+    scratch |= convex_hull(stock, grid=grid)
+    for points in tools_[:warm]:
+        scratch -= convex_hull(points, grid=grid)
+    w = Workpiece.empty(grid, threshold=args.threshold)
+    w |= convex_hull(stock, grid=grid)
+    wall, cpu = time.perf_counter(), time.process_time()
+    ts = []
+    for points in tools_:
+        t = time.perf_counter()
+        w -= convex_hull(points, grid=grid)
+        ts.append(time.perf_counter() - t)
+    csg_wall, csg_cpu = time.perf_counter() - wall, time.process_time() - cpu
+    solid = mf_stock
+    wall, cpu = time.perf_counter(), time.process_time()
+    mts = []
+    for points in tools_:
+        t = time.perf_counter()
+        solid = solid - mf_tool(points)
+        solid.num_tri()  # manifold3d evaluates lazily: force the Boolean
+        mts.append(time.perf_counter() - t)
+    mf_wall, mf_cpu = time.perf_counter() - wall, time.process_time() - cpu
+    vol = float(w.model_volume())
+    first, last = _tenths(ts)
+    return w, {"steps": len(tools_), "csgnb_s": csg_wall, "csgnb_cpu_s": csg_cpu, "manifold3d_s": mf_wall,
+               "manifold3d_cpu_s": mf_cpu, "median_ms": float(np.median(ts) * 1e3),
+               "manifold3d_median_ms": float(np.median(mts) * 1e3), "first_tenth_median_ms": first * 1e3,
+               "last_tenth_median_ms": last * 1e3, "faces": w.surface().n_polygons,
+               "faces_merged": w.surface(merged=True).n_polygons,
+               "manifold3d_triangles": int(solid.num_tri()), "cells": w.n_cells, "bsp_nodes": w.n_bsp_nodes,
+               "volume": vol, "manifold3d_volume": float(solid.volume()),
+               "volume_rel_dev": abs(vol - float(solid.volume())) / vol}
+
+
 def dome_workload(args, steps: int) -> dict:
     """The hemisphere minus ``steps`` capsules; each step builds its tool from the capsule's points (csgnb: the exact
     hull; manifold3d: ``hull_points`` of the same grid points) and subtracts it, both timed."""
     import manifold3d as m3
 
     grid, dome, caps = dome_setup(steps, args.width)
-    warm = Workpiece.empty(grid, threshold=args.threshold)  # kernels loaded before anything is timed
-    warm |= convex_hull(dome, grid=grid)
-    for c in caps[:3]:
-        warm -= convex_hull(c, grid=grid)
-    w = Workpiece.empty(grid, threshold=args.threshold)
-    w |= convex_hull(dome, grid=grid)
-    wall, cpu = time.perf_counter(), time.process_time()
-    ts = []
-    for c in caps:
-        t = time.perf_counter()
-        w -= convex_hull(c, grid=grid)
-        ts.append(time.perf_counter() - t)
-    csg_wall, csg_cpu = time.perf_counter() - wall, time.process_time() - cpu
-    solid = m3.Manifold.hull_points(grid.to_model(dome))
-    wall, cpu = time.perf_counter(), time.process_time()
-    mts = []
-    for c in caps:
-        t = time.perf_counter()
-        solid = solid - m3.Manifold.hull_points(grid.to_model(c))
-        solid.num_tri()  # manifold3d evaluates lazily: force the Boolean
-        mts.append(time.perf_counter() - t)
-    mf_wall, mf_cpu = time.perf_counter() - wall, time.process_time() - cpu
-    vol = float(w.model_volume())
-    first, last = _tenths(ts)
-    return {"steps": steps, "csgnb_s": csg_wall, "csgnb_cpu_s": csg_cpu, "manifold3d_s": mf_wall,
-            "manifold3d_cpu_s": mf_cpu, "median_ms": float(np.median(ts) * 1e3),
-            "manifold3d_median_ms": float(np.median(mts) * 1e3), "first_tenth_median_ms": first * 1e3,
-            "last_tenth_median_ms": last * 1e3, "faces": w.surface().n_polygons,
-            "faces_merged": w.surface(merged=True).n_polygons,
-            "manifold3d_triangles": int(solid.num_tri()), "cells": w.n_cells, "bsp_nodes": w.n_bsp_nodes,
-            "volume": vol, "manifold3d_volume": float(solid.volume()),
-            "volume_rel_dev": abs(vol - float(solid.volume())) / vol}
+    return _carve(args, grid, dome, caps, 3, m3.Manifold.hull_points(grid.to_model(dome)),
+                  lambda c: m3.Manifold.hull_points(grid.to_model(c)))[1]
 
 
 def lattice_ops(n: int, seed: int = 7) -> list[tuple[str, np.ndarray, np.ndarray]]:
@@ -449,44 +460,14 @@ def boxes_workload(args, n: int) -> dict:
     import manifold3d as m3
 
     grid, block, boxes = boxes_setup(n, args.width)
-    warm = Workpiece.empty(grid, threshold=args.threshold)  # kernels loaded (splits and combines too) before timing
-    warm |= convex_hull(block, grid=grid)
-    for b in boxes[:40]:
-        warm -= convex_hull(b, grid=grid)
-    w = Workpiece.empty(grid, threshold=args.threshold)
-    w |= convex_hull(block, grid=grid)
-    wall, cpu = time.perf_counter(), time.process_time()
-    ts = []
-    for b in boxes:
-        t = time.perf_counter()
-        w -= convex_hull(b, grid=grid)
-        ts.append(time.perf_counter() - t)
-    csg_wall, csg_cpu = time.perf_counter() - wall, time.process_time() - cpu
 
     def cube(points):
         m = grid.to_model(points)
         return m3.Manifold.cube((m.max(0) - m.min(0)).tolist()).translate(m.min(0).tolist())
 
-    solid = cube(block)
-    wall, cpu = time.perf_counter(), time.process_time()
-    mts = []
-    for b in boxes:
-        t = time.perf_counter()
-        solid = solid - cube(b)
-        solid.num_tri()  # manifold3d evaluates lazily: force the Boolean
-        mts.append(time.perf_counter() - t)
-    mf_wall, mf_cpu = time.perf_counter() - wall, time.process_time() - cpu
-    exact = boxes_exact_volume(block, boxes)
-    vol = float(w.model_volume())
-    first, last = _tenths(ts)
-    return {"steps": n, "csgnb_s": csg_wall, "csgnb_cpu_s": csg_cpu, "manifold3d_s": mf_wall,
-            "manifold3d_cpu_s": mf_cpu, "median_ms": float(np.median(ts) * 1e3),
-            "manifold3d_median_ms": float(np.median(mts) * 1e3), "first_tenth_median_ms": first * 1e3,
-            "last_tenth_median_ms": last * 1e3, "exact_volume_equal": bool(w.volume() == exact),
-            "faces": w.surface().n_polygons, "faces_merged": w.surface(merged=True).n_polygons,
-            "manifold3d_triangles": int(solid.num_tri()), "cells": w.n_cells, "bsp_nodes": w.n_bsp_nodes,
-            "volume": vol, "manifold3d_volume": float(solid.volume()),
-            "volume_rel_dev": abs(vol - float(solid.volume())) / vol}
+    # 40 warm-up steps: kernels loaded, splits and combines included, before anything is timed
+    w, figures = _carve(args, grid, block, boxes, 40, cube(block), cube)
+    return figures | {"exact_volume_equal": bool(w.volume() == boxes_exact_volume(block, boxes))}
 
 
 def gear_hulls(samples: int, width: int):
