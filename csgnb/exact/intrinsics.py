@@ -411,8 +411,7 @@ def compare_plane_values_at(typingctx, X, iu, iv, S, j):
         s = lw.load_plane(context, builder, sig.args[3], args[3], args[4], sig.args[4])
         du = lw.dot(builder, xu, s, T)
         dv = lw.dot(builder, xv, s, T)
-        diff = builder.sub(lw.mul_exact(builder, du, xv[3], T2), lw.mul_exact(builder, dv, xu[3], T2))
-        return builder.mul(builder.mul(lw.sign(builder, diff), lw.sign(builder, xu[3])), lw.sign(builder, xv[3]))
+        return lw.exact_quotient_difference_sign(builder, du, xu[3], dv, xv[3], T2)
 
     return types.int8(X, iu, iv, S, j), codegen
 
@@ -442,8 +441,7 @@ def compare_cached_values_at(typingctx, D, iu, iv, X):
         wv = lw.load(builder, base_v, 3, T)
 
         def exact(builder):
-            diff = builder.sub(lw.mul_exact(builder, du, wv, T2), lw.mul_exact(builder, dv, wu, T2))
-            return builder.mul(builder.mul(lw.sign(builder, diff), lw.sign(builder, wu)), lw.sign(builder, wv))
+            return lw.exact_quotient_difference_sign(builder, du, wu, dv, wv, T2)
 
         if bits < FILTER_COMPARISONS_FROM_BITS:
             return exact(builder)
@@ -511,9 +509,7 @@ def compare_filtered_values_at(typingctx, F, iu, iv, X, S, j):
             xv = lw.load_row(context, builder, sig.args[3], args[3], args[2], sig.args[2], T, 4)
             s = lw.load_plane(context, builder, sig.args[4], args[4], args[5], sig.args[5])
             du, dv = lw.plane_dot(builder, xu, s, T), lw.plane_dot(builder, xv, s, T)
-            wu, wv = xu[3], xv[3]
-            diff = builder.sub(lw.mul_exact(builder, du, wv, T2), lw.mul_exact(builder, dv, wu, T2))
-            return builder.mul(builder.mul(lw.sign(builder, diff), lw.sign(builder, wu)), lw.sign(builder, wv))
+            return lw.exact_quotient_difference_sign(builder, du, xu[3], dv, xv[3], T2)
 
         if bits < FILTER_COMPARISONS_FROM_BITS:
             return exact(builder)

@@ -344,6 +344,12 @@ def fabs(builder, x):
     return builder.call(f, [x])
 
 
+def exact_quotient_difference_sign(builder, a, b, c, d, T2):
+    """int8 sign(a/b - c/d) = sign(a d - c b)·sign(b)·sign(d) of four signed integers of one width, the cross products
+    formed exactly at ``T2`` (twice that width): the exact answer every quotient comparison falls back to."""
+    return builder.mul(builder.mul(sign(builder, det2(builder, a, c, b, d, T2)), sign(builder, b)), sign(builder, d))
+
+
 def quotient_difference_sign(builder, a, b, c, d, exact):
     """int8 sign(a/b - c/d) of four signed integers of one width, decided by doubles where that is certain.
 
