@@ -47,6 +47,7 @@ from csgnb._resumable import DONE, FAILED, NEED_ROOM
 from csgnb._shuffle import shuffle_order
 from csgnb._unlinked import unlinked
 from csgnb._views import unmanaged, unmanaged_tuple
+from csgnb.bsp.boundary_merge import NEED_ARENA, NEED_STACK, S_A_UNCHANGED, S_NEED, S_PIECES, merge_boundaries
 from csgnb.bsp.build import build_kernel
 from csgnb.bsp.extract import PIECES, TreeArrays, clip_cell, extract_into
 from csgnb.bsp.merging import CHANGED, merge_cells, merge_changes_a
@@ -72,12 +73,17 @@ from csgnb.octree.layout import (
     R_NODES,
     R_PALETTE,
     R_PIECES,
+    R_PIECES_OUT,
     R_POOL,
+    R_PUSH_ARENA,
+    R_PUSH_STACK,
     R_SPLIT_STACK,
     R_TOOL_ARENA,
     R_TREE_A,
     R_TREE_B,
     R_TREE_R,
+    S_BOUNDARY_MERGES,
+    S_BOUNDARY_UNCHANGED,
     S_CELL_OPS,
     S_COMBINES,
     S_MERGES,
@@ -88,6 +94,9 @@ from csgnb.octree.layout import (
     S_UNCHANGED,
     UNIFORM,
 )
+from csgnb.octree.piece_cache import MODE as PC_MODE
+from csgnb.octree.piece_cache import ON as PC_ON
+from csgnb.octree.piece_cache import cached_pieces, piece_room, pieces_of_cell, store_cell_pieces
 from csgnb.octree.workspace import unmanaged_workspace
 
 __all__ = []
@@ -525,9 +534,9 @@ def merge_and_simplify(pal, m, ta, tb, table, constant, box, ws, seed, need):
     """A ∘ B inside the box (``table`` is the label function): merge by cutting, then redundancy removal.
 
     Returns (kind, value, where): UNIFORM with its label, or BSP with the node count and
-    ``where`` 0 = ``ws.to`` (the merged tree was smaller or had several materials) /
-    1 = ``ws.tr`` (rebuilt) / 2 = unchanged (the result is A: nothing to write). (-1, 0, 0)
-    when short of room.
+    ``where`` 0 = ``ws.to`` (the merged tree: several materials) / 1 = ``ws.tr`` (rebuilt) / 2 = unchanged (the
+    result is A: nothing to write) / 3 = ``ws.to`` (smaller than the rebuilt tree). After 1 and 3 the solid's
+    boundary pieces are in ``ws.bi`` (``ws.out.counts[1]`` of them). (-1, 0, 0) when short of room.
     """
     if not mesh_room(m, 8):
         need[0] = R_MESH
@@ -597,7 +606,7 @@ def merge_and_simplify(pal, m, ta, tb, table, constant, box, ws, seed, need):
         return -1, 0, 0
     if count < n_o:
         return BSP, count, 1
-    return BSP, n_o, 0
+    return BSP, n_o, 3
 
 
 # ---------------------------------------------------------------------------
@@ -714,6 +723,7 @@ def boolean_cell(pal, oc, pool, amap, node, tool_kind, tool, cand, table, consta
     _box_corners(lo, size, ws.corners)
     relation = 2
     nb = 0
+    n_poly = 0
     if tool_kind == CONVEX_TOOL:
         relation, nb = convex_tool_in_box(pal, tool.rows, ws.corners, ws.tb)
         if nb < 0:
@@ -748,18 +758,90 @@ def boolean_cell(pal, oc, pool, amap, node, tool_kind, tool, cand, table, consta
     na = cell_tree(oc, pool, node, ws.ta, need)
     if na < 0:
         return 0
+    if (tool_kind != CONVEX_TOOL and ws.pc.counts[PC_MODE] == PC_ON and _in_out_table(table)
+            and ((oc.kind[node] == UNIFORM and oc.label[node] <= 1)
+                 or (cached_pieces(ws.pc, oc, node) and only_in_out(ws.ta, na)))):
+        return _boundary_merge_cell(pal, oc, pool, node, n_poly, table, ws, seed + node, need)
     kind, value, where = merge_and_simplify(pal, ws.m, ws.ta, ws.tb, table, constant, ws.box, ws, seed + node, need)
     if kind < 0:
         return 0
     if where == 2:
         oc.counts[S_UNCHANGED] += 1
         return 1
+    if (where == 1 or where == 3) and not piece_room(ws.pc, node, ws.bi, ws.out.counts[1], need):
+        return 0
     if not write_cell(oc, pool, node, kind, value, ws.tr if where == 1 else ws.to):
         need[0] = R_POOL
         return 0
     oc.counts[S_MERGES] += 1
     if where == 1:
         oc.counts[S_SIMPLIFIED] += 1
+    if where == 1 or where == 3:
+        # the solid's boundary in the cell is the redundancy removal's input, still in ws.bi: the cell's next
+        # Boolean with a mesh tool starts from it
+        store_cell_pieces(ws.pc, oc, node, ws.bi, ws.out.counts[1])
+    return 1
+
+
+@jit(inline="always")
+def _in_out_table(table):
+    """Whether the label function maps in / out labels to in / out labels (a boundary bounds its result)."""
+    if table.shape[0] < 2 or table.shape[1] < 2:
+        return False
+    for i in range(2):
+        for j in range(2):
+            if table[i, j] != 0 and table[i, j] != 1:
+                return False
+    return True
+
+
+@jit(inline="always")
+def _boundary_merge_cell(pal, oc, pool, node, n_tool, table, ws, seed, need):
+    """The Boolean of leaf ``node`` (tree in ``ws.ta``, valid cached pieces) and the mesh tool's local part (tree
+    ``ws.tb``, its ``n_tool`` pieces still in ``ws.bi``) from their boundaries
+    (:func:`csgnb.bsp.boundary_merge.merge_boundaries`), then one import; writes the cell. 1 done, 0 short."""
+    n_a = 0
+    if oc.kind[node] == BSP:
+        n_a = pieces_of_cell(pal, ws.pc, node, ws.pa, need)
+        if n_a < 0:
+            return 0
+    status = merge_boundaries(pal, ws.ta, ws.pa, n_a, ws.tb, ws.bi, n_tool, table, ws.po, ws.push, ws.push_state)
+    if status != DONE:
+        short = ws.push_state[S_NEED]
+        need[0] = R_PUSH_ARENA if short == NEED_ARENA else (R_PUSH_STACK if short == NEED_STACK else R_PIECES_OUT)
+        return 0
+    # (statistics are counted where the cell is done: a cell short of room is done again)
+    if ws.push_state[S_A_UNCHANGED] == 1:
+        oc.counts[S_UNCHANGED] += 1
+        oc.counts[S_BOUNDARY_MERGES] += 1
+        oc.counts[S_BOUNDARY_UNCHANGED] += 1
+        return 1
+    n = ws.push_state[S_PIECES]
+    if n == 0:
+        # no boundary left in the cell: one label, the result's at any inner point
+        _centre_point(oc.lo[node], oc.size[node], ws.point)
+        lab = table[classify_perturbed(pal, ws.ta, ws.point), classify_perturbed(pal, ws.tb, ws.point)]
+        if not write_cell(oc, pool, node, UNIFORM, lab, ws.tr):
+            need[0] = R_POOL
+            return 0
+        oc.counts[S_MERGES] += 1
+        oc.counts[S_BOUNDARY_MERGES] += 1
+        return 1
+    if n > ws.bs.order.shape[0]:
+        need[0] = R_PIECES_OUT
+        return 0
+    if not piece_room(ws.pc, node, ws.po, n, need):
+        return 0
+    count = import_polygons(pal, ws.po, n, ws.bs, seed, ws.tr, need)
+    if count < 0:
+        return 0
+    if not write_cell(oc, pool, node, BSP, count, ws.tr):
+        need[0] = R_POOL
+        return 0
+    store_cell_pieces(ws.pc, oc, node, ws.po, n)
+    oc.counts[S_MERGES] += 1
+    oc.counts[S_SIMPLIFIED] += 1
+    oc.counts[S_BOUNDARY_MERGES] += 1
     return 1
 
 
@@ -826,9 +908,13 @@ def split_step(pal, oc, pool, amap, node, st, ws, threshold, min_size, seed, nee
                 ws.tr.neg[i] = ws.ta.neg[i]
                 ws.tr.pos[i] = ws.ta.pos[i]
                 ws.tr.label[i] = ws.ta.label[i]
+        if kind == BSP and not piece_room(ws.pc, ch, ws.bi, ws.out.counts[1], need):
+            return 0
         if not write_cell(oc, pool, ch, kind, value, ws.tr):
             need[0] = R_POOL
             return 0
+        if kind == BSP:
+            store_cell_pieces(ws.pc, oc, ch, ws.bi, ws.out.counts[1])  # the child's boundary, found by the import
         st[ST_SPLIT_CHILD] = k + 1
     oc.counts[POOL_LIVE] -= oc.length[node]
     oc.kind[node] = UNIFORM
@@ -1101,6 +1187,8 @@ def combine_parent(pal, oc, pool, amap, node, ws, threshold, seed, need):
     if kind == BSP and oc.counts[N_POOL] + value > pool.plane.shape[0]:
         need[0] = R_POOL
         return 0
+    if kind == BSP and not piece_room(ws.pc, node, ws.bi, ws.out.counts[1], need):
+        return 0
     # free the children
     for k in range(8):
         ch = first + k
@@ -1115,6 +1203,8 @@ def combine_parent(pal, oc, pool, amap, node, ws, threshold, seed, need):
     oc.kind[node] = UNIFORM
     oc.length[node] = 0
     write_cell(oc, pool, node, kind, value, ws.tr)
+    if kind == BSP:
+        store_cell_pieces(ws.pc, oc, node, ws.bi, ws.out.counts[1])
     oc.counts[S_COMBINES] += 1
     return 1
 

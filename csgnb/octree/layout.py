@@ -36,17 +36,22 @@ UNIFORM, BSP = 0, 1
 
 # counts
 (N_NODES, N_FREE_BLOCKS, N_POOL, N_PAL, N_AXIS, POOL_LIVE,
- S_MERGES, S_RELABELS, S_SPLITS, S_COMBINES, S_PATHOLOGICAL, S_SIMPLIFIED, S_UNCHANGED, S_CELL_OPS) = range(14)
+ S_MERGES, S_RELABELS, S_SPLITS, S_COMBINES, S_PATHOLOGICAL, S_SIMPLIFIED, S_UNCHANGED, S_CELL_OPS,
+ S_BOUNDARY_MERGES, S_BOUNDARY_UNCHANGED) = range(16)
 N_COUNTS = 32
 
 # resources a kernel can run short of (need[0] after NEED_ROOM)
 (R_MESH, R_CLIP, R_PIECES, R_MERGE, R_TREE_A, R_TREE_B, R_TREE_O, R_TREE_R, R_BUILD_IN, R_BUILD,
- R_POOL, R_NODES, R_PALETTE, R_AXIS, R_TOOL_ARENA, R_SPLIT_STACK, R_EXTRACT) = range(1, 18)
+ R_POOL, R_NODES, R_PALETTE, R_AXIS, R_TOOL_ARENA, R_SPLIT_STACK, R_EXTRACT,
+ R_PIECES_A, R_PIECES_OUT, R_PUSH_ARENA, R_PUSH_STACK, R_PIECE_CACHE) = range(1, 23)
 RESOURCE_NAMES = {R_MESH: "mesh store", R_CLIP: "clip scratch", R_PIECES: "boundary pieces", R_MERGE: "merge scratch",
                   R_TREE_A: "cell tree", R_TREE_B: "tool tree", R_TREE_O: "merged tree", R_TREE_R: "rebuilt tree",
                   R_BUILD_IN: "import polygons", R_BUILD: "import scratch", R_POOL: "BSP pool",
                   R_NODES: "octree nodes", R_PALETTE: "plane palette", R_AXIS: "wall-plane map",
-                  R_TOOL_ARENA: "tool clipping", R_SPLIT_STACK: "split stack", R_EXTRACT: "extraction scratch"}
+                  R_TOOL_ARENA: "tool clipping", R_SPLIT_STACK: "split stack", R_EXTRACT: "extraction scratch",
+                  R_PIECES_A: "cell boundary pieces", R_PIECES_OUT: "boundary merge output",
+                  R_PUSH_ARENA: "boundary merge arena", R_PUSH_STACK: "boundary merge stack",
+                  R_PIECE_CACHE: "boundary piece cache"}
 
 
 class OctArrays(NamedTuple):

@@ -283,7 +283,9 @@ ARRAY_NAMES = frozenset([f"oc_{k}" for k in _OC_DTYPES] + ["oc_counts", "oc_free
                         + [f"pool_{k}" for k in _POOL_NAMES] + ["palette_limbs", "axis_keys", "axis_rows"])
 HEADER_FIELDS = {"width", "exponent", "origin", "max_coordinate", "threshold", "min_cell", "max_tool_polygons",
                  "seed", "root_lo", "root_size", "max_normal", "max_offset"}
-OPTIONAL_HEADER_FIELDS = {"completed", "checkpoint", "format", "version", "sha256", "applied"}
+OPTIONAL_HEADER_FIELDS = {"completed", "checkpoint", "format", "version", "sha256", "applied", "boundary_cache"}
+#: The boundary cache (csgnb.octree.piece_cache): all three or none (files written before it have none).
+PIECE_ARRAY_NAMES = frozenset(["oc_pieces", "pieces_rows", "pieces_size"])
 _AXIS_MULTIPLIER = np.int64(-7046029254386353131)
 _MAX_THRESHOLD = 1 << 16  # BSP nodes per cell (the paper's best: 100-200); the workspace grows with it
 
@@ -348,7 +350,7 @@ def _check(header: dict, arrays: dict[str, np.ndarray]) -> dict:  # noqa: C901 (
         N_PAL,
         N_POOL,
         POOL_LIVE,
-        S_CELL_OPS,
+        S_BOUNDARY_UNCHANGED,
         UNIFORM,
     )
 
@@ -415,7 +417,14 @@ def _check(header: dict, arrays: dict[str, np.ndarray]) -> dict:  # noqa: C901 (
             raise _Bad("header field 'checkpoint' needs the field 'completed'")
 
     # -- arrays: names, dtypes, shapes -----------------------------------------------------
+    if "boundary_cache" in header and header["boundary_cache"] not in ("off", "waiting", "on"):
+        raise _Bad(f"header field 'boundary_cache' must be 'off', 'waiting' or 'on', got {header['boundary_cache']!r}")
     names = set(arrays)
+    has_pieces = bool(names & PIECE_ARRAY_NAMES)
+    if has_pieces and not PIECE_ARRAY_NAMES <= names:
+        raise _Bad("the file lacks " + ", ".join(sorted(PIECE_ARRAY_NAMES - names)) + " (the boundary cache's arrays "
+                   "come together)")
+    names -= PIECE_ARRAY_NAMES
     if names != ARRAY_NAMES:
         parts = []
         if ARRAY_NAMES - names:
@@ -426,7 +435,7 @@ def _check(header: dict, arrays: dict[str, np.ndarray]) -> dict:  # noqa: C901 (
     counts = _array(arrays, "oc_counts", np.int64, (N_COUNTS,))
     if np.any(counts < 0):
         raise _Bad(f"array 'oc_counts' has a negative entry at {_first(counts < 0)}")
-    if np.any(counts[S_CELL_OPS + 1:] != 0):
+    if np.any(counts[S_BOUNDARY_UNCHANGED + 1:] != 0):
         raise _Bad("array 'oc_counts' has entries in its unused tail")
     n = int(counts[N_NODES])
     oc = {k: _array(arrays, f"oc_{k}", dt, (n, 3) if k == "lo" else (n,)) for k, dt in _OC_DTYPES.items()}
@@ -591,6 +600,9 @@ def _check(header: dict, arrays: dict[str, np.ndarray]) -> dict:  # noqa: C901 (
         raise _Bad(f"BSP pool node {i} (node {int(rel[i])} of its cell's BSP) lies on a cycle: the nodes of a cell's "
                    "BSP must form a tree from its first node")
 
+    if has_pieces:
+        _check_pieces(arrays, n, bsp, p)
+
     # -- the palette and the wall-plane map -----------------------------------------------------
     palette = np.zeros((p, 4), wide_dtype(width))
     palette["limbs"] = limbs
@@ -647,6 +659,36 @@ def _check(header: dict, arrays: dict[str, np.ndarray]) -> dict:  # noqa: C901 (
     return {"grid": grid, "threshold": threshold, "min_cell": min_cell, "max_tool_polygons": max_tool_polygons,
             "seed": seed, "root_lo": np.array(root_lo, np.int64), "root_size": root_size, "max_normal": max_normal,
             "max_offset": max_offset}
+
+
+def _check_pieces(arrays: dict, n: int, bsp: np.ndarray, p: int) -> None:
+    """The boundary cache's arrays: entries only at BSP cells, back to back in node order, each a run of pieces
+    (a signed support row, then ``k >= 3`` edge rows of the palette; ``pieces_size`` holds k at the support, 0 at
+    the edges). That the pieces bound the cell's solid is not checked here (the file's checksum guards it)."""
+    plen = _array(arrays, "oc_pieces", np.int32, (n,))
+    if np.any(plen < 0) or np.any(~bsp & (plen != 0)):
+        i = _first((plen < 0) | (~bsp & (plen != 0)))
+        raise _Bad(f"oc_pieces[{i}] = {int(plen[i])}: only a BSP cell has boundary pieces (a count of rows >= 0)")
+    total = int(plen.astype(np.int64).sum())
+    rows = _array(arrays, "pieces_rows", np.int32, (total,))
+    size = _array(arrays, "pieces_size", np.int32, (total,))
+    if total == 0:
+        return
+    supports = np.flatnonzero(size != 0)
+    k = size[supports].astype(np.int64)
+    ends = supports + k + 1
+    if np.any(size < 0) or supports.shape[0] == 0 or supports[0] != 0 or np.any(k < 3) or ends[-1] != total or \
+            np.any(ends[:-1] != supports[1:]):
+        raise _Bad("'pieces_size' is not a run of pieces (k >= 3 at each support row, 0 at its k edge rows)")
+    cell_starts = np.concatenate([[0], np.cumsum(plen[plen > 0].astype(np.int64))[:-1]])
+    if not np.all(np.isin(cell_starts, supports)):
+        raise _Bad("'oc_pieces' splits a piece between two cells")
+    edge = np.ones(total, bool)
+    edge[supports] = False
+    r = rows.astype(np.int64)
+    if np.any(edge & ((r < 0) | (r >= p))) or np.any(~edge & ((r < -p) | (r >= p))):
+        i = _first((edge & ((r < 0) | (r >= p))) | (~edge & ((r < -p) | (r >= p))))
+        raise _Bad(f"pieces_rows[{i}] = {int(rows[i])} is not a plane of the palette ({p} planes)")
 
 
 def _max_magnitude(limbs: np.ndarray) -> int:

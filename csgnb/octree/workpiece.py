@@ -73,6 +73,7 @@ from csgnb.octree.layout import (
     R_AXIS,
     R_NODES,
     R_PALETTE,
+    R_PIECE_CACHE,
     R_POOL,
     R_SPLIT_STACK,
     RESOURCE_NAMES,
@@ -93,6 +94,21 @@ from csgnb.octree.layout import (
     new_octree,
     new_pool,
     new_tree_arrays,
+)
+from csgnb.octree.piece_cache import (
+    LIVE,
+    MODE,
+    MODE_NAMES,
+    OFF,
+    ON,
+    USED,
+    WAITING,
+    PieceCache,
+    compacted_piece_cache,
+    grown_piece_cache,
+    new_piece_cache,
+    rekeyed_piece_cache,
+    valid_entries,
 )
 from csgnb.octree.tool import Tool, _exact_planes, convex_tool_tree, split_planes_wide, store_int64_rows
 from csgnb.octree.volume import CellVolumes, LocalChange, cell_key, convex_change
@@ -138,9 +154,13 @@ PALETTE_COMPACT_LIVE = 0.5
 """... if at most this fraction of its rows is live (otherwise the next check waits for twice as many rows)."""
 
 
-def _live_planes(plane: np.ndarray, amap: AxisMap) -> np.ndarray:
-    """The palette rows in use : sorted (k,) int64 -- by BSP nodes ``plane`` (-1 at leaves) and the wall map."""
-    return np.unique(np.concatenate([plane[plane >= 0], amap.rows[amap.keys >= 0]]).astype(np.int64))
+def _live_planes(plane: np.ndarray, amap: AxisMap, piece_rows: np.ndarray | None = None) -> np.ndarray:
+    """The palette rows in use : sorted (k,) int64 -- by BSP nodes ``plane`` (-1 at leaves), the wall map and the
+    cached boundary pieces' ``piece_rows`` (signed supports and edge planes)."""
+    parts = [plane[plane >= 0], amap.rows[amap.keys >= 0]]
+    if piece_rows is not None:
+        parts.append(np.where(piece_rows >= 0, piece_rows, ~piece_rows))
+    return np.unique(np.concatenate(parts).astype(np.int64))
 
 
 def _renumbering(live: np.ndarray, used: int) -> np.ndarray:
@@ -148,6 +168,25 @@ def _renumbering(live: np.ndarray, used: int) -> np.ndarray:
     remap = np.full(max(used, 1), -1, np.int32)
     remap[live] = np.arange(live.shape[0], dtype=np.int32)
     return remap
+
+
+def _loaded_piece_cache(oc: OctArrays, a: dict, nodes: int, *, mode: int) -> PieceCache:
+    """The boundary cache of a saved workpiece (checked by :func:`csgnb.octree.persist.check_workpiece`): its entries
+    keyed to the loaded cells' pool starts. Files written before the cache have none."""
+    if "oc_pieces" not in a:
+        return new_piece_cache(nodes, mode=mode)
+    plen = a["oc_pieces"]
+    total = int(plen.astype(np.int64).sum())
+    pc = new_piece_cache(nodes, max(4096, 2 * total), mode=mode)
+    cells = np.flatnonzero(plen > 0)
+    lens = plen[cells].astype(np.int64)
+    pc.key[cells] = oc.start[cells]
+    pc.start[cells] = np.concatenate([[0], np.cumsum(lens)[:-1]]).astype(np.int64)
+    pc.length[cells] = plen[cells]
+    pc.rows[:total] = a["pieces_rows"]
+    pc.size[:total] = a["pieces_size"]
+    pc.counts[USED] = pc.counts[LIVE] = total
+    return pc
 
 
 def identity_grid(width: int = DEFAULT_WIDTH) -> Grid:
@@ -913,6 +952,7 @@ class Workpiece:
                   "max_normal": str(self._max_normal), "max_offset": str(self._max_offset)}
         if self._applied:  # the differences it would skip are part of what the workpiece does next (a resumed run)
             header["applied"] = list(self._applied)
+        header["boundary_cache"] = MODE_NAMES[int(self.ws.pc.counts[MODE])]  # what it stores next: part of the state
         return header
 
     def _arrays(self) -> dict[str, np.ndarray]:
@@ -953,11 +993,29 @@ class Workpiece:
         a["oc_label"][cells] = 0
         for name in ("plane", "neg", "pos", "label"):
             a[f"pool_{name}"] = getattr(self.pool, name)[rows]
+        # the boundary cache's valid entries, cell after cell (csgnb.octree.piece_cache): they decide how the next
+        # Booleans build their trees, so they are part of the state
+        pc = self.ws.pc
+        valid = valid_entries(pc, oc)
+        plen = np.zeros(n, np.int32)
+        plen[valid] = pc.length[valid]
+        plen[~(leaf & (a["oc_kind"] == BSP))] = 0
+        pcells = cells[plen[cells] > 0]
+        plens = plen[pcells].astype(np.int64)
+        pstarts = np.concatenate([[0], np.cumsum(plens)[:-1]]).astype(np.int64)
+        src = (np.repeat(pc.start[pcells] - pstarts, plens) + np.arange(int(plens.sum()))).astype(np.int64)
+        a["oc_pieces"] = plen
+        piece_rows = pc.rows[src]
+        a["pieces_size"] = pc.size[src]
         # the palette's live rows only, in their order (so compaction in memory, whenever it ran, changes nothing)
-        live = _live_planes(a["pool_plane"], self.amap)
+        live = _live_planes(a["pool_plane"], self.amap, piece_rows)
         remap = _renumbering(live, int(oc.counts[N_PAL]))
         inner = a["pool_plane"] >= 0
         a["pool_plane"][inner] = remap[a["pool_plane"][inner]]
+        up = piece_rows >= 0
+        piece_rows[up] = remap[piece_rows[up]]
+        piece_rows[~up] = ~remap[~piece_rows[~up]]
+        a["pieces_rows"] = piece_rows
         a["axis_keys"] = self.amap.keys.copy()
         a["axis_rows"] = self.amap.rows.copy()
         walls = a["axis_keys"] >= 0
@@ -1026,6 +1084,8 @@ class Workpiece:
         w.oc, w.pool, w.palette = oc, pool, palette
         w.amap = AxisMap(np.ascontiguousarray(a["axis_keys"]), np.ascontiguousarray(a["axis_rows"]))
         w.ws = with_palette(w.ws, palette)
+        mode = MODE_NAMES.index(header.get("boundary_cache", "waiting"))
+        w.ws = w.ws._replace(pc=_loaded_piece_cache(oc, a, cap, mode=mode))
         w.root_lo = ok["root_lo"]
         w.root_size = ok["root_size"]
         w._max_normal, w._max_offset = ok["max_normal"], ok["max_offset"]
@@ -1048,6 +1108,9 @@ class Workpiece:
             self.pool = grown_pool(self.pool, max(int(self.oc.counts[N_POOL]), size), max(1024, size))
         elif resource == R_NODES:
             self.oc = grown_octree(self.oc, max(64, self.oc.child.shape[0]))
+            self.ws = self.ws._replace(pc=grown_piece_cache(self.ws.pc, self.oc.child.shape[0], 0))
+        elif resource == R_PIECE_CACHE:
+            self._grow_piece_cache()
         elif resource == R_PALETTE:
             self._palette_room(max(256, self.palette.shape[0]))
         elif resource == R_AXIS:
@@ -1094,6 +1157,8 @@ class Workpiece:
         need = np.zeros(4, np.int64)
         if not hasattr(self, "_split_stack"):
             self._split_stack = np.zeros(512, np.int64)
+        if kind == K.MESH_TOOL and self.ws.pc.counts[MODE] == WAITING:
+            self.ws.pc.counts[MODE] = ON  # the first mesh tool: cells keep their boundary from now on
         n_poly = tool.support.shape[0]
         work, cand, done = self._walk_arrays(n_poly)
         cand[:n_poly] = np.arange(n_poly, dtype=np.int32)
@@ -1133,6 +1198,30 @@ class Workpiece:
             self._grow(int(need[0]))
         raise InternalError("an octree combine kept running short of room (a bug in csgnb: please report it)")
 
+    @property
+    def boundary_cache(self) -> bool:
+        """Whether cells keep their exact boundary for their next Boolean with a mesh tool (default on).
+
+        With it a cell's merge with a mesh tool pushes the cell's boundary pieces through the tool's local tree and
+        the tool's through the cell's (:mod:`csgnb.octree.piece_cache`) instead of cutting the cell by both trees;
+        off, every merge cuts. Both give the same solid; the trees may differ. Setting it empties the cache."""
+        return int(self.ws.pc.counts[MODE]) != OFF
+
+    @boundary_cache.setter
+    def boundary_cache(self, on: bool) -> None:
+        self.ws = self.ws._replace(pc=new_piece_cache(self.oc.child.shape[0], mode=WAITING if on else OFF))
+
+    def _grow_piece_cache(self) -> None:
+        """Room in the boundary cache (:mod:`csgnb.octree.piece_cache`) for every octree node and more rows: by
+        compaction when at most half its rows are live, else by growth."""
+        pc = self.ws.pc
+        used, live = int(pc.counts[USED]), int(pc.counts[LIVE])
+        if live < used // 2:
+            pc = compacted_piece_cache(pc, self.oc, used)
+        else:
+            pc = grown_piece_cache(pc, 0, 2 * pc.rows.shape[0])
+        self.ws = self.ws._replace(pc=grown_piece_cache(pc, self.oc.child.shape[0], 0))
+
     def _maybe_compact(self) -> None:
         used = int(self.oc.counts[N_POOL])
         live = int(self.oc.counts[POOL_LIVE])
@@ -1154,8 +1243,11 @@ class Workpiece:
         """
         used = int(self.oc.counts[N_PAL])
         self._compact_pool()  # every pool row then belongs to a live cell
+        pc = compacted_piece_cache(self.ws.pc, self.oc)  # and every cached row to a valid entry
+        self.ws = self.ws._replace(pc=pc)
         n = int(self.oc.counts[N_POOL])
-        live = _live_planes(self.pool.plane[:n], self.amap)
+        piece_rows = pc.rows[: int(pc.counts[USED])]
+        live = _live_planes(self.pool.plane[:n], self.amap, piece_rows)
         if live.shape[0] > PALETTE_COMPACT_LIVE * used:
             self._palette_kept = used
             return
@@ -1168,6 +1260,10 @@ class Workpiece:
         plane = self.pool.plane[:n]
         inner = plane >= 0
         plane[inner] = remap[plane[inner]]
+        # cached pieces: edge planes and supports as stored (>= 0), flipped supports as ~row
+        up = piece_rows >= 0
+        piece_rows[up] = remap[piece_rows[up]]
+        piece_rows[~up] = ~remap[~piece_rows[~up]]
         if cells is not None:
             self._volumes.rekey({k: cell_key(self, c) for k, c in zip(old_keys, cells, strict=True)})
         walls = self.amap.keys >= 0
@@ -1193,6 +1289,7 @@ class Workpiece:
         rows = np.repeat(self.oc.start[bsp].astype(np.int64) - new_start, lengths) + np.arange(total)
         for dst, src in zip(pool, self.pool, strict=True):
             dst[:total] = src[rows]
+        rekeyed_piece_cache(self.ws.pc, bsp, self.oc.start[bsp].astype(np.int64), new_start)
         self.oc.start[bsp] = new_start
         at = total
         self.pool = pool

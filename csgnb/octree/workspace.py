@@ -19,6 +19,7 @@ import numpy as np
 from csgnb._jit import jit
 from csgnb._resumable import grown
 from csgnb._views import unmanaged, unmanaged_tuple
+from csgnb.bsp.boundary_merge import PieceArrays, PushScratch, new_push_scratch
 from csgnb.bsp.extract import (
     ClipScratch,
     Pieces,
@@ -38,6 +39,10 @@ from csgnb.octree.layout import (
     R_MERGE,
     R_MESH,
     R_PIECES,
+    R_PIECES_A,
+    R_PIECES_OUT,
+    R_PUSH_ARENA,
+    R_PUSH_STACK,
     R_TOOL_ARENA,
     R_TREE_A,
     R_TREE_B,
@@ -46,17 +51,14 @@ from csgnb.octree.layout import (
     grown_tree_arrays,
     new_tree_arrays,
 )
+from csgnb.octree.piece_cache import PieceCache, new_piece_cache
 
 __all__ = ["ImportInput", "BuildScratch", "ToolArena", "ToolArrays", "Workspace", "new_workspace", "grow"]
 
 
-class ImportInput(NamedTuple):
-    """Plane-based polygons to import: ``support``, ``offsets``, ``edges`` (int32), ``verts (m, 4)`` wide."""
-
-    support: np.ndarray
-    offsets: np.ndarray
-    edges: np.ndarray
-    verts: np.ndarray
+#: Plane-based polygons to import: ``support``, ``offsets``, ``edges`` (int32), ``verts (m, 4)`` wide -- the
+#: boundary merge's pieces (one type: a tool's pieces in a cell are both).
+ImportInput = PieceArrays
 
 
 class BuildScratch(NamedTuple):
@@ -125,6 +127,11 @@ class Workspace(NamedTuple):
     ext_stack: np.ndarray
     ext_state: np.ndarray
     path: np.ndarray
+    pa: PieceArrays
+    po: PieceArrays
+    push: PushScratch
+    push_state: np.ndarray
+    pc: PieceCache
 
 
 @jit(inline="always")
@@ -135,12 +142,23 @@ def unmanaged_workspace(ws):
                      unmanaged_tuple(ws.tb), unmanaged_tuple(ws.to), unmanaged_tuple(ws.tr), unmanaged(ws.box),
                      unmanaged(ws.corners), unmanaged(ws.axis3), unmanaged(ws.point),
                      unmanaged(ws.cells), unmanaged(ws.merge_stack), unmanaged(ws.merge_state),
-                     unmanaged(ws.merge_boxes), unmanaged(ws.ext_stack), unmanaged(ws.ext_state), unmanaged(ws.path))
+                     unmanaged(ws.merge_boxes), unmanaged(ws.ext_stack), unmanaged(ws.ext_state), unmanaged(ws.path),
+                     unmanaged_tuple(ws.pa), unmanaged_tuple(ws.po), unmanaged_tuple(ws.push),
+                     unmanaged(ws.push_state), unmanaged_tuple(ws.pc))
 
 
 def _import_input(dtype, polygons: int, edges: int) -> ImportInput:
     return ImportInput(np.zeros(polygons + 1, np.int32), np.zeros(polygons + 1, np.int32), np.zeros(edges, np.int32),
                        np.zeros((edges, 4), dtype))
+
+
+def _piece_arrays(dtype, pieces: int, edges: int) -> PieceArrays:
+    return PieceArrays(np.zeros(pieces + 1, np.int32), np.zeros(pieces + 1, np.int32), np.zeros(edges, np.int32),
+                       np.zeros((edges, 4), dtype))
+
+
+def _grown_piece_arrays(p: PieceArrays) -> PieceArrays:
+    return PieceArrays(grown(p.support), grown(p.offsets), grown(p.edges), grown(p.verts))
 
 
 def _build_scratch(dtype, polygons: int, arena: int, stack: int) -> BuildScratch:
@@ -169,6 +187,11 @@ def new_workspace(palette: np.ndarray, threshold: int) -> Workspace:
         merge_state=np.zeros(7, np.int64), merge_boxes=np.zeros((16 * t + 1, BOX_COLUMNS)),
         ext_stack=np.zeros((16 * t, 3), np.int64), ext_state=np.zeros(4, np.int64),
         path=np.zeros(1, np.int64),
+        pa=_piece_arrays(dtype, 16 * t, 64 * t),
+        po=_piece_arrays(dtype, 16 * t, 64 * t),
+        push=new_push_scratch(dtype, 64 * t, 16 * t),
+        push_state=np.zeros(5, np.int64),
+        pc=new_piece_cache(),
     )
 
 
@@ -222,4 +245,16 @@ def grow(ws: Workspace, resource: int) -> Workspace:
     if resource == R_TOOL_ARENA:
         a = ws.arena
         return ws._replace(arena=ToolArena(grown(a.edges), grown(a.verts), grown(a.sides)))
+    if resource == R_PIECES_A:
+        return ws._replace(pa=_grown_piece_arrays(ws.pa))
+    if resource == R_PIECES_OUT:
+        # the import of the result reads it: its order array grows with it
+        return ws._replace(po=_grown_piece_arrays(ws.po), bs=ws.bs._replace(order=grown(ws.bs.order)))
+    if resource == R_PUSH_ARENA:
+        u = ws.push
+        return ws._replace(push=u._replace(edges=grown(u.edges), verts=grown(u.verts), sides=grown(u.sides)))
+    if resource == R_PUSH_STACK:
+        u = ws.push
+        return ws._replace(push=u._replace(st_start=grown(u.st_start), st_k=grown(u.st_k),
+                                           st_behind=grown(u.st_behind), st_front=grown(u.st_front)))
     raise ValueError(f"not a workspace resource: {resource}")
