@@ -286,8 +286,12 @@ def merge_boundaries(pal, ta, pa, na, tb, pb, nb, table, out, sc, state):
                 if not in_a:
                     b_kept += 1
             continue
-        if in_a:
-            a_unchanged = False  # some fragment is dropped or turned round
+        # the walk: the piece split where its fragments' fates differ (the probe's leaves are a superset: they can
+        # all meet the same fate after all -- then the piece is written whole)
+        n_first = n_out
+        e_first = e_out
+        b_first = b_kept
+        fate_all = -9
         sc.st_start[0] = 0
         sc.st_k[0] = k0
         sc.st_behind[0] = 0
@@ -304,6 +308,7 @@ def merge_boundaries(pal, ta, pa, na, tb, pb, nb, table, out, sc, state):
                 q_front = t.plane[front]
                 if q_behind < 0 and q_front < 0:
                     fate = _fate(in_a, table, t, behind, front)
+                    fate_all = fate if fate_all == -9 or fate_all == fate else MIXED
                     if fate != DROP:
                         if not _out_room(out, n_out, e_out, k):
                             state[S_NEED] = NEED_OUT
@@ -336,6 +341,21 @@ def merge_boundaries(pal, ta, pa, na, tb, pb, nb, table, out, sc, state):
                     k = k_neg
                     side = -1
                 behind, front = _next_cursors(pal, row, flipped, t, behind, front, node, side)
+        if in_a:
+            a_unchanged = a_unchanged and fate_all == KEEP
+        if fate_all != MIXED:
+            n_out = n_first
+            e_out = e_first
+            b_kept = b_first
+            if fate_all != DROP:
+                for r in range(k0):
+                    sc.edges[r] = p.edges[e0 + r]
+                    copy_point(p.verts, e0 + r, sc.verts, r)
+                _write_fragment(sc, 0, k0, s, fate_all == FLIP, out, n_out, e_out)  # (room: its fragments fitted)
+                n_out += 1
+                e_out += k0
+                if not in_a:
+                    b_kept += 1
     state[S_PIECES] = n_out
     state[S_EDGES] = e_out
     state[S_A_UNCHANGED] = 1 if a_unchanged and b_kept == 0 else 0

@@ -1,0 +1,275 @@
+"""Booleans from both operands' boundaries (``csgnb.bsp.boundary_merge``) and the cells that keep theirs
+(``csgnb.octree.piece_cache``).
+
+The reference is the merge by cutting (``csgnb.bsp.merge``): regions are compared exactly (the symmetric difference
+of two trees, merged by cutting, has no inside cell). Inputs are chosen to meet each other's faces -- boxes on a
+coarse grid share planes, faces and edges with each other, with earlier cuts and with the octree's cell walls --
+which is where a piece lies in a plane of the other tree (its two sides then see different labels) and where a
+boundary would be kept twice or not at all.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from csgnb.bsp import DIFFERENCE, INTERSECTION, SYMMETRIC_DIFFERENCE, UNION
+from csgnb.bsp.boundary_merge import boolean_from_boundaries, boundary_polygons
+from csgnb.bsp.build import bsp_from_mesh, bsp_from_polygons
+from csgnb.bsp.merging import merge, remove_redundancy
+from csgnb.bsp.tree import BSPTree
+from csgnb.exact import to_wide
+from csgnb.mesh.hull import convex_hull
+from csgnb.octree import Tool, Workpiece
+from csgnb.octree.layout import S_BOUNDARY_MERGES
+from csgnb.octree.persist import WorkpieceFileError, read_arrays, write_arrays
+
+LO, HI = (-16, -16, -16), (16, 16, 16)
+FUNCTIONS = {"union": UNION, "intersection": INTERSECTION, "difference": DIFFERENCE, "xor": SYMMETRIC_DIFFERENCE}
+_BOX_FACES = np.array([[0, 2, 3], [0, 3, 1], [4, 5, 7], [4, 7, 6], [0, 1, 5], [0, 5, 4], [2, 6, 7], [2, 7, 3],
+                       [0, 4, 6], [0, 6, 2], [1, 3, 7], [1, 7, 5]])
+
+
+def box_mesh(lo, hi):
+    """The 12 outward triangles of the box ``[lo, hi]``."""
+    lo, hi = np.asarray(lo, np.int64), np.asarray(hi, np.int64)
+    corners = np.array([[(hi if i & (1 << c) else lo)[c] for c in range(3)] for i in range(8)], np.int64)
+    return corners, _BOX_FACES.copy()
+
+
+def random_solid(rng, width):
+    """A box on a grid of 2 (shared planes) or a tetrahedron with small integer corners."""
+    if rng.random() < 0.6:
+        lo = 2 * rng.integers(-8, 6, 3)
+        return bsp_from_mesh(*box_mesh(lo, lo + 2 * rng.integers(1, 6, 3)), width=width)
+    while True:
+        v = rng.integers(-14, 15, (4, 3))
+        det = np.linalg.det((v[1:] - v[0]).astype(float))
+        if abs(det) > 1:
+            break
+    faces = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])
+    return bsp_from_mesh(v, faces if det > 0 else faces[:, ::-1], width=width)
+
+
+def same_region(t1: BSPTree, t2: BSPTree) -> bool:
+    x = merge(t1, t2, SYMMETRIC_DIFFERENCE, LO, HI).tree
+    return not np.any(x.label[x.plane < 0] == 1)
+
+
+def tree_of(palette, pieces) -> BSPTree:
+    """The BSP of ``pieces`` over the whole ``palette`` (bsp_from_polygons keeps only its nodes' rows: map back)."""
+    r = bsp_from_polygons(palette, pieces)
+    rows = {palette[i].tobytes(): i for i in range(palette.shape[0] - 1, -1, -1)}
+    back = np.array([rows[r.palette[i].tobytes()] for i in range(r.palette.shape[0])], np.int32)
+    plane = np.where(r.plane >= 0, back[np.maximum(r.plane, 0)], -1).astype(np.int32)
+    return BSPTree(palette, plane, r.neg, r.pos, r.label, validate=False)
+
+
+def check_one(a, b, fn) -> tuple[int, bool]:
+    """The boundary merge of a and b against the merge by cutting; (pieces, result is A)."""
+    ta, pa = boundary_polygons(a, LO, HI)
+    tb, pb = boundary_polygons(b, LO, HI)
+    palette, pieces, unchanged = boolean_from_boundaries(ta, pa, tb, pb, fn)
+    reference = merge(a, b, fn, LO, HI)
+    if len(pieces) == 0:
+        labels = np.unique(reference.tree.label[reference.tree.plane < 0])
+        assert labels.shape[0] == 1  # no boundary left: one label
+    else:
+        assert same_region(tree_of(palette, pieces), reference.tree)
+    assert unchanged == (not reference.changed)
+    return len(pieces), unchanged
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.sampled_from([128, 256]))
+def test_the_boundary_merge_gives_the_merge_of_the_solids(seed, width):
+    """Random boxes (coplanar faces galore) and tetrahedra, every Boolean, against the merge by cutting; and
+    whether the result is A, piece for piece, exactly when the merge changed no label of A."""
+    rng = np.random.default_rng(seed)
+    a, b = random_solid(rng, width), random_solid(rng, width)
+    for fn in FUNCTIONS.values():
+        check_one(a, b, fn)
+
+
+def test_shared_faces_are_kept_once_or_not_at_all():
+    """Two boxes side by side: their union has no face at the contact (both sides in), their difference keeps A's
+    face there once (A's piece decides; B's, on A's boundary, is dropped); a box with itself; a box minus its lower
+    half, which shares five of its planes."""
+    a = bsp_from_mesh(*box_mesh((0, 0, 0), (8, 8, 8)), width=128)
+    b = bsp_from_mesh(*box_mesh((8, 0, 0), (12, 8, 8)), width=128)
+    inner = bsp_from_mesh(*box_mesh((0, 0, 0), (8, 8, 4)), width=128)  # shares five faces' planes with a
+    # the box [0, 12] x [0, 8]^2: both end faces, the four sides of each box (coplanar neighbours stay two
+    # pieces), and nothing at the contact
+    assert check_one(a, b, UNION)[0] == 2 + 4 + 4
+    assert check_one(a, b, DIFFERENCE) == (6, True)  # b touches a only: a, piece for piece
+    assert check_one(a, a, DIFFERENCE)[0] == 0
+    assert check_one(a, a, UNION) == (6, True)
+    assert check_one(a, a, INTERSECTION) == (6, True)
+    # the upper half: a's top face whole, the upper parts of its four sides, inner's top face turned round; a's
+    # bottom face (inner's too, the same orientation) dropped
+    assert check_one(a, inner, DIFFERENCE) == (1 + 4 + 1, False)
+
+
+@pytest.mark.parametrize("width", [128, 256])
+def test_boundaries_passed_on_through_many_booleans(width):
+    """A chain of 40 Booleans where each result's pieces are the next step's boundary of A (as the octree's cells
+    keep them), compared with merge + redundancy removal at every step."""
+    rng = np.random.default_rng(width)
+    a = bsp_from_mesh(*box_mesh((-10, -10, -10), (10, 10, 10)), width=width)
+    ta, pa = boundary_polygons(a, LO, HI)
+    reference = a
+    for step in range(40):
+        b = random_solid(rng, width)
+        fn = [DIFFERENCE, UNION, DIFFERENCE, INTERSECTION, SYMMETRIC_DIFFERENCE][step % 5 if step % 3 else 0]
+        tb, pb = boundary_polygons(b, LO, HI)
+        palette, pieces, _ = boolean_from_boundaries(ta, pa, tb, pb, fn)
+        reference = remove_redundancy(merge(reference, b, fn, LO, HI))
+        if len(pieces) == 0:
+            labels = np.unique(reference.label[reference.plane < 0])
+            assert labels.shape[0] == 1
+            ta, pa = BSPTree.leaf(palette, int(labels[0])), pieces
+            continue
+        ta, pa = tree_of(palette, pieces), pieces
+        assert same_region(ta, reference), step
+
+
+def _box_tool(lo, hi, width):
+    return Tool.from_mesh(*box_mesh(lo, hi), width=width)
+
+
+def _hull_tool(rng, centre, radius, width):
+    d = rng.normal(size=(30, 3))
+    points = np.rint(d / np.linalg.norm(d, axis=1)[:, None] * radius).astype(np.int64) + np.asarray(centre)
+    return Tool.from_mesh(*convex_hull(points).to_mesh(), width=width)
+
+
+def _run(width, seed, cache: bool, steps: int = 24) -> Workpiece:
+    rng = np.random.default_rng(seed)
+    w = Workpiece.box([0, 0, 0], [64, 64, 64], threshold=24, width=width)
+    w.boundary_cache = cache
+    for i in range(steps):
+        r = rng.random()
+        if r < 0.4:  # blocks of a lattice of 6: faces on earlier cuts, the same way round and the other
+            lo = 6 * rng.integers(0, 10, 3) + 1
+            tool = _box_tool(lo, lo + 6 * rng.integers(1, 3, 3), width)
+        elif r < 0.7:  # boxes on a grid of 4: faces on cell walls too
+            lo = 4 * rng.integers(-2, 15, 3)
+            tool = _box_tool(lo, lo + 4 * rng.integers(1, 6, 3), width)
+        else:
+            tool = _hull_tool(rng, rng.integers(0, 64, 3), int(rng.integers(5, 14)), width)
+        op = "union" if i % 5 == 4 else ("intersection" if i == steps - 3 else "difference")
+        getattr(w, op)(tool)
+    return w
+
+
+# (128, 1), (128, 6) and (256, 20) fail when a coplanar fragment's behind and front points are swapped
+@pytest.mark.parametrize(("width", "seed"), [(128, 0), (128, 1), (128, 6), (256, 20)])
+def test_cells_that_keep_their_boundary_carve_the_same_solid(width, seed):
+    """Mesh-tool Booleans in a workpiece with the boundary cache (the default) and without it: the same exact volume
+    and the same side for thousands of points after a run that merged most cells from their boundaries."""
+    with_cache, without = _run(width, seed, True, steps=40), _run(width, seed, False, steps=40)
+    assert with_cache.oc.counts[S_BOUNDARY_MERGES] > 50 and without.oc.counts[S_BOUNDARY_MERGES] == 0
+    assert with_cache.volume() == without.volume()
+    pts = np.random.default_rng(seed).integers(-1, 66, size=(4000, 3))
+    x = to_wide(np.column_stack([2 * pts + 1, np.full(len(pts), 2)]), width)  # half-integers: off every grid plane
+    assert np.array_equal(with_cache.classify(x), without.classify(x))
+
+
+@pytest.mark.parametrize(("width", "offset"), [(128, 0), (128, 1), (256, 1)])
+def test_lattice_blocks_carved_and_filled_against_a_voxel_count(width, offset):
+    """Blocks of a lattice of 4 removed and added back (mesh tools): each shares faces with the cavities and
+    material earlier blocks left, the same way round and the other, and with offset 0 with the octree's cell
+    walls; the exact volume after every Boolean equals the count of unit voxels of the same sequence."""
+    rng = np.random.default_rng(11 + offset)
+    w = Workpiece.box([0, 0, 0], [48, 48, 48], threshold=24, width=width)
+    voxels = np.ones((48, 48, 48), bool)
+    for step in range(60):
+        lo = 4 * rng.integers(0, 11, 3) + offset
+        hi = np.minimum(lo + 4 * rng.integers(1, 4, 3), 47)
+        tool = _box_tool(lo, hi, width)
+        if step % 4 == 3:
+            w |= tool
+            voxels[lo[0]:hi[0], lo[1]:hi[1], lo[2]:hi[2]] = True  # (the stock box bounds nothing: w is not clipped)
+        else:
+            w -= tool
+            voxels[lo[0]:hi[0], lo[1]:hi[1], lo[2]:hi[2]] = False
+        assert w.volume() == int(voxels.sum()), step
+    assert w.oc.counts[S_BOUNDARY_MERGES] > 50
+
+
+def test_a_run_of_convex_tools_keeps_no_boundary_until_a_mesh_tool_comes():
+    """The cache is read only by mesh tools' merges: convex tools alone store nothing (no time, no palette rows kept
+    alive); after the first mesh tool every merge stores its cell's boundary."""
+    w = Workpiece.box([0, 0, 0], [64, 64, 64], threshold=24)
+    for c in ([10, 10, 60], [30, 30, 60], [50, 20, 60]):
+        w -= convex_hull(np.array(c) + np.array([[x, y, z] for x in (-9, 9) for y in (-9, 9) for z in (-9, 9)]))
+    assert w.ws.pc.counts[0] == 0 and w._header()["boundary_cache"] == "waiting"
+    w -= _box_tool([20, 20, 40], [40, 40, 70], 128)
+    assert w.ws.pc.counts[0] > 0 and w._header()["boundary_cache"] == "on"
+
+
+@pytest.fixture(scope="module")
+def carved(tmp_path_factory):
+    """A workpiece cut by mesh tools (its cells hold boundary pieces), saved."""
+    w = _run(128, 7, True, steps=10)
+    path = tmp_path_factory.mktemp("cache") / "w.npz"
+    w.save(path)
+    return w, path
+
+
+def test_the_boundary_cache_is_saved_and_a_resumed_workpiece_goes_on_the_same(carved):
+    """The cache decides how the next Booleans build their trees: saved with the workpiece, a loaded copy is the
+    same state (digest) and stays the same through more Booleans; a file without it (written before it) loads
+    with an empty cache and carves the same solid."""
+    w, path = carved
+    header, arrays = read_arrays(path)
+    assert header["boundary_cache"] == "on" and arrays["pieces_rows"].shape[0] > 0
+    loaded = Workpiece.load(path)
+    assert loaded._state_digest() == w._state_digest()
+    rng = np.random.default_rng(3)
+    tools = [_hull_tool(rng, rng.integers(0, 64, 3), 9, 128) for _ in range(3)]
+    same = Workpiece.load(path)
+    for t in tools:
+        loaded -= t
+        same -= t
+    assert loaded._state_digest() == same._state_digest()
+    old = {k: v for k, v in arrays.items() if k not in ("oc_pieces", "pieces_rows", "pieces_size")}
+    h = {k: v for k, v in header.items() if k not in ("format", "version", "sha256", "boundary_cache")}
+    write_arrays(path.with_name("old.npz"), h, old)
+    before = Workpiece.load(path.with_name("old.npz"))
+    assert before.ws.pc.counts[0] == 0
+    for t in tools:
+        before -= t
+    assert before.volume() == loaded.volume()
+
+
+def _broken(path, header, arrays, **edits):
+    h = {k: v for k, v in header.items() if k not in ("format", "version", "sha256")}
+    a = dict(arrays)
+    for k, v in edits.items():
+        if k.startswith("h_"):
+            h[k[2:]] = v
+        elif v is None:
+            a.pop(k)
+        else:
+            a[k] = v
+    out = path.with_name("broken.npz")
+    write_arrays(out, h, a)
+    return out
+
+
+def test_a_damaged_boundary_cache_is_refused(carved):
+    """Crafted files (their checksum recomputed) whose cache arrays do not describe pieces of the palette."""
+    _, path = carved
+    header, a = read_arrays(path)
+    size, rows, plen = a["pieces_size"], a["pieces_rows"], a["oc_pieces"]
+    cases = {"pieces_size": {"pieces_size": np.where(np.arange(size.shape[0]) == 0, 2, size).astype(np.int32)},
+             "not a plane": {"pieces_rows": np.where(np.arange(rows.shape[0]) == 1, 10**6, rows).astype(np.int32)},
+             "only a BSP cell": {"oc_pieces": np.where(np.arange(plen.shape[0]) == 0, 5, plen).astype(np.int32)},
+             "come together": {"pieces_size": None},
+             "boundary_cache": {"h_boundary_cache": "sometimes"}}
+    for message, edits in cases.items():
+        with pytest.raises(WorkpieceFileError, match=message):
+            Workpiece.load(_broken(path, header, a, **edits))
