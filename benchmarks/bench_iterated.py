@@ -62,6 +62,7 @@ from csgnb.errors import GeometryError
 from csgnb.exact import Grid
 from csgnb.mesh.hull import convex_hull
 from csgnb.octree import Tool, Workpiece
+from csgnb.octree.layout import S_BOUNDARY_MERGES
 
 
 def _tenths(ts) -> tuple[float, float]:
@@ -179,6 +180,7 @@ def drill_workload(args) -> dict:
             "median_ms": float(np.median(csg_t) * 1e3), "max_ms": float(np.max(csg_t) * 1e3),
             "first_tenth_median_ms": first * 1e3, "last_tenth_median_ms": last * 1e3,
             "repeated_steps": int(sum(repeated)), "memo": not args.no_memo,
+            "boundary_cache": not args.no_boundary_cache, "boundary_merges": int(work.oc.counts[S_BOUNDARY_MERGES]),
             "manifold3d_median_ms": float(np.median(mf_t) * 1e3), "manifold3d_first_tenth_median_ms": mfirst * 1e3,
             "manifold3d_last_tenth_median_ms": mlast * 1e3,
             "faces": surface.n_polygons, "faces_merged": surface.merged().n_polygons,
@@ -271,6 +273,7 @@ def drill_mesh_workload(args) -> dict:
             "fill": args.fill, "refused_as_solids": refused,
             "tool_polygons": int(sum(len(t.polygons) for t in prepared)),
             "faces": work.surface().n_polygons, "manifold3d_triangles": int(cube.num_tri()), "cells": work.n_cells,
+            "boundary_cache": not args.no_boundary_cache, "boundary_merges": int(work.oc.counts[S_BOUNDARY_MERGES]),
             "bsp_nodes": work.n_bsp_nodes, "volume": vol, "manifold3d_volume": float(cube.volume()),
             "exact_volume_s": volume_s, "exact_volume_cpu_s": volume_cpu,
             "exact_volume_denominator_bits": exact_volume.denominator.bit_length(),
@@ -555,11 +558,22 @@ def main() -> None:
     parser.add_argument("--no-memo", action="store_true",
                         help="apply repeated mesh-tool differences again instead of skipping them (the drill's "
                              "repeated half-turns: the cost without Workpiece's memo of applied differences)")
+    parser.add_argument("--no-boundary-cache", action="store_true",
+                        help="cells do not keep their boundary: every mesh-tool cell merge cuts (the A/B of "
+                             "Workpiece.boundary_cache)")
     parser.add_argument("--verbose", action="store_true")
     parser.add_argument("--json", type=str, default=None)
     args = parser.parse_args()
     if args.no_memo:  # every workpiece of this run applies repeated differences again (the A/B of the memo)
         Workpiece._applied_key = lambda self, tool, within: None
+    if args.no_boundary_cache:
+        plain_init = Workpiece.__init__
+
+        def init_without_cache(self, *a, **kw):
+            plain_init(self, *a, **kw)
+            self.boundary_cache = False
+
+        Workpiece.__init__ = init_without_cache
     if args.perf_map:
         import _perf_map  # noqa: F401 -- before the first kernel is loaded
 

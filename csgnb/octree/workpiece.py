@@ -77,6 +77,7 @@ from csgnb.octree.layout import (
     R_POOL,
     R_SPLIT_STACK,
     RESOURCE_NAMES,
+    S_BOUNDARY_MERGES,
     S_CELL_OPS,
     S_COMBINES,
     S_MERGES,
@@ -306,6 +307,10 @@ class WorkpieceStats:
     skipped_merges: int = 0
     """Cell merges not made because asking first (:func:`csgnb.bsp.merging.merge_changes_a`) found that the tool
     changes nothing there, since the workpiece was made or loaded."""
+    boundary_merges: int = 0
+    """Cell Booleans with a mesh tool made from the cell's kept boundary and the tool's pieces, without cutting
+    (:mod:`csgnb.octree.piece_cache`), those that found nothing to change included, over the workpiece's life (a
+    saved statistic)."""
     seconds: list[float] = field(default_factory=list)
 
 
@@ -608,6 +613,7 @@ class Workpiece:
         s.pathological = int(self.oc.counts[S_PATHOLOGICAL])
         s.prefiltered = int(self.ws.merge_state[4])
         s.skipped_merges = int(self.ws.merge_state[6])
+        s.boundary_merges = int(self.oc.counts[S_BOUNDARY_MERGES])
         s.seconds.append(report.seconds)
         return report
 
@@ -774,6 +780,7 @@ class Workpiece:
         stats.pathological = int(self.oc.counts[S_PATHOLOGICAL])
         stats.prefiltered = int(self.ws.merge_state[4])
         stats.skipped_merges = int(self.ws.merge_state[6])
+        stats.boundary_merges = int(self.oc.counts[S_BOUNDARY_MERGES])
         stats.seconds.extend([seconds] * n)
         return [OpReport(int(r[REP_LEAVES]), int(r[REP_MERGES]), int(r[REP_RELABELS]), int(r[REP_SPLITS]),
                          int(r[REP_COMBINES]), seconds, unchanged=int(r[REP_UNCHANGED]))
