@@ -273,3 +273,17 @@ def test_a_damaged_boundary_cache_is_refused(carved):
     for message, edits in cases.items():
         with pytest.raises(WorkpieceFileError, match=message):
             Workpiece.load(_broken(path, header, a, **edits))
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("width", [128, 256])
+def test_long_runs_with_and_without_the_cache(width):
+    """Twelve runs of 120 Booleans each (lattice blocks, grid boxes, hulls as meshes; differences, unions and an
+    intersection), with and without the boundary cache: the same exact volume and the same side of every sample
+    point at the end of each."""
+    for seed in range(12):
+        a, b = _run(width, 100 + seed, True, steps=120), _run(width, 100 + seed, False, steps=120)
+        assert a.volume() == b.volume(), seed
+        pts = np.random.default_rng(seed).integers(-1, 66, size=(3000, 3))
+        x = to_wide(np.column_stack([2 * pts + 1, np.full(len(pts), 2)]), width)
+        assert np.array_equal(a.classify(x), b.classify(x)), seed
