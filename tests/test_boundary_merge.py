@@ -21,6 +21,7 @@ from csgnb.bsp.build import bsp_from_mesh, bsp_from_polygons
 from csgnb.bsp.merging import merge, remove_redundancy
 from csgnb.bsp.tree import BSPTree
 from csgnb.exact import to_wide
+from csgnb.exact.budgets import budget
 from csgnb.mesh.hull import convex_hull
 from csgnb.octree import Tool, Workpiece
 from csgnb.octree.layout import S_BOUNDARY_MERGES
@@ -39,22 +40,26 @@ def box_mesh(lo, hi):
     return corners, _BOX_FACES.copy()
 
 
-def random_solid(rng, width):
-    """A box on a grid of 2 (shared planes) or a tetrahedron with small integer corners."""
+def random_solid(rng, width, scale: int = 1):
+    """A box on a grid of 2 (shared planes) or a tetrahedron with small integer corners, times ``scale``."""
     if rng.random() < 0.6:
         lo = 2 * rng.integers(-8, 6, 3)
-        return bsp_from_mesh(*box_mesh(lo, lo + 2 * rng.integers(1, 6, 3)), width=width)
+        return bsp_from_mesh(*box_mesh(scale * lo, scale * (lo + 2 * rng.integers(1, 6, 3))), width=width)
     while True:
         v = rng.integers(-14, 15, (4, 3))
-        det = np.linalg.det((v[1:] - v[0]).astype(float))
-        if abs(det) > 1:
+        # corners moved off the scaled lattice: the planes' offsets use the budget's full width
+        v = scale * v + (rng.integers(-scale // 4, scale // 4 + 1, (4, 3)) if scale > 1 else 0)
+        e = (v[1:] - v[0]).astype(object)
+        det = e[0, 0] * (e[1, 1] * e[2, 2] - e[1, 2] * e[2, 1]) - e[0, 1] * (e[1, 0] * e[2, 2] - e[1, 2] * e[2, 0]) \
+            + e[0, 2] * (e[1, 0] * e[2, 1] - e[1, 1] * e[2, 0])
+        if abs(det) > scale**3:
             break
     faces = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])
     return bsp_from_mesh(v, faces if det > 0 else faces[:, ::-1], width=width)
 
 
-def same_region(t1: BSPTree, t2: BSPTree) -> bool:
-    x = merge(t1, t2, SYMMETRIC_DIFFERENCE, LO, HI).tree
+def same_region(t1: BSPTree, t2: BSPTree, lo=LO, hi=HI) -> bool:
+    x = merge(t1, t2, SYMMETRIC_DIFFERENCE, lo, hi).tree
     return not np.any(x.label[x.plane < 0] == 1)
 
 
@@ -67,17 +72,17 @@ def tree_of(palette, pieces) -> BSPTree:
     return BSPTree(palette, plane, r.neg, r.pos, r.label, validate=False)
 
 
-def check_one(a, b, fn) -> tuple[int, bool]:
+def check_one(a, b, fn, lo=LO, hi=HI) -> tuple[int, bool]:
     """The boundary merge of a and b against the merge by cutting; (pieces, result is A)."""
-    ta, pa = boundary_polygons(a, LO, HI)
-    tb, pb = boundary_polygons(b, LO, HI)
+    ta, pa = boundary_polygons(a, lo, hi)
+    tb, pb = boundary_polygons(b, lo, hi)
     palette, pieces, unchanged = boolean_from_boundaries(ta, pa, tb, pb, fn)
-    reference = merge(a, b, fn, LO, HI)
+    reference = merge(a, b, fn, lo, hi)
     if len(pieces) == 0:
         labels = np.unique(reference.tree.label[reference.tree.plane < 0])
         assert labels.shape[0] == 1  # no boundary left: one label
     else:
-        assert same_region(tree_of(palette, pieces), reference.tree)
+        assert same_region(tree_of(palette, pieces), reference.tree, lo, hi)
     assert unchanged == (not reference.changed)
     return len(pieces), unchanged
 
@@ -91,6 +96,19 @@ def test_the_boundary_merge_gives_the_merge_of_the_solids(seed, width):
     a, b = random_solid(rng, width), random_solid(rng, width)
     for fn in FUNCTIONS.values():
         check_one(a, b, fn)
+
+
+@settings(max_examples=20, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.sampled_from([128, 256]))
+def test_the_boundary_merge_at_the_edge_of_the_bit_budget(seed, width):
+    """The same with corners up to ~90 % of the width's largest mesh coordinate (tetrahedra off the lattice: planes
+    with offsets at the top of the budget, vertices as three-plane intersections at full width)."""
+    v = budget(width).max_mesh_coordinate
+    scale = v // 32
+    rng = np.random.default_rng(seed)
+    a, b = random_solid(rng, width, scale), random_solid(rng, width, scale)
+    for fn in FUNCTIONS.values():
+        check_one(a, b, fn, (-v, -v, -v), (v, v, v))
 
 
 def test_shared_faces_are_kept_once_or_not_at_all():

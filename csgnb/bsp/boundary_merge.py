@@ -179,6 +179,14 @@ def _fate(in_a, table, t, behind, front):
 
 
 @jit(inline="always")
+def _next_node(t, behind, front):
+    """The inner node of ``t`` a fragment's cursors meet next (the behind point's first), -1 when both are at leaves."""
+    if t.plane[behind] >= 0:
+        return behind
+    return front if t.plane[front] >= 0 else -1
+
+
+@jit(inline="always")
 def _next_cursors(pal, row, flipped, t, behind, front, node, side):
     """The cursors (behind, front) after node ``node`` (the one a cursor is at) for a piece on ``side`` of it:
     -1 / +1 both to that child, 0 (in its plane) the behind point to the piece's back, the front to the other."""
@@ -214,16 +222,14 @@ def _probe(pal, sc, k, row, flipped, t, in_a, table):
         behind = sc.st_behind[top]
         front = sc.st_front[top]
         while True:
-            q_behind = t.plane[behind]
-            q_front = t.plane[front]
-            if q_behind < 0 and q_front < 0:
+            node = _next_node(t, behind, front)
+            if node < 0:
                 f = _fate(in_a, table, t, behind, front)
                 if fate == -9:
                     fate = f
                 elif f != fate:
                     return MIXED
                 break
-            node = behind if q_behind >= 0 else front
             side = _piece_side(pal, sc, 0, k, row, t.plane[node])
             if side == 2:
                 if top >= cap:
@@ -304,9 +310,8 @@ def merge_boundaries(pal, ta, pa, na, tb, pb, nb, table, out, sc, state):
             behind = sc.st_behind[top]
             front = sc.st_front[top]
             while True:
-                q_behind = t.plane[behind]
-                q_front = t.plane[front]
-                if q_behind < 0 and q_front < 0:
+                node = _next_node(t, behind, front)
+                if node < 0:
                     fate = _fate(in_a, table, t, behind, front)
                     fate_all = fate if fate_all == -9 or fate_all == fate else MIXED
                     if fate != DROP:
@@ -319,7 +324,6 @@ def merge_boundaries(pal, ta, pa, na, tb, pb, nb, table, out, sc, state):
                         if not in_a:
                             b_kept += 1
                     break
-                node = behind if q_behind >= 0 else front
                 q = t.plane[node]
                 side = _piece_side(pal, sc, start, k, row, q)
                 if side == 2:

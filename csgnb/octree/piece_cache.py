@@ -15,9 +15,9 @@ cuts as before and stores the boundary its redundancy removal imports.
 
 Arrays (:class:`PieceCache`): per octree node ``key`` (int64, -1: none), ``start`` (int64) and ``length`` (int32,
 rows); ``rows`` (int32) holds each piece as its signed support row followed by its ``k`` edge planes (palette rows),
-``size`` (int32) holds ``k`` at the support's row and 0 at the edges'; ``counts`` = (rows used, rows live, -,
-whether the cache stores at all). A kernel short of room asks for more (``R_PIECE_CACHE``) before it writes the
-cell, so every entry is stored whatever the arrays' sizes: the trees never depend on them.
+``size`` (int32) holds ``k`` at the support's row and 0 at the edges'; ``counts`` = (rows used, the cache's mode).
+A kernel short of room asks for more (``R_PIECE_CACHE``) before it writes the cell, so every entry is stored
+whatever the arrays' sizes: the trees never depend on them.
 
 Saved with the workpiece (:meth:`csgnb.octree.Workpiece.save`: ``oc_pieces``, the rows of each BSP cell's entry,
 ``pieces_rows`` and ``pieces_size`` in cell order): the cache decides how the next Booleans build their trees, so a
@@ -36,11 +36,11 @@ from csgnb.exact.intrinsics import intersect_into
 from csgnb.octree.layout import BSP, R_PIECE_CACHE, R_PIECES_A
 
 __all__ = ["PieceCache", "new_piece_cache", "grown_piece_cache", "compacted_piece_cache", "rekeyed_piece_cache",
-           "valid_entries", "cached_pieces", "pieces_of_cell", "piece_room", "store_cell_pieces", "USED", "LIVE",
-           "MODE", "OFF", "WAITING", "ON", "MODE_NAMES"]
+           "valid_entries", "cached_pieces", "pieces_of_cell", "piece_room", "store_cell_pieces", "USED", "MODE",
+           "OFF", "WAITING", "ON", "MODE_NAMES"]
 
-#: counts: rows used, rows live, (unused), the cache's :data:`MODE`
-USED, LIVE, MODE = 0, 1, 3
+#: counts: rows used (live or not: the valid entries' rows are counted when room is needed), the cache's mode
+USED, MODE = 0, 1
 #: Modes: never store (off); store once a Boolean with a mesh tool has run (waiting: a run of convex tools only,
 #: which never reads the cache, pays nothing for it); store (on).
 OFF, WAITING, ON = 0, 1, 2
@@ -63,7 +63,7 @@ def new_piece_cache(nodes: int = 64, rows: int = 4096, *, mode: int = WAITING) -
     k = max(int(nodes), 16)
     r = max(int(rows), 256)
     return PieceCache(np.full(k, -1, np.int64), np.zeros(k, np.int64), np.zeros(k, np.int32),
-                      np.empty(r, np.int32), np.empty(r, np.int32), np.array([0, 0, 0, int(mode)], np.int64))
+                      np.empty(r, np.int32), np.empty(r, np.int32), np.array([0, int(mode)], np.int64))
 
 
 def grown_piece_cache(pc: PieceCache, nodes: int, rows: int) -> PieceCache:
@@ -103,7 +103,7 @@ def compacted_piece_cache(pc: PieceCache, oc, extra_rows: int = 0) -> PieceCache
     start[cells] = new_start
     length = np.zeros_like(pc.length)
     length[cells] = pc.length[cells]
-    return PieceCache(key, start, length, rows, size, np.array([total, total, 0, pc.counts[MODE]], np.int64))
+    return PieceCache(key, start, length, rows, size, np.array([total, pc.counts[MODE]], np.int64))
 
 
 def rekeyed_piece_cache(pc: PieceCache, cells: np.ndarray, old_start: np.ndarray, new_start: np.ndarray) -> None:
@@ -175,8 +175,6 @@ def store_cell_pieces(pc, oc, node, p, n):
         return
     total = p.offsets[n] - p.offsets[0] + n
     used = pc.counts[USED]
-    if pc.key[node] >= 0:
-        pc.counts[LIVE] -= pc.length[node]  # an older entry of this cell (valid or not: counted once)
     r = used
     for i in range(n):
         e0 = p.offsets[i]
@@ -191,4 +189,3 @@ def store_cell_pieces(pc, oc, node, p, n):
     pc.start[node] = used
     pc.length[node] = total
     pc.counts[USED] = used + total
-    pc.counts[LIVE] += total

@@ -97,7 +97,6 @@ from csgnb.octree.layout import (
     new_tree_arrays,
 )
 from csgnb.octree.piece_cache import (
-    LIVE,
     MODE,
     MODE_NAMES,
     OFF,
@@ -186,7 +185,7 @@ def _loaded_piece_cache(oc: OctArrays, a: dict, nodes: int, *, mode: int) -> Pie
     pc.length[cells] = plen[cells]
     pc.rows[:total] = a["pieces_rows"]
     pc.size[:total] = a["pieces_size"]
-    pc.counts[USED] = pc.counts[LIVE] = total
+    pc.counts[USED] = total
     return pc
 
 
@@ -1222,7 +1221,8 @@ class Workpiece:
         """Room in the boundary cache (:mod:`csgnb.octree.piece_cache`) for every octree node and more rows: by
         compaction when at most half its rows are live, else by growth."""
         pc = self.ws.pc
-        used, live = int(pc.counts[USED]), int(pc.counts[LIVE])
+        used = int(pc.counts[USED])
+        live = int(pc.length[valid_entries(pc, self.oc)].sum())
         if live < used // 2:
             pc = compacted_piece_cache(pc, self.oc, used)
         else:
