@@ -153,30 +153,38 @@ def test_boundaries_passed_on_through_many_booleans(width):
         assert same_region(ta, reference), step
 
 
-def _box_tool(lo, hi, width):
+def _box_tool(lo, hi, width, convex=False):
+    if convex:  # the hull of the corners: its six planes (a convex tool, cut by its planes in each cell)
+        return convex_hull(np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])]))
     return Tool.from_mesh(*box_mesh(lo, hi), width=width)
 
 
-def _hull_tool(rng, centre, radius, width):
+def _hull_tool(rng, centre, radius, width, convex=False):
     d = rng.normal(size=(30, 3))
     points = np.rint(d / np.linalg.norm(d, axis=1)[:, None] * radius).astype(np.int64) + np.asarray(centre)
+    if convex:
+        return convex_hull(points)
     return Tool.from_mesh(*convex_hull(points).to_mesh(), width=width)
 
 
-def _run(width, seed, cache: bool, steps: int = 24) -> Workpiece:
+def _run(width, seed, cache: bool, steps: int = 24, tools: str = "mesh") -> Workpiece:
+    """Random Booleans on a 64-unit block: lattice blocks, grid boxes and round hulls as ``tools`` ("mesh": mesh
+    tools, "convex": convex hulls, "mixed": either, by chance)."""
     rng = np.random.default_rng(seed)
     w = Workpiece.box([0, 0, 0], [64, 64, 64], threshold=24, width=width)
     w.boundary_cache = cache
+    w.oc.counts[S_BOUNDARY_MERGES] = 0  # (building the box may have merged its cell from its boundary)
     for i in range(steps):
         r = rng.random()
+        convex = tools == "convex" or (tools == "mixed" and rng.random() < 0.5)
         if r < 0.4:  # blocks of a lattice of 6: faces on earlier cuts, the same way round and the other
             lo = 6 * rng.integers(0, 10, 3) + 1
-            tool = _box_tool(lo, lo + 6 * rng.integers(1, 3, 3), width)
+            tool = _box_tool(lo, lo + 6 * rng.integers(1, 3, 3), width, convex)
         elif r < 0.7:  # boxes on a grid of 4: faces on cell walls too
             lo = 4 * rng.integers(-2, 15, 3)
-            tool = _box_tool(lo, lo + 4 * rng.integers(1, 6, 3), width)
+            tool = _box_tool(lo, lo + 4 * rng.integers(1, 6, 3), width, convex)
         else:
-            tool = _hull_tool(rng, rng.integers(0, 64, 3), int(rng.integers(5, 14)), width)
+            tool = _hull_tool(rng, rng.integers(0, 64, 3), int(rng.integers(5, 14)), width, convex)
         op = "union" if i % 5 == 4 else ("intersection" if i == steps - 3 else "difference")
         getattr(w, op)(tool)
     return w
@@ -217,15 +225,29 @@ def test_lattice_blocks_carved_and_filled_against_a_voxel_count(width, offset):
     assert w.oc.counts[S_BOUNDARY_MERGES] > 50
 
 
-def test_a_run_of_convex_tools_keeps_no_boundary_until_a_mesh_tool_comes():
-    """The cache is read only by mesh tools' merges: convex tools alone store nothing (no time, no palette rows kept
-    alive); after the first mesh tool every merge stores its cell's boundary."""
-    w = Workpiece.box([0, 0, 0], [64, 64, 64], threshold=24)
-    for c in ([10, 10, 60], [30, 30, 60], [50, 20, 60]):
-        w -= convex_hull(np.array(c) + np.array([[x, y, z] for x in (-9, 9) for y in (-9, 9) for z in (-9, 9)]))
+@pytest.mark.parametrize(("width", "seed", "tools"), [(128, 2, "convex"), (256, 3, "convex"), (128, 4, "mixed"),
+                                                      (256, 5, "mixed")])
+def test_convex_tools_merge_from_the_boundary_and_carve_the_same_solid(width, seed, tools):
+    """Convex hulls merge a cell from its boundary too (their pieces: the cell's box cut by their crossing planes):
+    with the cache and without, the same exact volume and the same side for thousands of points."""
+    with_cache, without = _run(width, seed, True, 40, tools), _run(width, seed, False, 40, tools)
+    assert with_cache.oc.counts[S_BOUNDARY_MERGES] > 50 and without.oc.counts[S_BOUNDARY_MERGES] == 0
+    assert with_cache.volume() == without.volume()
+    pts = np.random.default_rng(seed).integers(-1, 66, size=(4000, 3))
+    x = to_wide(np.column_stack([2 * pts + 1, np.full(len(pts), 2)]), width)
+    assert np.array_equal(with_cache.classify(x), without.classify(x))
+
+
+def test_the_cache_starts_with_the_first_boolean_of_any_tool():
+    """A workpiece keeps no boundary until its first Boolean ("waiting": a loaded or built workpiece that is only
+    looked at pays nothing); from the first convex hull on, every merge stores its cell's boundary and the next
+    convex or mesh tool reads it."""
+    w = Workpiece.empty(threshold=24)
     assert w.ws.pc.counts[0] == 0 and w._header()["boundary_cache"] == "waiting"
-    w -= _box_tool([20, 20, 40], [40, 40, 70], 128)
+    for c in ([10, 10, 30], [30, 30, 30], [20, 20, 40]):
+        w |= convex_hull(np.array(c) + np.array([[x, y, z] for x in (-9, 9) for y in (-9, 9) for z in (-9, 9)]))
     assert w.ws.pc.counts[0] > 0 and w._header()["boundary_cache"] == "on"
+    assert w.stats.boundary_merges > 0
 
 
 @pytest.fixture(scope="module")

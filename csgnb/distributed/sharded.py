@@ -168,11 +168,12 @@ class Shard:
         return self.w.width, self.w.threshold
 
     def _take_scratch(self) -> None:
-        from csgnb.octree.workspace import with_palette
+        from csgnb.octree.workspace import sharing_scratch
 
         shared = _SCRATCH.get(self._scratch_key)
         if shared is not None and shared is not self.w.ws:
-            self.w.ws = with_palette(shared, self.w.palette)
+            # the scratch only: the cells' boundary cache and the merge statistics stay this shard's own
+            self.w.ws = sharing_scratch(shared, self.w.ws, self.w.palette)
 
     def _apply(self, steps: list, cells: list) -> None:
         for i, (tool, fn) in enumerate(steps):

@@ -461,17 +461,17 @@ def import_polygons(pal, bi, n, bs, seed, t, need):
 # a cell's solid inside a box: extraction + redundancy removal
 
 
-@unlinked
-@borrowing_jit
-def simplify_in_box(pal, m, src, box, ws, seed, need):
-    """The solid of tree ``src`` inside the box whose walls are ``box`` (6 rows), rebuilt from its boundary.
+@jit(inline="always")
+def boundary_in_box(pal, m, src, box, ws, need):
+    """The boundary of tree ``src``'s solid inside the box whose walls are ``box`` (6 rows): the box cut down the
+    tree, each in-cell's faces clipped (walls left out), the pieces written to ``ws.bi`` as import polygons.
 
-    Returns (kind, value): (UNIFORM, label) when no boundary crosses the box interior,
-    (BSP, nodes) with the rebuilt tree in ``ws.tr``; (-1, 0) when short of room.
+    Returns their number (0: no boundary crosses the box interior; ``ws.ext_state[2:4]`` then say whether an in
+    leaf was reached and its label), or -1 when short of room.
     """
     if not mesh_room(m, 8):
         need[0] = R_MESH
-        return -1, 0
+        return -1
     mesh_reset(m)
     h = add_box_cell(m, box, -1)
     st = ws.ext_state
@@ -487,12 +487,26 @@ def simplify_in_box(pal, m, src, box, ws, seed, need):
     status = extract_into(m, src, ws.ext_stack, st, ws.cells, ws.sc, ws.out, np.int64(PIECES), ws.path)
     if status != DONE:
         need[0] = R_EXTRACT if status == NEED_ROOM else 0
-        return -1, 0
+        return -1
     if ws.out.counts[1] == 0:
-        return UNIFORM, (st[3] if st[2] > 0 else 0)
-    n = pieces_to_import(ws.out, ws.bi, need)
+        return 0
+    return pieces_to_import(ws.out, ws.bi, need)
+
+
+@unlinked
+@borrowing_jit
+def simplify_in_box(pal, m, src, box, ws, seed, need):
+    """The solid of tree ``src`` inside the box whose walls are ``box`` (6 rows), rebuilt from its boundary.
+
+    Returns (kind, value): (UNIFORM, label) when no boundary crosses the box interior,
+    (BSP, nodes) with the rebuilt tree in ``ws.tr``; (-1, 0) when short of room.
+    """
+    n = boundary_in_box(pal, m, src, box, ws, need)
     if n < 0:
         return -1, 0
+    if n == 0:
+        st = ws.ext_state
+        return UNIFORM, (st[3] if st[2] > 0 else 0)
     count = import_polygons(pal, ws.bi, n, ws.bs, seed, ws.tr, need)
     if count < 0:
         return -1, 0
@@ -744,23 +758,21 @@ def boolean_cell(pal, oc, pool, amap, node, tool_kind, tool, cand, table, consta
                     need[0] = R_TREE_B
                 return 0
     if relation != 2:
-        changed, kind, value = relabel_cell(oc, pool, node, relation, table, ws.ta, need)
-        if kind < 0:
-            return 0
-        if not changed:
-            oc.counts[S_UNCHANGED] += 1
-            return 1
-        if not write_cell(oc, pool, node, kind, value, ws.ta):
-            need[0] = R_POOL
-            return 0
-        oc.counts[S_RELABELS] += 1
-        return 1
+        return _relabel_whole_cell(oc, pool, node, relation, table, ws, need)
     na = cell_tree(oc, pool, node, ws.ta, need)
     if na < 0:
         return 0
-    if (tool_kind != CONVEX_TOOL and ws.pc.counts[PC_MODE] == PC_ON and _in_out_table(table)
+    if (ws.pc.counts[PC_MODE] == PC_ON and _in_out_table(table)
             and ((oc.kind[node] == UNIFORM and oc.label[node] <= 1)
                  or (cached_pieces(ws.pc, oc, node) and only_in_out(ws.ta, na)))):
+        if tool_kind == CONVEX_TOOL:
+            # the hull's boundary in the cell: the box cut by its crossing planes (a few cuts of one convex cell)
+            n_poly = boundary_in_box(pal, ws.m, ws.tb, ws.box, ws, need)
+            if n_poly < 0:
+                return 0
+            if n_poly == 0:
+                # planes cross the box but the hull's faces do not reach into it: the box lies outside the hull
+                return _relabel_whole_cell(oc, pool, node, 0, table, ws, need)
         return _boundary_merge_cell(pal, oc, pool, node, n_poly, table, ws, seed + node, need)
     kind, value, where = merge_and_simplify(pal, ws.m, ws.ta, ws.tb, table, constant, ws.box, ws, seed + node, need)
     if kind < 0:
@@ -780,6 +792,23 @@ def boolean_cell(pal, oc, pool, amap, node, tool_kind, tool, cand, table, consta
         # the solid's boundary in the cell is the redundancy removal's input, still in ws.bi: the cell's next
         # Boolean with a mesh tool starts from it
         store_cell_pieces(ws.pc, oc, node, ws.bi, ws.out.counts[1])
+    return 1
+
+
+@jit(inline="always")
+def _relabel_whole_cell(oc, pool, node, relation, table, ws, need):
+    """Leaf ``node`` when the tool is uniform over it (``relation`` 0 outside, 1 inside): its labels mapped by
+    ``table[., relation]``, written when they change. 1 done, 0 short of room."""
+    changed, kind, value = relabel_cell(oc, pool, node, relation, table, ws.ta, need)
+    if kind < 0:
+        return 0
+    if not changed:
+        oc.counts[S_UNCHANGED] += 1
+        return 1
+    if not write_cell(oc, pool, node, kind, value, ws.ta):
+        need[0] = R_POOL
+        return 0
+    oc.counts[S_RELABELS] += 1
     return 1
 
 

@@ -730,6 +730,7 @@ class Workpiece:
         self._palette_room(biggest + 64)
         if not hasattr(self, "_split_stack"):
             self._split_stack = np.zeros(512, np.int64)
+        self._boundary_cache_starts()
         work, cand, done = self._walk_arrays(0)
         batch = new_convex_batch(W, starts, lo, hi, done.shape[0], max(PALETTE_COMPACT_ROWS, 2 * self._palette_kept))
         st, need = np.zeros(8, np.int64), np.zeros(4, np.int64)
@@ -1157,14 +1158,18 @@ class Workpiece:
         self._walk = (work, cand, done)
         return self._walk
 
+    def _boundary_cache_starts(self) -> None:
+        """At the first Boolean (mode ``"waiting"``): the cells keep their boundary from now on."""
+        if self.ws.pc.counts[MODE] == WAITING:
+            self.ws.pc.counts[MODE] = ON
+
     def _run_boolean(self, kind: int, tool: ToolArrays, lo, hi, table, constant) -> np.ndarray:
         """Run the Boolean kernel from the root over the open box ``(lo, hi)``; return the leaves it processed."""
         st = np.zeros(8, np.int64)
         need = np.zeros(4, np.int64)
         if not hasattr(self, "_split_stack"):
             self._split_stack = np.zeros(512, np.int64)
-        if kind == K.MESH_TOOL and self.ws.pc.counts[MODE] == WAITING:
-            self.ws.pc.counts[MODE] = ON  # the first mesh tool: cells keep their boundary from now on
+        self._boundary_cache_starts()
         n_poly = tool.support.shape[0]
         work, cand, done = self._walk_arrays(n_poly)
         cand[:n_poly] = np.arange(n_poly, dtype=np.int32)

@@ -200,6 +200,14 @@ def with_palette(ws: Workspace, palette: np.ndarray) -> Workspace:
     return ws._replace(m=ws.m._replace(palette=palette))
 
 
+def sharing_scratch(shared: Workspace, own: Workspace, palette: np.ndarray) -> Workspace:
+    """``shared``'s scratch arrays for a workpiece whose own state is in ``own`` (workpieces of one process taking
+    turns with one scratch): over its ``palette``, with its cells' boundary cache (``pc``: keyed by its octree
+    nodes and naming its palette rows, another workpiece's entries would read as its own cells' boundaries) and
+    its merge statistics (``merge_state``)."""
+    return shared._replace(m=shared.m._replace(palette=palette), pc=own.pc, merge_state=own.merge_state)
+
+
 def _grown_mesh(m: MeshArrays) -> MeshArrays:
     """A larger, empty mesh store (the kernel empties it before each cell anyway).
 
