@@ -154,8 +154,9 @@ def test_boundaries_passed_on_through_many_booleans(width):
 
 
 def _box_tool(lo, hi, width, convex=False):
-    if convex:  # the hull of the corners: its six planes (a convex tool, cut by its planes in each cell)
-        return convex_hull(np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])]))
+    if convex:  # the hull of the corners: its six planes (a convex tool)
+        corners = [[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])]
+        return convex_hull(np.array(corners))
     return Tool.from_mesh(*box_mesh(lo, hi), width=width)
 
 
