@@ -136,7 +136,9 @@ class Shard:
 
     The shards on one worker share one scratch workspace (:class:`csgnb.octree.workspace.Workspace`,
     tens of MB once grown): each workpiece would otherwise keep its own, and a worker holds several
-    shards. They take turns (a lock; Dask runs an actor's calls on one thread anyway).
+    shards. They take turns (a lock; Dask runs an actor's calls on one thread anyway). What in the
+    workspace is a workpiece's own -- its cells' boundary cache and merge statistics -- stays with each
+    shard (:func:`csgnb.octree.workspace.sharing_scratch`).
     """
 
     def __init__(self, lo, hi, workpiece_bytes: bytes) -> None:

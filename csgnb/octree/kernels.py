@@ -9,11 +9,15 @@ Python per cell. Per cell, with the mesh store reset:
    small BSP is built from the pieces (§3.9: never re-triangulated, no new planes). A cell
    the tool's surface does not cross is relabelled without a merge: inside or outside the
    tool is decided by an exact point classification;
-3. merge by cutting (:func:`csgnb.bsp.merging.merge_cells`) in the cell box;
+3. a cell that kept its exact boundary (:mod:`csgnb.octree.piece_cache`; a uniform cell has none) is merged
+   from the boundaries (:func:`csgnb.bsp.boundary_merge.merge_boundaries`): its pieces pushed down the tool's local
+   tree, the tool's pieces in the box (a mesh tool's from step 2, a convex tool's: the box cut by its crossing
+   planes, :func:`boundary_in_box`) down the cell's, the kept fragments imported once -- no cut;
+   otherwise merge by cutting (:func:`csgnb.bsp.merging.merge_cells`) in the cell box, then
 4. redundancy removal (§3.7): the merged in-cells' faces are clipped against their
    opposite subtrees -- faces on the cell walls are skipped, the cell box bounds the BSP --
    and the pieces are imported again; the smaller tree is kept. No boundary inside the box
-   means the cell is uniform;
+   means the cell is uniform. The pieces imported are the cell's boundary: kept for step 3 next time;
 5. a BSP above the threshold is split into the eight children (BSP ∩ child box, then
    redundancy removal), recursively, down to unit cells (beyond that a cell is counted
    as pathological and kept).
@@ -826,8 +830,8 @@ def _in_out_table(table):
 
 @jit(inline="always")
 def _boundary_merge_cell(pal, oc, pool, node, n_tool, table, ws, seed, need):
-    """The Boolean of leaf ``node`` (tree in ``ws.ta``, valid cached pieces) and the mesh tool's local part (tree
-    ``ws.tb``, its ``n_tool`` pieces still in ``ws.bi``) from their boundaries
+    """The Boolean of leaf ``node`` (tree in ``ws.ta``, valid cached pieces) and the tool's local part (tree
+    ``ws.tb``, its ``n_tool`` pieces in ``ws.bi``) from their boundaries
     (:func:`csgnb.bsp.boundary_merge.merge_boundaries`), then one import; writes the cell. 1 done, 0 short."""
     n_a = 0
     if oc.kind[node] == BSP:

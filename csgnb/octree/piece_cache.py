@@ -1,11 +1,11 @@
-"""Each cell's exact boundary, kept beside its BSP: what a mesh tool's next Boolean there starts from.
+"""Each cell's exact boundary, kept beside its BSP: what the next Boolean there starts from.
 
 A cell merge by cutting (:func:`csgnb.octree.kernels.merge_and_simplify`) re-cuts the cell's whole tree from its box
 and clips every face of the result to find the boundary it re-imports -- to insert a tool's few local nodes. The
 redundancy removal's input *is* the cell's boundary: convex plane-based pieces facing out of the solid. Kept, the
-next Boolean with a mesh tool (whose pieces in the cell the tool import has anyway) is a boundary merge
-(:func:`csgnb.bsp.boundary_merge.merge_boundaries`): the cell's pieces pushed down the tool's local tree, the tool's
-down the cell's, then one import -- no cell is cut.
+next Boolean there is a boundary merge (:func:`csgnb.bsp.boundary_merge.merge_boundaries`): the cell's pieces pushed
+down the tool's local tree, the tool's pieces (a mesh tool's: what its import in the cell made anyway; a convex
+hull's: the cell's box cut by its crossing planes) down the cell's, then one import -- the cell is not cut.
 
 A cache, not part of the workpiece: an entry is valid while the cell's tree is the one it was stored with, i.e.
 while ``key[node]`` equals the cell's pool start (every write of a cell's tree appends to the pool, so a start names
@@ -36,13 +36,13 @@ from csgnb.exact.intrinsics import intersect_into
 from csgnb.octree.layout import BSP, R_PIECE_CACHE, R_PIECES_A
 
 __all__ = ["PieceCache", "new_piece_cache", "grown_piece_cache", "compacted_piece_cache", "rekeyed_piece_cache",
-           "valid_entries", "cached_pieces", "pieces_of_cell", "piece_room", "store_cell_pieces", "USED", "MODE",
-           "OFF", "WAITING", "ON", "MODE_NAMES"]
+           "valid_entries", "cached_pieces", "pieces_of_cell", "piece_room", "store_cell_pieces",
+           "USED", "MODE", "OFF", "WAITING", "ON", "MODE_NAMES"]
 
 #: counts: rows used (live or not: the valid entries' rows are counted when room is needed), the cache's mode
 USED, MODE = 0, 1
-#: Modes: never store (off); store once a Boolean with a mesh tool has run (waiting: a run of convex tools only,
-#: which never reads the cache, pays nothing for it); store (on).
+#: Modes: never store (off); store from the first Boolean on (waiting: a workpiece built or loaded and only looked
+#: at pays nothing for it); store (on).
 OFF, WAITING, ON = 0, 1, 2
 MODE_NAMES = ("off", "waiting", "on")
 
