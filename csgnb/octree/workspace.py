@@ -205,7 +205,7 @@ def sharing_scratch(shared: Workspace, own: Workspace, palette: np.ndarray) -> W
     turns with one scratch): over its ``palette``, with its cells' boundary cache (``pc``: keyed by its octree
     nodes and naming its palette rows, another workpiece's entries would read as its own cells' boundaries) and
     its merge statistics (``merge_state``)."""
-    return shared._replace(m=shared.m._replace(palette=palette), pc=own.pc, merge_state=own.merge_state)
+    return with_palette(shared, palette)._replace(pc=own.pc, merge_state=own.merge_state)
 
 
 def _grown_mesh(m: MeshArrays) -> MeshArrays:
