@@ -21,6 +21,7 @@ import numpy as np
 
 from csgnb._jit import jit
 from csgnb._resumable import DONE, FAILED, NEED_ROOM
+from csgnb.bsp.polygon import copy_point
 from csgnb.octree.kernels import (
     COMBINE_ORDER_LEAVES,
     CONVEX_TOOL,
@@ -43,7 +44,7 @@ from csgnb.octree.layout import (
     S_SPLITS,
     S_UNCHANGED,
 )
-from csgnb.octree.tool import convex_tool_tree, spread_order
+from csgnb.octree.tool import convex_tool_tree, spread_order, store_int64_rows
 from csgnb.octree.workspace import ToolArrays
 
 __all__ = ["ConvexBatch", "convex_batch_kernel", "spread_orders"]
@@ -72,7 +73,11 @@ class ConvexBatch(NamedTuple):
     cell operations (``REP_*`` columns);
     parents : (p,) int64 -- the combine order of the hull in progress (at least as long as the Boolean's ``done``);
     box_lo, box_hi : (3,) int64 -- scratch: the box of the hull in progress;
-    no_i32, one_i32, no_verts, no_box -- the empty mesh-tool fields of a convex tool's ``ToolArrays``.
+    no_i32, one_i32, no_verts, no_box -- the empty mesh-tool fields of a convex tool's ``ToolArrays``;
+    f_has : (n,) bool -- whether hull i carries its facets (:mod:`csgnb.mesh.hull_facets`; none when the workpiece
+    keeps no cell boundaries, which is what they are for);
+    f_offsets : (r + 1,) int64, f_edges : int32 (hull-local plane indices), f_verts : (m, 4) wide, f_lo, f_hi :
+    (r, 3) int64 -- plane g's facet is ``f_edges[f_offsets[g]:f_offsets[g + 1]]`` with its vertices and box.
     """
 
     planes: np.ndarray
@@ -89,20 +94,66 @@ class ConvexBatch(NamedTuple):
     one_i32: np.ndarray
     no_verts: np.ndarray
     no_box: np.ndarray
+    f_has: np.ndarray
+    f_offsets: np.ndarray
+    f_edges: np.ndarray
+    f_verts: np.ndarray
+    f_lo: np.ndarray
+    f_hi: np.ndarray
 
 
 def new_convex_batch(planes: np.ndarray, starts: np.ndarray, lo: np.ndarray, hi: np.ndarray, parents: int,
-                     palette_limit: int) -> ConvexBatch:
+                     palette_limit: int, facets=None) -> ConvexBatch:
     """A batch over prepared arrays (see :class:`ConvexBatch`); ``parents`` rows of combine order,
-    ``palette_limit`` the palette size at which the palette is to be compacted."""
+    ``palette_limit`` the palette size at which the palette is to be compacted; ``facets`` the hulls' facets
+    (:func:`csgnb.mesh.hull_facets.hull_facets_of_batch`) or None."""
     n = starts.shape[0] - 1
+    r = planes.shape[0]
     state = np.zeros(8, np.int64)
     state[B_PALETTE_LIMIT] = palette_limit
+    if facets is None:
+        f_has, f_offsets, f_edges = np.zeros(n, np.bool_), np.zeros(r + 1, np.int64), np.zeros(0, np.int32)
+        f_verts, f_lo, f_hi = np.zeros((0, 4), planes.dtype), np.zeros((r, 3), np.int64), np.zeros((r, 3), np.int64)
+    else:
+        f_has, f_offsets, f_edges, points, f_lo, f_hi = facets
+        homogeneous = np.ones((points.shape[0], 4), np.int64)
+        homogeneous[:, :3] = points
+        f_verts = np.zeros((points.shape[0], 4), planes.dtype)
+        store_int64_rows(f_verts, 0, homogeneous)
     return ConvexBatch(planes, np.ascontiguousarray(starts, np.int64), np.ascontiguousarray(lo, np.int64),
                        np.ascontiguousarray(hi, np.int64), state, np.zeros(32, np.int64), np.zeros((n, 7), np.int64),
                        np.zeros(max(int(parents), 256), np.int64), np.zeros(3, np.int64), np.zeros(3, np.int64),
                        np.zeros(0, np.int32), np.zeros(1, np.int32), np.zeros((0, 4), planes.dtype),
-                       np.zeros((0, 3), np.int64))
+                       np.zeros((0, 3), np.int64), f_has, f_offsets, f_edges, f_verts, f_lo, f_hi)
+
+
+@jit
+def _hull_tool(batch, i, first, k, rows):
+    """Hull i's :class:`ToolArrays` (its planes at palette ``rows``, batch rows ``first:first + k``): with its facets
+    over those rows where it has them, as :meth:`csgnb.octree.Workpiece._tool_arrays` makes a single hull's."""
+    plane, neg, pos, label = convex_tool_tree(rows)
+    if not batch.f_has[i]:
+        return ToolArrays(rows, batch.no_i32, batch.one_i32, batch.no_i32, batch.no_verts, batch.no_box,
+                          batch.no_box, plane, neg, pos, label)
+    e0 = batch.f_offsets[first]
+    m = batch.f_offsets[first + k] - e0
+    support = np.empty(k, np.int32)
+    offsets = np.empty(k + 1, np.int32)
+    plo = np.empty((k, 3), np.int64)
+    phi = np.empty((k, 3), np.int64)
+    for j in range(k):
+        support[j] = rows[j]
+        offsets[j] = batch.f_offsets[first + j] - e0
+        for c in range(3):
+            plo[j, c] = batch.f_lo[first + j, c]
+            phi[j, c] = batch.f_hi[first + j, c]
+    offsets[k] = m
+    edges = np.empty(m, np.int32)
+    verts = np.empty((m, 4), batch.f_verts.dtype)
+    for j in range(m):
+        edges[j] = rows[0] + batch.f_edges[e0 + j]
+        copy_point(batch.f_verts, e0 + j, verts, j)
+    return ToolArrays(rows, support, offsets, edges, verts, plo, phi, plane, neg, pos, label)
 
 
 @jit
@@ -178,10 +229,7 @@ def convex_batch_kernel(pal, oc, pool, amap, work, cand, done, batch, table, con
                 batch.box_hi[c] = batch.hi[i, c]
             s[B_PHASE] = P_BOOLEAN
         if s[B_PHASE] == P_BOOLEAN:
-            rows = np.arange(s[B_ROW], s[B_ROW] + k)
-            plane, neg, pos, label = convex_tool_tree(rows)
-            tool = ToolArrays(rows, batch.no_i32, batch.one_i32, batch.no_i32, batch.no_verts, batch.no_box,
-                              batch.no_box, plane, neg, pos, label)
+            tool = _hull_tool(batch, i, first, k, np.arange(s[B_ROW], s[B_ROW] + k))
             status = _boolean_kernel(pal, oc, pool, amap, work, cand, done, np.int64(CONVEX_TOOL), tool,
                                      batch.box_lo, batch.box_hi, table, constant, ws, st, split_stack, threshold,
                                      min_size, max_polygons, seed, need)

@@ -770,8 +770,12 @@ def boolean_cell(pal, oc, pool, amap, node, tool_kind, tool, cand, table, consta
             and ((oc.kind[node] == UNIFORM and oc.label[node] <= 1)
                  or (cached_pieces(ws.pc, oc, node) and only_in_out(ws.ta, na)))):
         if tool_kind == CONVEX_TOOL:
-            # the hull's boundary in the cell: the box cut by its crossing planes (a few cuts of one convex cell)
-            n_poly = boundary_in_box(pal, ws.m, ws.tb, ws.box, ws, need)
+            # the hull's boundary in the cell: its facets on the crossing planes clipped to the walls, or (a tool
+            # without facets) the box cut by those planes
+            if tool.offsets.shape[0] > 1:
+                n_poly = _hull_facets_in_box(pal, tool, nb, lo, size, ws, need)
+            else:
+                n_poly = boundary_in_box(pal, ws.m, ws.tb, ws.box, ws, need)
             if n_poly < 0:
                 return 0
             if n_poly == 0:
@@ -797,6 +801,23 @@ def boolean_cell(pal, oc, pool, amap, node, tool_kind, tool, cand, table, consta
         # Boolean with a mesh tool starts from it
         store_cell_pieces(ws.pc, oc, node, ws.bi, ws.out.counts[1])
     return 1
+
+
+@jit(inline="always")
+def _hull_facets_in_box(pal, tool, nb, lo, size, ws, need):
+    """A convex tool's boundary in the cell box (lo, size) as import polygons in ``ws.bi``: the facets on the planes
+    that cross the box (``ws.tb``'s linear tree of ``nb`` nodes, from :func:`convex_tool_in_box`; tool plane i is
+    palette row ``tool.rows[0] + i``) clipped to its walls ``ws.box``. Only those facets can reach into the box: it
+    lies inside every other plane. Their number, or -1 when short of room."""
+    c = (nb - 1) // 2
+    cand = ws.bs.order
+    if c > cand.shape[0]:
+        need[0] = R_BUILD_IN
+        return -1
+    first = tool.rows[0]
+    for j in range(c):
+        cand[j] = ws.tb.plane[2 * j] - first
+    return clip_tool_polygons(pal, tool, cand[:c], lo, size, ws.box, ws.arena, ws.bi, need)
 
 
 @jit(inline="always")

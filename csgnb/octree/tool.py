@@ -26,6 +26,7 @@ from csgnb.errors import GeometryError
 from csgnb.exact.integral import integer_array
 from csgnb.exact.wide import from_wide, is_wide, to_wide, wide_dtype, width_of
 from csgnb.exact.wide_store import store_int64_at
+from csgnb.mesh.hull_facets import FacetPolygons, hull_facet_polygons
 
 __all__ = ["Tool", "split_planes_wide"]
 
@@ -185,14 +186,20 @@ class Tool:
             # offsets beyond int64 (a 256-bit grid's hulls): int64 normals and a column of Python ints, the same
             # order as below, and no (k, 4) object array unless someone asks for ``planes``
             N, d = split
+            order = np.arange(N.shape[0], dtype=np.int64)
             if N.shape[0] > 4:
                 order = spread_order(N.astype(np.float64))
                 N, d = N[order], d[order]
-            return cls("convex", None, hull.lo, hull.hi, grid=getattr(hull, "grid", None), _split=(N, d))
-        planes = _exact_planes(hull.planes)
-        if planes.shape[0] > 4:
-            planes = planes[spread_order(planes if planes.dtype == np.int64 else planes[:, :3].astype(np.float64))]
-        return cls("convex", planes, hull.lo, hull.hi, grid=getattr(hull, "grid", None), _exact=True)
+            tool = cls("convex", None, hull.lo, hull.hi, grid=getattr(hull, "grid", None), _split=(N, d))
+        else:
+            planes = _exact_planes(hull.planes)
+            order = np.arange(planes.shape[0], dtype=np.int64)
+            if planes.shape[0] > 4:
+                order = spread_order(planes if planes.dtype == np.int64 else planes[:, :3].astype(np.float64))
+                planes = planes[order]
+            tool = cls("convex", planes, hull.lo, hull.hi, grid=getattr(hull, "grid", None), _exact=True)
+        tool._hull = (hull, order)  # its facets, made when a boundary merge first asks (facets)
+        return tool
 
     def __getattr__(self, name: str):
         # ``planes`` of a tool made from split planes (see from_hull): the (k, 4) Python ints, made on first use
@@ -203,6 +210,19 @@ class Tool:
         planes = np.column_stack([N.astype(object), d.astype(object)])
         self.__dict__["planes"] = planes
         return planes
+
+    @property
+    def facets(self) -> FacetPolygons | None:
+        """A convex tool's facets as plane-based polygons over its planes (:data:`csgnb.mesh.hull_facets.
+        FacetPolygons`), made on first use; None for other tools and for hulls the compiled pass does not take."""
+        found = self.__dict__.get("_facets", False)
+        if found is False:
+            found = None
+            source = self.__dict__.get("_hull")
+            if source is not None:
+                found = _shifted(hull_facet_polygons(*source), self.offset)
+            self._facets = found
+        return found
 
     @property
     def split_planes(self) -> tuple[np.ndarray, np.ndarray] | None:
@@ -277,6 +297,9 @@ class Tool:
         moved.__dict__.update(self.__dict__)
         moved.__dict__.pop("_split", None)  # the moved tool's planes are its own
         moved.__dict__.pop("_digests", None)  # and so is its content (csgnb.octree.workpiece._content_digest)
+        facets = moved.__dict__.pop("_facets", False)
+        if facets is not False:  # made already: moved with the planes
+            moved._facets = _shifted(facets, t.astype(np.int64))
         shift = int(np.abs(t).max(initial=0))
         if planes.dtype == np.int64 and planes.size and \
                 3 * int(np.abs(planes[:, :3]).max()) * shift + int(np.abs(planes[:, 3]).max()) < _SMALL:
@@ -300,6 +323,9 @@ class Tool:
         state = dict(self.__dict__)
         state.pop("_moved_from", None)
         state.pop("_digests", None)  # recomputed where it is used (a moved tool arrives without its source)
+        if "_hull" in state:  # a convex tool travels with its facets, not with the hull they came from
+            state["_facets"] = self.facets
+            del state["_hull"]
         return state
 
     def planes_wide(self, width: int) -> np.ndarray:
@@ -322,6 +348,15 @@ class Tool:
     def __repr__(self) -> str:
         what = f"{len(self.polygons)} polygons" if self.polygons is not None else f"{self.n_planes} facets"
         return f"Tool({self.kind}, {what}, box {self.lo.tolist()}..{self.hi.tolist()})"
+
+
+def _shifted(facets: FacetPolygons | None, t: np.ndarray) -> FacetPolygons | None:
+    """``facets`` moved by the integer vector ``t`` (3,) int64: their points and boxes; planes are named, not
+    stored."""
+    if facets is None or not t.any():
+        return facets
+    support, offsets, edges, points, lo, hi = facets
+    return support, offsets, edges, points + t, lo + t, hi + t
 
 
 def _rows_of(subset: np.ndarray, palette: np.ndarray) -> np.ndarray:

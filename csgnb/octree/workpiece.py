@@ -47,6 +47,7 @@ from csgnb.exact.predicates import homogeneous_points, to_double_position
 from csgnb.exact.quantization import Grid
 from csgnb.exact.wide import DEFAULT_WIDTH, to_wide, wide_dtype
 from csgnb.mesh.hull import ConvexHull
+from csgnb.mesh.hull_facets import hull_facets_of_batch
 from csgnb.octree import kernels as K
 from csgnb.octree.batch import (
     B_NEXT,
@@ -250,6 +251,21 @@ def _content_digest(tool: Tool, width: int) -> str:
             h.update(f"{a.dtype}{a.shape}|".encode())
             h.update(a.tobytes())
         found = cache[width] = h.hexdigest()
+    return found
+
+
+def _facet_vertices(tool: Tool, points: np.ndarray, dtype) -> np.ndarray:
+    """A convex tool's facet vertices ``(m, 4)`` wide of ``dtype``: its grid points ``points`` (m, 3) int64 as
+    ``(x, y, z, 1)``, made once per tool and width."""
+    cache = tool.__dict__.setdefault("_geometry", {})
+    key = ("facets", dtype)
+    found = cache.get(key)
+    if found is None:
+        found = np.zeros((points.shape[0], 4), dtype)
+        homogeneous = np.ones((points.shape[0], 4), np.int64)
+        homogeneous[:, :3] = points
+        store_int64_rows(found, 0, homogeneous)
+        cache[key] = found
     return found
 
 
@@ -511,9 +527,15 @@ class Workpiece:
         empty_i32 = np.zeros(0, np.int32)
         if tool.kind == "convex":
             plane, neg, pos, label = convex_tool_tree(rows)
-            return K.CONVEX_TOOL, ToolArrays(rows, empty_i32, np.zeros(1, np.int32), empty_i32, np.zeros((0, 4), dtype),
-                                             np.zeros((0, 3), np.int64), np.zeros((0, 3), np.int64),
-                                             plane, neg, pos, label)
+            facets = tool.facets if self.ws.pc.counts[MODE] != OFF else None  # only a boundary merge reads them
+            if facets is None:  # the kernels cut the cell's box by the hull's planes instead
+                return K.CONVEX_TOOL, ToolArrays(rows, empty_i32, np.zeros(1, np.int32), empty_i32,
+                                                 np.zeros((0, 4), dtype), np.zeros((0, 3), np.int64),
+                                                 np.zeros((0, 3), np.int64), plane, neg, pos, label)
+            support, offsets, edges, points, plo, phi = facets
+            return K.CONVEX_TOOL, ToolArrays(rows, rows[support].astype(np.int32), offsets,
+                                             rows[edges].astype(np.int32), _facet_vertices(tool, points, dtype),
+                                             plo, phi, plane, neg, pos, label)
         polys = tool.polygons
         support = np.where(polys.support >= 0, rows[np.maximum(polys.support, 0)],
                            ~rows[np.maximum(~polys.support, 0)]).astype(np.int32)
@@ -716,7 +738,8 @@ class Workpiece:
             W = split_planes_wide(N, d, self.width)
         else:
             P = _exact_planes(np.concatenate([h.planes for h in hulls]))  # int64 beside object rows: Python ints
-            P = P[spread_orders(P[:, :3].astype(np.float64), starts)]  # as Tool.from_hull orders each hull's planes
+            order = spread_orders(P[:, :3].astype(np.float64), starts)  # as Tool.from_hull orders each hull's planes
+            P = P[order]
             self._check_planes(P, "the tools' planes")
             if P.dtype == np.int64:
                 W = np.zeros((P.shape[0], 4), self.palette.dtype)
@@ -732,7 +755,10 @@ class Workpiece:
             self._split_stack = np.zeros(512, np.int64)
         self._boundary_cache_starts()
         work, cand, done = self._walk_arrays(0)
-        batch = new_convex_batch(W, starts, lo, hi, done.shape[0], max(PALETTE_COMPACT_ROWS, 2 * self._palette_kept))
+        # the hulls' facets: a cell's boundary merge takes them as the tool's pieces (as _tool_arrays gives them)
+        facets = hull_facets_of_batch(hulls, starts, order) if self.ws.pc.counts[MODE] != OFF else None
+        batch = new_convex_batch(W, starts, lo, hi, done.shape[0], max(PALETTE_COMPACT_ROWS, 2 * self._palette_kept),
+                                 facets)
         st, need = np.zeros(8, np.int64), np.zeros(4, np.int64)
         counts_before = self.oc.counts.copy()
         shortages = 0
@@ -1170,7 +1196,7 @@ class Workpiece:
         if not hasattr(self, "_split_stack"):
             self._split_stack = np.zeros(512, np.int64)
         self._boundary_cache_starts()
-        n_poly = tool.support.shape[0]
+        n_poly = tool.support.shape[0] if kind == K.MESH_TOOL else 0  # a hull's facets are not walked
         work, cand, done = self._walk_arrays(n_poly)
         cand[:n_poly] = np.arange(n_poly, dtype=np.int32)
         work[0] = (0, 0, n_poly, 4 * n_poly + 4)
