@@ -348,7 +348,7 @@ def test_wrong_qhull_output_is_detected_and_replaced(monkeypatch, mode):
         assert _qhull_facets(L, _independent(L)) is None
     from csgnb.mesh import hull as H
 
-    monkeypatch.setattr(H, "_incremental_facets", lambda L, basis: None)  # small sets: qhull's path, then wrapping
+    monkeypatch.setattr(H, "_incremental_facets", lambda L, basis, rings=None: None)  # qhull's path, then wrapping
     assert hull_planes(convex_hull(P)) == expect
 
 

@@ -404,10 +404,13 @@ class ConvexHull:
     __slots__ = ("_candidates", "_normals", "_d_local", "_origin", "lo", "hi", "width", "grid", "__dict__")
 
     def __init__(self, candidates: np.ndarray, origin: np.ndarray, normals: np.ndarray, d_local: np.ndarray, *,
-                 width: int, grid=None, box: tuple[np.ndarray, np.ndarray] | None = None) -> None:
+                 width: int, grid=None, box: tuple[np.ndarray, np.ndarray] | None = None, rings=None) -> None:
         # Internal constructor: ``candidates`` (local int64 points containing all vertices), ``normals`` and
         # ``d_local`` the verified, reduced facet planes in coordinates local to ``origin``; ``box`` the
-        # candidates' (lo, hi) in global coordinates when the caller has it.
+        # candidates' (lo, hi) in global coordinates when the caller has it; ``rings`` the facets' polygons when
+        # the verification built them (``(offsets, ring)`` over the candidates, as :func:`_face_rings` gives).
+        if rings is not None:
+            self._rings = rings
         self._candidates = candidates
         self._origin = origin
         self._normals = normals
@@ -480,6 +483,10 @@ class ConvexHull:
 
     @cached_property
     def _faces_local(self) -> list[np.ndarray]:
+        known = self.__dict__.get("_rings")
+        if known is not None:  # the verification's own rings
+            offsets, ring = known
+            return [ring[offsets[j]:offsets[j + 1]] for j in range(self.n_planes)]
         L = self._candidates
         if L.dtype != object and _signs_fit(int(np.abs(L).max(initial=0)), self._normals, self._d_local):
             S = _side_signs(L.astype(np.int64), self._normals.astype(np.int64), *_split_offsets(self._d_local))
@@ -561,7 +568,7 @@ class ConvexHull:
         moved = ConvexHull(self._candidates, self._origin + t.astype(np.int64), self._normals, self._d_local,
                            width=self.width, grid=self.grid)
         check_mesh_points(np.stack([moved.lo, moved.hi]), self.width, "translated hull box corners")
-        for name in ("_faces_local", "faces", "_edges"):  # indices, the same for the moved hull
+        for name in ("_faces_local", "faces", "_edges", "_rings"):  # indices, the same for the moved hull
             if name in self.__dict__:
                 moved.__dict__[name] = self.__dict__[name]
         return moved
@@ -817,10 +824,13 @@ def convex_hull(points, *, width: int | None = None, grid=None, name: str = "poi
     elif P.shape[0] <= BRUTE_FORCE_POINTS:
         N, d = _enumerate_facets(L)
     else:
-        found = _incremental_facets(L, basis)
+        rings = []
+        found = _incremental_facets(L, basis, rings)
         if found is None:
             found = _qhull_facets(L, basis)
         N, d = found if found is not None else _gift_wrap(L)
+        if rings:
+            return ConvexHull(L, origin, N, d, width=width, grid=grid, rings=rings[0])
     return ConvexHull(L, origin, N, d, width=width, grid=grid)
 
 
@@ -911,22 +921,30 @@ def _faces_close_py(L: np.ndarray, N: np.ndarray, S: np.ndarray) -> bool:
     return all((b, a) in half for (a, b) in half)
 
 
-def _incremental_facets(L: np.ndarray, basis: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+def _incremental_facets(L: np.ndarray, basis: np.ndarray,
+                        rings: list | None = None) -> tuple[np.ndarray, np.ndarray] | None:
     """Facets of int64 local points of extent below :data:`_COMPILED_FACETS_SAFE` by the compiled exact incremental
-    hull, verified like qhull's (:func:`_verified_facets`); None for other points or when a check fails."""
+    hull, verified like qhull's (:func:`_verified_facets`); None for other points or when a check fails. ``rings``:
+    a list that receives the verified facet rings (see :func:`_checked_facets`)."""
     if L.dtype == object or int(np.abs(L).max(initial=0)) >= _COMPILED_FACETS_SAFE:
         return None
     L = np.ascontiguousarray(L, np.int64)
     basis = np.asarray(basis, np.int64)
-    return _checked_facets(L, _incremental_triangles(L, basis), basis)
+    return _checked_facets(L, _incremental_triangles(L, basis), basis, rings)
 
 
-def _checked_facets(L: np.ndarray, simplices: np.ndarray, basis: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+def _checked_facets(L: np.ndarray, simplices: np.ndarray, basis: np.ndarray,
+                    rings: list | None = None) -> tuple[np.ndarray, np.ndarray] | None:
     """:func:`_verified_facets` of triangles over int64 local points (extent below :data:`_COMPILED_FACETS_SAFE`),
-    with each facet's offset d = -n·(its anchor point): int64 where 24E³ fits, Python ints beyond."""
-    ok, N, anchor = _verified_facets(L, np.ascontiguousarray(simplices, np.int64), np.asarray(basis, np.int64))
+    with each facet's offset d = -n·(its anchor point): int64 where 24E³ fits, Python ints beyond. ``rings``: a
+    list that receives ``(offsets, ring)``, the facets' polygons the verification built (a hull keeps them:
+    :attr:`ConvexHull.faces` and a tool's facets need not find them again)."""
+    ok, N, anchor, offsets, ring = _verified_facets(L, np.ascontiguousarray(simplices, np.int64),
+                                                    np.asarray(basis, np.int64))
     if not ok:
         return None
+    if rings is not None:
+        rings.append((offsets, ring))
     E = int(np.abs(L).max(initial=0))
     A = L[anchor]
     if 24 * E**3 < _INT64_SAFE:
@@ -981,13 +999,14 @@ def _verified_facets(L, simplices, basis):
     an outward normal, so this is the order of the planes (a, b, c, d), and a plane repeated by several
     triangles is one); verified: every point on or behind every plane, and the faces (the exact 2-D hulls of
     the points on each plane) close up. Every sign is n·(p - anchor) in i128, the anchor a point of the
-    triangle: no offset is formed. Returns ``(ok, N (k, 3) int64, anchor (k,) int64)``; the offsets are
-    d = -N·L[anchor].
+    triangle: no offset is formed. Returns ``(ok, N (k, 3) int64, anchor (k,) int64, offsets (k + 1,) int64, ring
+    int64)``; the offsets are d = -N·L[anchor], and facet j's polygon is ``ring[offsets[j]:offsets[j + 1]]`` (as
+    :func:`_face_rings` orders it).
     """
     t = simplices.shape[0]
     n = L.shape[0]
     if t < 4:  # no closed surface has fewer than four triangles (and none would pass as "every edge paired")
-        return False, np.zeros((0, 3), np.int64), np.zeros(0, np.int64)
+        return False, np.zeros((0, 3), np.int64), np.zeros(0, np.int64), np.zeros(1, np.int64), np.zeros(0, np.int64)
     c4 = np.zeros(3, np.int64)
     for q in range(4):
         for c in range(3):
@@ -1003,7 +1022,8 @@ def _verified_facets(L, simplices, basis):
         s = plane_side_sign(a, b, c, c4[0] - 4 * L[i, 0], c4[1] - 4 * L[i, 1], c4[2] - 4 * L[i, 2],
                             np.int64(0), np.int64(0))
         if s == 0:  # a flat triangle, or a plane through the interior point: the proposal was wrong
-            return False, np.zeros((0, 3), np.int64), np.zeros(0, np.int64)
+            return (False, np.zeros((0, 3), np.int64), np.zeros(0, np.int64), np.zeros(1, np.int64),
+                    np.zeros(0, np.int64))
         if s > 0:
             a, b, c = -a, -b, -c
         g = gcd3(a, b, c)
@@ -1037,7 +1057,7 @@ def _verified_facets(L, simplices, basis):
         for i in range(n):
             s = plane_side_sign(a, b, c, L[i, 0] - L[o, 0], L[i, 1] - L[o, 1], L[i, 2] - L[o, 2], zero, zero)
             if s > 0:
-                return False, N, anchor
+                return False, N, anchor, starts, members
             if s == 0:
                 members[m] = i
                 m += 1
@@ -1047,7 +1067,7 @@ def _verified_facets(L, simplices, basis):
                 ax[j] = col
         flip[j] = N[j, ax[j]] < 0
     offsets, ring = _face_rings_of_members(L, starts, members, ax, flip)
-    return _rings_close(offsets, ring, n), N, anchor
+    return _rings_close(offsets, ring, n), N, anchor, offsets, ring
 
 
 @jit

@@ -86,7 +86,20 @@ def facet_polygons_kernel(L, N, dh, dl, origin, order):
     on = _side_signs(L, N, dh, dl) == 0
     ax, flip = _dominant_axes(N)
     offsets, ring = _face_rings(L, on, ax, flip)
-    total = offsets[k]
+    return polygons_of_rings(L, offsets, ring, origin, order)
+
+
+@unlinked
+@jit
+def polygons_of_rings(L, offsets, ring, origin, order):
+    """:func:`facet_polygons_kernel` from the facets' rings (``ring[offsets[j]:offsets[j + 1]]``: facet j's points,
+    indices into ``L``, as :func:`csgnb.mesh.hull._face_rings` orders them): the edges' planes from the facet
+    across each edge, the points, the boxes, in the tool's plane order."""
+    n = L.shape[0]
+    k = offsets.shape[0] - 1
+    bad = (False, np.zeros(1, np.int32), np.zeros(0, np.int32), np.zeros((0, 3), np.int64),
+           np.zeros((0, 3), np.int64), np.zeros((0, 3), np.int64))
+    total = offsets[k] - offsets[0]  # (a batch's rings lie in one array: offsets need not start at 0)
     # directed edge a -> b of facet f: key a * n + b in an open-addressing table (at most half full)
     size = 16
     while size < 2 * total:
@@ -150,10 +163,12 @@ def facet_polygons_kernel(L, N, dh, dl, origin, order):
 
 
 @jit
-def facet_polygons_of_hulls(L, lstarts, N, dh, dl, origins, starts, order):
+def facet_polygons_of_hulls(L, lstarts, N, dh, dl, origins, starts, order, rings):
     """:func:`facet_polygons_kernel` for many hulls: hull i's local points are ``L[lstarts[i]:lstarts[i + 1]]``, its
     normals and split offsets rows ``starts[i]:starts[i + 1]`` of ``N``, ``dh``, ``dl``, its origin ``origins[i]``
     and ``order`` (r,) int64 the global row order of the batch's planes (each hull's rows in spread order).
+    ``rings`` = ``(at, ring_offsets, ring)``: hull i's known rings (:func:`polygons_of_rings`) are
+    ``ring_offsets[at[i]:at[i] + k + 1]`` (into ``ring``) where ``at[i] >= 0``.
 
     Returns ``(has, offsets, edges, points, lo, hi)``: ``has`` (n,) bool whether hull i has facets; tool plane g's
     facet (g a global row) is ``edges[offsets[g]:offsets[g + 1]]`` (local plane indices of its hull) with
@@ -172,9 +187,16 @@ def facet_polygons_of_hulls(L, lstarts, N, dh, dl, origins, starts, order):
     for i in range(n):
         s, e = starts[i], starts[i + 1]
         local = order[s:e] - s
-        ok, off, ed, pts, flo, fhi = facet_polygons_kernel(
-            np.ascontiguousarray(L[lstarts[i]:lstarts[i + 1]]), np.ascontiguousarray(N[s:e]),
-            np.ascontiguousarray(dh[s:e]), np.ascontiguousarray(dl[s:e]), np.ascontiguousarray(origins[i]), local)
+        Li = np.ascontiguousarray(L[lstarts[i]:lstarts[i + 1]])
+        at, ring_offsets, ring = rings
+        if at[i] >= 0:
+            ok, off, ed, pts, flo, fhi = polygons_of_rings(
+                Li, np.ascontiguousarray(ring_offsets[at[i]:at[i] + e - s + 1]), ring, np.ascontiguousarray(origins[i]),
+                local)
+        else:
+            ok, off, ed, pts, flo, fhi = facet_polygons_kernel(
+                Li, np.ascontiguousarray(N[s:e]), np.ascontiguousarray(dh[s:e]), np.ascontiguousarray(dl[s:e]),
+                np.ascontiguousarray(origins[i]), local)
         m = off[off.shape[0] - 1] if ok else 0
         if pos + m > cap:
             cap = max(2 * cap, pos + m)
@@ -196,15 +218,22 @@ def facet_polygons_of_hulls(L, lstarts, N, dh, dl, origins, starts, order):
     return has, offsets, edges[:pos], points[:pos], lo, hi
 
 
-def _facet_inputs(hull) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None:
-    """A hull's local points, normals, split offsets and origin as the facet pass takes them (int64), or None."""
+def _facet_inputs(hull):
+    """A hull's local points, normals, split offsets, origin (int64) and its kept rings (or None) as the facet pass
+    takes them, or None where it does not take the hull. Offsets are split only where no rings are kept (their
+    signs are what finds the rings)."""
     L, N, d, o = hull._candidates, hull._normals, hull._d_local, hull._origin
     if L.dtype == object or N.dtype == object or o.dtype == object:
         return None
+    L, N, o = L.astype(np.int64, copy=False), N.astype(np.int64, copy=False), o.astype(np.int64, copy=False)
+    known = hull.__dict__.get("_rings")
+    if known is not None:
+        zero = np.zeros(N.shape[0], np.int64)
+        return L, N, zero, zero, o, known
     if d.dtype == object and max_abs(d) >= (1 << 120):
         return None
     dh, dl = _split_offsets(d)
-    return L.astype(np.int64, copy=False), N.astype(np.int64, copy=False), dh, dl, o.astype(np.int64, copy=False)
+    return L, N, dh, dl, o, None
 
 
 def hull_facet_polygons(hull, order: np.ndarray) -> FacetPolygons | None:
@@ -214,10 +243,15 @@ def hull_facet_polygons(hull, order: np.ndarray) -> FacetPolygons | None:
     inputs = _facet_inputs(hull)
     if inputs is None:
         return None
-    L, N, dh, dl, origin = inputs
-    ok, offsets, edges, points, lo, hi = facet_polygons_kernel(
-        np.ascontiguousarray(L), np.ascontiguousarray(N), dh, dl, np.ascontiguousarray(origin),
-        np.ascontiguousarray(order, np.int64))
+    L, N, dh, dl, origin, known = inputs
+    if known is not None:  # the hull's verification built them
+        ok, offsets, edges, points, lo, hi = polygons_of_rings(
+            np.ascontiguousarray(L), known[0], known[1], np.ascontiguousarray(origin),
+            np.ascontiguousarray(order, np.int64))
+    else:
+        ok, offsets, edges, points, lo, hi = facet_polygons_kernel(
+            np.ascontiguousarray(L), np.ascontiguousarray(N), dh, dl, np.ascontiguousarray(origin),
+            np.ascontiguousarray(order, np.int64))
     if not ok:
         return None
     return np.arange(N.shape[0], dtype=np.int32), offsets, edges, points, lo, hi
@@ -230,18 +264,29 @@ def hull_facets_of_batch(hulls: list, starts: np.ndarray, order: np.ndarray):
     Ls, Ns, dhs, dls = [], [], [], []
     origins = np.zeros((n, 3), np.int64)
     sizes = np.zeros(n + 1, np.int64)
+    at = np.full(n, -1, np.int64)
+    ring_offsets, ring_lists, ring_base, offsets_used = [], [], 0, 0
     for i, h in enumerate(hulls):
         inputs = _facet_inputs(h)
+        known = inputs[5] if inputs is not None else None
+        if known is not None:
+            at[i] = offsets_used
+            ring_offsets.append(known[0] + ring_base)
+            ring_lists.append(known[1])
+            offsets_used += known[0].shape[0]
+            ring_base += known[1].shape[0]
         if inputs is None:  # no facets: a hull with no points fails the pass
             k = int(starts[i + 1] - starts[i])
             inputs = (np.zeros((0, 3), np.int64), np.zeros((k, 3), np.int64), np.zeros(k, np.int64),
                       np.zeros(k, np.int64), np.zeros(3, np.int64))
-        L, N, dh, dl, origins[i] = inputs
+        L, N, dh, dl, origins[i] = inputs[:5]
         Ls.append(L)
         Ns.append(N)
         dhs.append(dh)
         dls.append(dl)
         sizes[i + 1] = L.shape[0]
+    rings = (at, np.concatenate(ring_offsets) if ring_offsets else np.zeros(1, np.int64),
+             np.concatenate(ring_lists) if ring_lists else np.zeros(0, np.int64))
     return facet_polygons_of_hulls(np.concatenate(Ls), np.cumsum(sizes), np.concatenate(Ns), np.concatenate(dhs),
                                    np.concatenate(dls), origins, np.ascontiguousarray(starts, np.int64),
-                                   np.ascontiguousarray(order, np.int64))
+                                   np.ascontiguousarray(order, np.int64), rings)
