@@ -575,30 +575,40 @@ def test_filter_doubles_are_within_their_bound(width, data):
         assert abs(Fraction(f) - v) <= (Fraction((1 << 53) + 1, 1 << 53) ** 4 - 1) * abs(v), (v, f)
 
 
-@pytest.mark.parametrize("regime", ["normals at the edge", "wide offsets"])
+@pytest.mark.parametrize("regime", ["normals at the edge", "wide offsets", "offsets at the 128-bit edge"])
 @pytest.mark.parametrize("seed", range(3))
 def test_normals_at_the_64_bit_edge_take_either_product_and_stay_exact(regime, seed):
     """Full-width 256-bit plane rows whose normals fit in 64 bits are multiplied as wide x word, the others wide x
-    wide (``lowering.plane_dot``, ``intrinsics._intersect_full_or_word``, decided row by row at run time). Normals
-    at -2^63, 2^63 - 1 (word) and 2^63, -2^63 - 1 (wide) mixed in one triple, and 2^46 normals with offsets far
-    beyond 64 bits (the 256-bit dome grid's), must give the exact point and sides."""
+    wide (``lowering.plane_dot``, ``intrinsics._intersect_full_or_word``, decided row by row at run time), whatever
+    the offset's size. Normals at -2^63, 2^63 - 1 (word) and
+    2^63, -2^63 - 1 (wide) mixed in one triple, 2^46 normals with offsets far beyond 64 bits (the 256-bit dome
+    grid's), and small normals with offsets at -2^127 - 1, -2^127, 2^127 - 1, 2^127 and beyond, must give the exact
+    point and sides."""
     width = 256
     rng = np.random.default_rng(seed)
     limit = budget(width).limit
     if regime == "normals at the edge":
         choices, n_bits = [-(1 << 63), (1 << 63) - 1, 1 << 63, -(1 << 63) - 1, 1, -1, 0], 64
-    else:
+    elif regime == "wide offsets":
         choices, n_bits = [(1 << 46) - 1, -(1 << 46), 1, -1, 0], 46
+    else:
+        choices, n_bits = [(1 << 12) - 1, -(1 << 12), 3, -1, 0], 12
     D = (limit - 1) // (16 * (1 << n_bits) ** 3)  # the offsets the width allows with such normals
+    edge = [-(1 << 127) - 1, -(1 << 127), (1 << 127) - 1, 1 << 127, (1 << 127) + 5, -(1 << 140)]
     checked = 0
     for _ in range(40):
         rows = []
         for _ in range(4):
-            normal = [int(rng.choice(choices)) if rng.random() < 0.6 else int(rng.integers(-(1 << 45), 1 << 45))
+            small = (1 << 11) if n_bits == 12 else (1 << 45)
+            normal = [int(rng.choice(choices)) if rng.random() < 0.6 else int(rng.integers(-small, small))
                       for _ in range(3)]
             if not any(normal):
                 normal[0] = 1
-            rows.append(normal + [int(rng.integers(-(1 << 62), 1 << 62)) * (D >> 62) or int(rng.integers(-D, D + 1))])
+            if n_bits == 12 and rng.random() < 0.7:
+                offset = int(rng.choice(edge)) + int(rng.integers(-2, 3))
+            else:
+                offset = int(rng.integers(-(1 << 62), 1 << 62)) * (D >> 62) or int(rng.integers(-D, D + 1))
+            rows.append(normal + [offset])
         p, q, r, s = rows
         point = solve_3_planes(p, q, r)
         if point is None:

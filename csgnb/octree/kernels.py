@@ -11,8 +11,9 @@ Python per cell. Per cell, with the mesh store reset:
    tool is decided by an exact point classification;
 3. a cell that kept its exact boundary (:mod:`csgnb.octree.piece_cache`; a uniform cell has none) is merged
    from the boundaries (:func:`csgnb.bsp.boundary_merge.merge_boundaries`): its pieces pushed down the tool's local
-   tree, the tool's pieces in the box (a mesh tool's from step 2, a convex tool's: the box cut by its crossing
-   planes, :func:`boundary_in_box`) down the cell's, the kept fragments imported once -- no cut;
+   tree, the tool's pieces in the box (a mesh tool's from step 2, a convex tool's: its facets on the crossing planes
+   clipped to the walls, :func:`_hull_facets_in_box`, or without facets the box cut by those planes,
+   :func:`boundary_in_box`) down the cell's, the kept fragments imported once -- no cut;
    otherwise merge by cutting (:func:`csgnb.bsp.merging.merge_cells`) in the cell box, then
 4. redundancy removal (§3.7): the merged in-cells' faces are clipped against their
    opposite subtrees -- faces on the cell walls are skipped, the cell box bounds the BSP --

@@ -5,7 +5,8 @@ and clips every face of the result to find the boundary it re-imports -- to inse
 redundancy removal's input *is* the cell's boundary: convex plane-based pieces facing out of the solid. Kept, the
 next Boolean there is a boundary merge (:func:`csgnb.bsp.boundary_merge.merge_boundaries`): the cell's pieces pushed
 down the tool's local tree, the tool's pieces (a mesh tool's: what its import in the cell made anyway; a convex
-hull's: the cell's box cut by its crossing planes) down the cell's, then one import -- the cell is not cut.
+hull's: its facets clipped to the cell, :mod:`csgnb.mesh.hull_facets`) down the cell's, then one import -- the cell
+is not cut.
 
 A cache, not part of the workpiece: an entry is valid while the cell's tree is the one it was stored with, i.e.
 while ``key[node]`` equals the cell's pool start (every write of a cell's tree appends to the pool, so a start names

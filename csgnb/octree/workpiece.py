@@ -1240,7 +1240,7 @@ class Workpiece:
         """Whether cells keep their exact boundary for their next Boolean (default on, from the first Boolean).
 
         With it a cell's merge pushes the cell's boundary pieces through the tool's local tree and the tool's pieces
-        in the cell (a mesh tool's, or a convex hull's: the cell's box cut by its planes) through the cell's tree
+        in the cell (a mesh tool's polygons or a convex hull's facets, clipped to the cell) through the cell's tree
         (:mod:`csgnb.octree.piece_cache`) instead of cutting the cell by both trees; off, every merge cuts. Both give
         the same solid; the trees may differ. Setting it empties the cache."""
         return int(self.ws.pc.counts[MODE]) != OFF
