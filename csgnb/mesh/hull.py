@@ -334,42 +334,59 @@ def _side_signs(L, N, dh, dl):
     return out
 
 
-@unlinked
 @jit
-def _rings_close(offsets, ring, n):
-    """Whether the polygons ``ring[offsets[j]:offsets[j + 1]]`` over ``n`` points form a closed surface:
-    every ring has three or more vertices, and every directed edge occurs once, its reverse once.
-
-    The directed edges go into an open-addressing hash table (keys a·n + b, at most half full): linear time, no
-    sort (numba's sorts cost over a second of compilation each)."""
-    total = offsets[-1]
+def directed_edge_table(offsets, ring, n):
+    """The directed edges of the polygons ``ring[offsets[j]:offsets[j + 1]]`` over ``n`` points in an
+    open-addressing hash table (keys a·n + b, at most half full): ``(ok, keys, owner, mask)`` with ``owner[slot]``
+    the polygon of the edge at ``slot``; ``ok`` False when a ring has fewer than three vertices or an edge occurs
+    twice in one direction. Linear time, no sort (numba's sorts cost over a second of compilation each)."""
+    total = offsets[offsets.shape[0] - 1] - offsets[0]
     size = 16
     while size < 2 * total:
         size *= 2
-    table = np.full(size, -1, np.int64)
+    keys = np.full(size, -1, np.int64)
+    owner = np.empty(size, np.int64)
     mask = size - 1
     for j in range(offsets.shape[0] - 1):
         s, e = offsets[j], offsets[j + 1]
         if e - s < 3:
-            return False
+            return False, keys, owner, mask
         for t in range(s, e):
             key = ring[t] * n + ring[s + (t + 1 - s) % (e - s)]
             slot = (key * 0x9E3779B1) & mask
-            while table[slot] != -1:
-                if table[slot] == key:
-                    return False  # an edge twice in one direction
+            while keys[slot] != -1:
+                if keys[slot] == key:
+                    return False, keys, owner, mask  # an edge twice in one direction
                 slot = (slot + 1) & mask
-            table[slot] = key
-    for slot in range(size):
-        key = table[slot]
-        if key == -1:
-            continue
-        rev = (key % n) * n + key // n
-        probe = (rev * 0x9E3779B1) & mask
-        while table[probe] != rev:
-            if table[probe] == -1:
-                return False  # an edge without its reverse
-            probe = (probe + 1) & mask
+            keys[slot] = key
+            owner[slot] = j
+    return True, keys, owner, mask
+
+
+@jit
+def edge_slot(keys, mask, key):
+    """The slot of ``key`` in a :func:`directed_edge_table`, or -1 when it is not there."""
+    slot = (key * 0x9E3779B1) & mask
+    while keys[slot] != key:
+        if keys[slot] == -1:
+            return -1
+        slot = (slot + 1) & mask
+    return slot
+
+
+@unlinked
+@jit
+def _rings_close(offsets, ring, n):
+    """Whether the polygons ``ring[offsets[j]:offsets[j + 1]]`` over ``n`` points form a closed surface:
+    every ring has three or more vertices, and every directed edge occurs once, its reverse once
+    (:func:`directed_edge_table`)."""
+    ok, keys, _, mask = directed_edge_table(offsets, ring, n)
+    if not ok:
+        return False
+    for slot in range(keys.shape[0]):
+        key = keys[slot]
+        if key != -1 and edge_slot(keys, mask, (key % n) * n + key // n) < 0:
+            return False  # an edge without its reverse
     return True
 
 

@@ -22,7 +22,7 @@ import numpy as np
 from csgnb._jit import jit
 from csgnb._unlinked import unlinked
 from csgnb.exact.integral import max_abs
-from csgnb.mesh.hull import _face_rings, _side_signs, _split_offsets
+from csgnb.mesh.hull import _face_rings, _side_signs, _split_offsets, directed_edge_table, edge_slot
 
 __all__ = ["FacetPolygons", "facet_polygons_of_hulls", "hull_facet_polygons", "hull_facets_of_batch"]
 
@@ -100,26 +100,9 @@ def polygons_of_rings(L, offsets, ring, origin, order):
     bad = (False, np.zeros(1, np.int32), np.zeros(0, np.int32), np.zeros((0, 3), np.int64),
            np.zeros((0, 3), np.int64), np.zeros((0, 3), np.int64))
     total = offsets[k] - offsets[0]  # (a batch's rings lie in one array: offsets need not start at 0)
-    # directed edge a -> b of facet f: key a * n + b in an open-addressing table (at most half full)
-    size = 16
-    while size < 2 * total:
-        size *= 2
-    keys = np.full(size, -1, np.int64)
-    owner = np.empty(size, np.int64)
-    mask = size - 1
-    for f in range(k):
-        s, e = offsets[f], offsets[f + 1]
-        if e - s < 3:
-            return bad
-        for t in range(s, e):
-            key = ring[t] * n + ring[s + (t + 1 - s) % (e - s)]
-            slot = (key * 0x9E3779B1) & mask
-            while keys[slot] != -1:
-                if keys[slot] == key:
-                    return bad  # an edge twice in one direction
-                slot = (slot + 1) & mask
-            keys[slot] = key
-            owner[slot] = f
+    ok, keys, owner, mask = directed_edge_table(offsets, ring, n)
+    if not ok:
+        return bad
     place = np.empty(k, np.int64)
     for i in range(k):
         place[order[i]] = i
@@ -137,12 +120,9 @@ def polygons_of_rings(L, offsets, ring, origin, order):
             v = ring[s + t]
             prev = ring[s + (t - 1) % m]
             # edge t runs from prev to v; the facet across it holds v -> prev
-            key = v * n + prev
-            slot = (key * 0x9E3779B1) & mask
-            while keys[slot] != key:
-                if keys[slot] == -1:
-                    return bad  # an edge without its reverse
-                slot = (slot + 1) & mask
+            slot = edge_slot(keys, mask, v * n + prev)
+            if slot < 0:
+                return bad  # an edge without its reverse
             edges[pos + t] = place[owner[slot]]
             for c in range(3):
                 points[pos + t, c] = L[v, c] + origin[c]
