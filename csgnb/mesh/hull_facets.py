@@ -164,11 +164,11 @@ def facet_polygons_of_hulls(L, lstarts, N, dh, dl, origins, starts, order, rings
     lo = np.zeros((r, 3), np.int64)
     hi = np.zeros((r, 3), np.int64)
     pos = 0
+    at, ring_offsets, ring = rings
     for i in range(n):
         s, e = starts[i], starts[i + 1]
         local = order[s:e] - s
         Li = np.ascontiguousarray(L[lstarts[i]:lstarts[i + 1]])
-        at, ring_offsets, ring = rings
         if at[i] >= 0:
             ok, off, ed, pts, flo, fhi = polygons_of_rings(
                 Li, np.ascontiguousarray(ring_offsets[at[i]:at[i] + e - s + 1]), ring, np.ascontiguousarray(origins[i]),

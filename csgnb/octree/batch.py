@@ -22,6 +22,8 @@ import numpy as np
 from csgnb._jit import jit
 from csgnb._resumable import DONE, FAILED, NEED_ROOM
 from csgnb.bsp.polygon import copy_point
+from csgnb.exact.predicates import homogeneous_points
+from csgnb.exact.wide import width_of
 from csgnb.octree.kernels import (
     COMBINE_ORDER_LEAVES,
     CONVEX_TOOL,
@@ -44,7 +46,7 @@ from csgnb.octree.layout import (
     S_SPLITS,
     S_UNCHANGED,
 )
-from csgnb.octree.tool import convex_tool_tree, spread_order, store_int64_rows
+from csgnb.octree.tool import convex_tool_tree, spread_order
 from csgnb.octree.workspace import ToolArrays
 
 __all__ = ["ConvexBatch", "convex_batch_kernel", "spread_orders"]
@@ -116,10 +118,7 @@ def new_convex_batch(planes: np.ndarray, starts: np.ndarray, lo: np.ndarray, hi:
         f_verts, f_lo, f_hi = np.zeros((0, 4), planes.dtype), np.zeros((r, 3), np.int64), np.zeros((r, 3), np.int64)
     else:
         f_has, f_offsets, f_edges, points, f_lo, f_hi = facets
-        homogeneous = np.ones((points.shape[0], 4), np.int64)
-        homogeneous[:, :3] = points
-        f_verts = np.zeros((points.shape[0], 4), planes.dtype)
-        store_int64_rows(f_verts, 0, homogeneous)
+        f_verts = homogeneous_points(points, width_of(planes))
     return ConvexBatch(planes, np.ascontiguousarray(starts, np.int64), np.ascontiguousarray(lo, np.int64),
                        np.ascontiguousarray(hi, np.int64), state, np.zeros(32, np.int64), np.zeros((n, 7), np.int64),
                        np.zeros(max(int(parents), 256), np.int64), np.zeros(3, np.int64), np.zeros(3, np.int64),

@@ -254,19 +254,14 @@ def _content_digest(tool: Tool, width: int) -> str:
     return found
 
 
-def _facet_vertices(tool: Tool, points: np.ndarray, dtype) -> np.ndarray:
-    """A convex tool's facet vertices ``(m, 4)`` wide of ``dtype``: its grid points ``points`` (m, 3) int64 as
+def _facet_vertices(tool: Tool, points: np.ndarray, width: int) -> np.ndarray:
+    """A convex tool's facet vertices ``(m, 4)`` wide of ``width`` bits: its grid points ``points`` (m, 3) int64 as
     ``(x, y, z, 1)``, made once per tool and width."""
     cache = tool.__dict__.setdefault("_geometry", {})
-    key = ("facets", dtype)
-    found = cache.get(key)
-    if found is None:
-        found = np.zeros((points.shape[0], 4), dtype)
-        homogeneous = np.ones((points.shape[0], 4), np.int64)
-        homogeneous[:, :3] = points
-        store_int64_rows(found, 0, homogeneous)
-        cache[key] = found
-    return found
+    key = ("facets", width)
+    if key not in cache:
+        cache[key] = homogeneous_points(points, width)
+    return cache[key]
 
 
 def _polygon_geometry(tool: Tool, width: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -534,7 +529,7 @@ class Workpiece:
                                                  np.zeros((0, 3), np.int64), plane, neg, pos, label)
             support, offsets, edges, points, plo, phi = facets
             return K.CONVEX_TOOL, ToolArrays(rows, rows[support].astype(np.int32), offsets,
-                                             rows[edges].astype(np.int32), _facet_vertices(tool, points, dtype),
+                                             rows[edges].astype(np.int32), _facet_vertices(tool, points, self.width),
                                              plo, phi, plane, neg, pos, label)
         polys = tool.polygons
         support = np.where(polys.support >= 0, rows[np.maximum(polys.support, 0)],
