@@ -167,3 +167,23 @@ def test_booleans_with_facets_carve_the_solid_the_box_cut_carves(width, seed, ba
     pts = np.random.default_rng(seed).integers(-1, 66, size=(4000, 3))
     x = to_wide(np.column_stack([2 * pts + 1, np.full(len(pts), 2)]), width)  # half-integers: off every grid plane
     assert np.array_equal(with_facets.classify(x), cut.classify(x))
+
+
+@pytest.mark.parametrize("bits", [10, 18, 30, 50, 58])
+def test_hulls_near_the_256_bit_mesh_budget_give_exact_facets_or_none(bits):
+    """Few points (facets enumerated, no kept rings: the facet pass finds its own signs) with coordinates from 2^10
+    to 2^58: where the normals fit int64 the facets are exact; beyond (Python-int normals) there are none and the
+    workpiece cuts the box instead -- never inexact ones."""
+    from csgnb.exact.budgets import budget
+
+    limit = min(1 << bits, budget(256).max_mesh_coordinate)
+    rng = np.random.default_rng(bits)
+    for _ in range(5):
+        hull = convex_hull(rng.integers(-limit, limit, size=(9, 3)), width=256)
+        assert "_rings" not in hull.__dict__
+        tool = Tool.from_hull(hull)
+        if tool.facets is not None:
+            _check_facets(hull, tool)
+        else:
+            assert hull._normals.dtype == object
+        assert (tool.facets is not None) == (bits <= 18)
