@@ -540,6 +540,34 @@ def test_the_neighbour_rule_on_parts_of_tasks_is_the_one_pass_in_region_order(mo
     assert np.array_equal(lf1, lf2)
 
 
+def test_every_column_of_a_leaf_row_is_written(monkeypatch):
+    """Pass 1's leaf buffers are ``np.empty``: a column a leaf does not use held whatever the memory held -- a NaN
+    now and then, which made two equal runs of the neighbour rule compare unequal (the test above failed about once
+    in a full run of the suite). With the buffers filled with NaN first, no leaf row keeps one."""
+    import csgnb.sampling.sampler as sampler
+    from csgnb.csg.gallery import TABLE2
+
+    new_buffers = sampler._new_buffers
+
+    def poisoned(*args, **kwargs):
+        bufs = new_buffers(*args, **kwargs)
+        for b in bufs:
+            if isinstance(b, np.ndarray) and b.dtype.kind == "f":
+                b.fill(np.nan)
+        return bufs
+
+    seen = []
+    rule = sampler.cover_by_neighbours
+    monkeypatch.setattr(sampler, "_new_buffers", poisoned)
+    monkeypatch.setattr(sampler, "cover_by_neighbours",
+                        lambda ts, LF, LI, *a: seen.append((LF.copy(), LI.copy())) or rule(ts, LF, LI, *a))
+    build, radii = TABLE2["block"]
+    sample_csg(build(), radii["small"])
+    LF, LI = seen[0]
+    assert np.any(LI[:, 1] == 0) and np.any(LI[:, 1] == 1)  # single samples and lattices
+    assert np.all(np.isfinite(LF))
+
+
 def test_joining_chunk_buffers_shifts_clip_list_offsets_and_trace_rows():
     """Two workers' buffers, three chunks: worker 0 filled chunks 0 and 2, worker 1 chunk 1."""
     from csgnb.sampling.sampler import _joined, _new_buffers

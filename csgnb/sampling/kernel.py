@@ -553,14 +553,19 @@ def subdivide_all(
                 LI[nl, 1] = emit_kind
                 LI[nl, 3] = count
                 LF[nl, 9] = 0.0  # the radius the neighbour rule may raise a reduced radius to
+                # every column written, the unused ones zero: leaf rows are a function of the input alone (the
+                # buffers are np.empty; garbage there -- a NaN now and then -- made equal runs compare unequal)
+                LF[nl, 10] = 0.0
+                LF[nl, 11] = 0.0
                 LF[nl, 12] = delta
                 if emit_kind == 0:
                     LF[nl, 0] = v0x if best == 0 else (v1x if best == 1 else (v2x if best == 2 else fx))
                     LF[nl, 1] = v0y if best == 0 else (v1y if best == 1 else (v2y if best == 2 else fy))
-                    LF[nl, 2] = 0.0  # (unused: a single sample has one vertex)
+                    LF[nl, 2], LF[nl, 3], LF[nl, 4], LF[nl, 5] = 0.0, 0.0, 0.0, 0.0  # (one vertex)
                     LI[nl, 2] = 1
                     LF[nl, 13] = slack if kept else max(-dbest, 0.0)
                     LF[nl, 14] = delta * best_w
+                    LF[nl, 15] = 0.0
                 else:
                     LF[nl, 0], LF[nl, 1], LF[nl, 2], LF[nl, 3], LF[nl, 4], LF[nl, 5] = v0x, v0y, v1x, v1y, v2x, v2y
                     LI[nl, 2] = 3
