@@ -16,15 +16,16 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from csgnb.bsp import DIFFERENCE, INTERSECTION, SYMMETRIC_DIFFERENCE, UNION
-from csgnb.bsp.boundary_merge import boolean_from_boundaries, boundary_polygons
+from csgnb.bsp.boundary_merge import boolean_from_boundaries, boundary_polygons, strictly_outside
 from csgnb.bsp.build import bsp_from_mesh, bsp_from_polygons
+from csgnb.bsp.extract import tree_arrays
 from csgnb.bsp.merging import merge, remove_redundancy
 from csgnb.bsp.tree import BSPTree
 from csgnb.exact import to_wide
 from csgnb.exact.budgets import budget
 from csgnb.mesh.hull import convex_hull
 from csgnb.octree import Tool, Workpiece
-from csgnb.octree.layout import S_BOUNDARY_MERGES
+from csgnb.octree.layout import S_BOUNDARY_MERGES, S_BOUNDARY_SHORTCUTS
 from csgnb.octree.persist import WorkpieceFileError, read_arrays, write_arrays
 
 LO, HI = (-16, -16, -16), (16, 16, 16)
@@ -153,6 +154,43 @@ def test_boundaries_passed_on_through_many_booleans(width):
         assert same_region(ta, reference), step
 
 
+def _strictly_outside_all(tree, points, width):
+    """:func:`strictly_outside` of each integer point (n, 3) in ``tree``, from Python."""
+    v = to_wide(np.column_stack([points, np.ones(len(points), np.int64)]), width)
+    stack = np.empty(8, np.int64)  # small: a point on many planes at once runs out, and is then "not outside"
+    t = tree_arrays(tree)
+    return np.array([strictly_outside(tree.palette, v, i, t, stack) for i in range(len(points))])
+
+
+@pytest.mark.parametrize("width", [128, 256])
+def test_strictly_outside_never_claims_a_point_of_the_closed_solid(width):
+    """The boundary merge's shortcut rests on :func:`strictly_outside`: True only where a ball around the point
+    misses the solid. Unions of grid boxes (planes shared, faces meeting) at every point of a lattice through their
+    corners, edges and faces: never True on a closed box (exact: integer corners), always True two units away from
+    all of them; for one box exactly the points off the closed box."""
+    rng = np.random.default_rng(width)
+    pts = np.array([[x, y, z] for x in range(-1, 14) for y in range(-1, 14) for z in range(-1, 14)], np.int64)
+    for trial in range(12):
+        boxes = []
+        tree = None
+        for _ in range(1 + trial % 3):
+            lo = 2 * rng.integers(0, 4, 3)
+            hi = lo + 2 * rng.integers(1, 3, 3)
+            boxes.append((lo, hi))
+            b = bsp_from_mesh(*box_mesh(lo, hi), width=width)
+            tree = b if tree is None else remove_redundancy(merge(tree, b, UNION, LO, HI))
+        closed = np.zeros(len(pts), bool)
+        far = np.ones(len(pts), bool)
+        for lo, hi in boxes:
+            closed |= np.all((pts >= lo) & (pts <= hi), axis=1)
+            far &= np.any((pts < lo - 1) | (pts > hi + 1), axis=1)
+        out = _strictly_outside_all(tree, pts, width)
+        assert not np.any(out & closed), trial
+        assert np.all(out[far]), trial
+        if len(boxes) == 1:
+            assert np.array_equal(out, ~closed), trial
+
+
 def _box_tool(lo, hi, width, convex=False):
     if convex:  # the hull of the corners: its six planes (a convex tool)
         corners = [[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])]
@@ -198,6 +236,7 @@ def test_cells_that_keep_their_boundary_carve_the_same_solid(width, seed):
     and the same side for thousands of points after a run that merged most cells from their boundaries."""
     with_cache, without = _run(width, seed, True, steps=40), _run(width, seed, False, steps=40)
     assert with_cache.oc.counts[S_BOUNDARY_MERGES] > 50 and without.oc.counts[S_BOUNDARY_MERGES] == 0
+    assert with_cache.stats.boundary_shortcuts > 0 and without.stats.boundary_shortcuts == 0
     assert with_cache.volume() == without.volume()
     pts = np.random.default_rng(seed).integers(-1, 66, size=(4000, 3))
     x = to_wide(np.column_stack([2 * pts + 1, np.full(len(pts), 2)]), width)  # half-integers: off every grid plane
@@ -233,10 +272,67 @@ def test_convex_tools_merge_from_the_boundary_and_carve_the_same_solid(width, se
     with the cache and without, the same exact volume and the same side for thousands of points."""
     with_cache, without = _run(width, seed, True, 40, tools), _run(width, seed, False, 40, tools)
     assert with_cache.oc.counts[S_BOUNDARY_MERGES] > 50 and without.oc.counts[S_BOUNDARY_MERGES] == 0
+    assert with_cache.stats.boundary_shortcuts > 0
     assert with_cache.volume() == without.volume()
     pts = np.random.default_rng(seed).integers(-1, 66, size=(4000, 3))
     x = to_wide(np.column_stack([2 * pts + 1, np.full(len(pts), 2)]), width)
     assert np.array_equal(with_cache.classify(x), without.classify(x))
+
+
+@pytest.mark.parametrize(("width", "convex"), [(128, False), (128, True), (256, False)])
+def test_a_tool_around_islands_removes_them(width, convex):
+    """Where a difference's tool keeps none of its boundary in a cell (it runs through the cavity around an island
+    of material), the cell changes only if some island lies inside the tool: islands in a cavity, each tool a box
+    round one island with its faces in the cavity -- the shortcut must not call those cells unchanged -- and boxes
+    in the cavity that miss the islands, which it should. Exact volumes against a voxel count."""
+    w = Workpiece.box([0, 0, 0], [48, 48, 48], threshold=24, width=width)
+    voxels = np.ones((48, 48, 48), bool)
+
+    def apply(lo, hi, union):
+        tool = _box_tool(np.array(lo), np.array(hi), width, convex)
+        if union:
+            w.union(tool)
+        else:
+            w.difference(tool)
+        voxels[lo[0]:hi[0], lo[1]:hi[1], lo[2]:hi[2]] = union
+        assert w.volume() == int(voxels.sum())
+
+    apply((4, 4, 4), (44, 44, 44), False)  # the cavity
+    islands = [((8 + 12 * i, 8 + 12 * j, 8 + 12 * k), (12 + 12 * i, 12 + 12 * j, 12 + 12 * k))
+               for i in range(3) for j in range(3) for k in range(3)]
+    for lo, hi in islands:
+        apply(lo, hi, True)
+    shortcuts = w.stats.boundary_shortcuts
+    for n, (lo, hi) in enumerate(islands):
+        if n % 2:  # a box in the cavity beside the island: nothing changes
+            apply((lo[0] + 5, lo[1] - 2, lo[2] - 2), (lo[0] + 7, hi[1] + 2, hi[2] + 2), False)
+        apply(tuple(c - 2 for c in lo), tuple(c + 2 for c in hi), False)  # round the island: it goes
+    assert w.stats.boundary_shortcuts > shortcuts
+    assert w.volume() == int(voxels.sum()) == 48**3 - 40**3
+
+
+@settings(max_examples=8, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.sampled_from([128, 256]), st.booleans())
+def test_islands_and_boxes_against_a_voxel_count(seed, width, convex):
+    """A fuzz of the same: small blocks added in a cavity and boxes on a grid of 2 subtracted and added at random
+    (round islands, beside them, through them, on their faces); the exact volume after every Boolean equals the
+    voxel count."""
+    rng = np.random.default_rng(seed)
+    w = Workpiece.box([0, 0, 0], [32, 32, 32], threshold=16, width=width)
+    voxels = np.ones((32, 32, 32), bool)
+    w.difference(_box_tool(np.array([2, 2, 2]), np.array([30, 30, 30]), width, convex))
+    voxels[2:30, 2:30, 2:30] = False
+    for step in range(30):
+        union = step < 8 or rng.random() < 0.2
+        size = 2 * rng.integers(1, 3 if union else 6, 3)
+        lo = 2 * rng.integers(1, 14, 3)
+        hi = np.minimum(lo + size, 30)
+        if union:
+            w.union(_box_tool(lo, hi, width, convex))
+        else:
+            w.difference(_box_tool(lo, hi, width, convex))
+        voxels[lo[0]:hi[0], lo[1]:hi[1], lo[2]:hi[2]] = union
+        assert w.volume() == int(voxels.sum()), step
 
 
 def test_the_cache_starts_with_the_first_boolean_of_any_tool():

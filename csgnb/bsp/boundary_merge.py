@@ -42,8 +42,8 @@ from csgnb.errors import GeometryError
 from csgnb.exact.intrinsics import classify_at, wide_sign_at
 from csgnb.exact.wide import width_of
 
-__all__ = ["PieceArrays", "PushScratch", "boolean_from_boundaries", "boundary_polygons", "merge_boundaries",
-           "new_push_scratch"]
+__all__ = ["PieceArrays", "PushScratch", "begin_push", "boolean_from_boundaries", "boundary_polygons",
+           "merge_boundaries", "new_push_scratch", "push_pieces", "strictly_outside"]
 
 
 class PieceArrays(NamedTuple):
@@ -241,31 +241,60 @@ def _probe(pal, sc, k, row, flipped, t, in_a, table):
     return fate
 
 
+@jit(inline="always")
+def strictly_outside(pal, v, i, t, stack):
+    """Whether the homogeneous point ``v[i]`` lies strictly outside the solid of tree ``t`` (labels 0 / 1): some
+    ball around it holds no point of the solid.
+
+    On a node's plane the point is followed down both sides: a point whose every side ends at an outside leaf has
+    no inside point near it on either side of that plane, so it is not on the solid's boundary either (a regular
+    solid has no boundary without inside next to it). ``stack`` (s,) int64 is scratch; False also when it is
+    short (the caller takes its exact path)."""
+    stack[0] = 0
+    top = 1
+    while top > 0:
+        top -= 1
+        node = stack[top]
+        while t.plane[node] >= 0:
+            side = classify_at(v, i, pal, t.plane[node])
+            if side == 0:
+                if top >= stack.shape[0]:
+                    return False
+                stack[top] = t.pos[node]
+                top += 1
+                node = t.neg[node]
+            else:
+                node = t.neg[node] if side < 0 else t.pos[node]
+        if t.label[node] != 0:
+            return False
+    return True
+
+
+@jit(inline="always")
+def begin_push(out, state):
+    """Start a boundary merge's output: no pieces in ``out``, A unchanged so far, no fragment of B kept."""
+    state[S_PIECES] = 0
+    state[S_EDGES] = 0
+    state[S_A_UNCHANGED] = 1
+    state[S_B_KEPT] = 0
+    out.offsets[0] = 0
+
+
 @unlinked
 @borrowing_jit
-def merge_boundaries(pal, ta, pa, na, tb, pb, nb, table, out, sc, state):
-    """The boundary of ``table[A, B]`` from A's pieces ``pa[:na]`` and B's ``pb[:nb]`` (module docstring).
-
-    ``ta``, ``tb`` are the operands' trees (:class:`~csgnb.bsp.extract.TreeArrays`, root 0, labels 0 / 1) over
-    the palette ``pal``, which also holds every plane of the pieces (:class:`PieceArrays`, facing out of their
-    solid). ``table`` (2, 2) is the label function. The result's pieces are written to ``out`` (a
-    :class:`PieceArrays`), facing out of the result. ``state`` (>= 5,) int64 receives the counts
-    (:data:`S_PIECES`, :data:`S_EDGES`), whether the result is A (:data:`S_A_UNCHANGED`: every piece of A kept as
-    it was, none of B) and the fragments of B kept. Returns DONE, or NEED_ROOM with ``state[S_NEED]`` naming
-    the array that was short (start again after growing it: nothing else is kept).
-    """
-    n_out = 0
-    e_out = 0
-    a_unchanged = True
-    b_kept = 0
+def push_pieces(pal, p, n, in_a, t, table, out, sc, state):
+    """Push one operand's pieces ``p[:n]`` (A's when ``in_a``) down the other operand's tree ``t`` and append the
+    fragments that bound ``table[A, B]`` to ``out`` after the ``state[S_PIECES]`` pieces already there
+    (:func:`begin_push` starts; the counts of :func:`merge_boundaries` are kept up to date, so that the operands
+    can be pushed in either order and a caller can stop between them). Returns DONE, or NEED_ROOM with
+    ``state[S_NEED]`` naming the array that was short (start again from :func:`begin_push` after growing it)."""
+    n_out = state[S_PIECES]
+    e_out = state[S_EDGES]
+    a_unchanged = state[S_A_UNCHANGED] == 1
+    b_kept = state[S_B_KEPT]
     cap = sc.edges.shape[0]
     cap_stack = sc.st_start.shape[0]
-    out.offsets[0] = 0
-    for i in range(na + nb):
-        in_a = i < na
-        p = pa if in_a else pb
-        t = tb if in_a else ta  # the other operand's tree
-        j = i if in_a else i - na
+    for j in range(n):
         s = p.support[j]
         row = s if s >= 0 else ~s
         flipped = s < 0
@@ -365,6 +394,26 @@ def merge_boundaries(pal, ta, pa, na, tb, pb, nb, table, out, sc, state):
     state[S_A_UNCHANGED] = 1 if a_unchanged and b_kept == 0 else 0
     state[S_B_KEPT] = b_kept
     return DONE
+
+
+@unlinked
+@borrowing_jit
+def merge_boundaries(pal, ta, pa, na, tb, pb, nb, table, out, sc, state):
+    """The boundary of ``table[A, B]`` from A's pieces ``pa[:na]`` and B's ``pb[:nb]`` (module docstring).
+
+    ``ta``, ``tb`` are the operands' trees (:class:`~csgnb.bsp.extract.TreeArrays`, root 0, labels 0 / 1) over
+    the palette ``pal``, which also holds every plane of the pieces (:class:`PieceArrays`, facing out of their
+    solid). ``table`` (2, 2) is the label function. The result's pieces are written to ``out`` (a
+    :class:`PieceArrays`), facing out of the result, A's first. ``state`` (>= 5,) int64 receives the counts
+    (:data:`S_PIECES`, :data:`S_EDGES`), whether the result is A (:data:`S_A_UNCHANGED`: every piece of A kept as
+    it was, none of B) and the fragments of B kept. Returns DONE, or NEED_ROOM with ``state[S_NEED]`` naming
+    the array that was short (start again after growing it: nothing else is kept).
+    """
+    begin_push(out, state)
+    status = push_pieces(pal, pa, na, True, tb, table, out, sc, state)
+    if status != DONE:
+        return status
+    return push_pieces(pal, pb, nb, False, ta, table, out, sc, state)
 
 
 # ---------------------------------------------------------------------------

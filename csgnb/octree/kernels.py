@@ -10,7 +10,7 @@ Python per cell. Per cell, with the mesh store reset:
    the tool's surface does not cross is relabelled without a merge: inside or outside the
    tool is decided by an exact point classification;
 3. a cell that kept its exact boundary (:mod:`csgnb.octree.piece_cache`; a uniform cell has none) is merged
-   from the boundaries (:func:`csgnb.bsp.boundary_merge.merge_boundaries`): its pieces pushed down the tool's local
+   from the boundaries (:func:`csgnb.bsp.boundary_merge.push_pieces`): its pieces pushed down the tool's local
    tree, the tool's pieces in the box (a mesh tool's from step 2, a convex tool's: its facets on the crossing planes
    clipped to the walls, :func:`_hull_facets_in_box`, or without facets the box cut by those planes,
    :func:`boundary_in_box`) down the cell's, the kept fragments imported once -- no cut;
@@ -52,7 +52,16 @@ from csgnb._resumable import DONE, FAILED, NEED_ROOM
 from csgnb._shuffle import shuffle_order
 from csgnb._unlinked import unlinked
 from csgnb._views import unmanaged, unmanaged_tuple
-from csgnb.bsp.boundary_merge import NEED_ARENA, NEED_STACK, S_A_UNCHANGED, S_NEED, S_PIECES, merge_boundaries
+from csgnb.bsp.boundary_merge import (
+    NEED_ARENA,
+    NEED_STACK,
+    S_A_UNCHANGED,
+    S_B_KEPT,
+    S_NEED,
+    S_PIECES,
+    begin_push,
+    push_pieces,
+)
 from csgnb.bsp.build import build_kernel
 from csgnb.bsp.extract import PIECES, TreeArrays, clip_cell, extract_into
 from csgnb.bsp.merging import CHANGED, merge_cells, merge_changes_a
@@ -88,6 +97,7 @@ from csgnb.octree.layout import (
     R_TREE_B,
     R_TREE_R,
     S_BOUNDARY_MERGES,
+    S_BOUNDARY_SHORTCUTS,
     S_BOUNDARY_UNCHANGED,
     S_CELL_OPS,
     S_COMBINES,
@@ -101,7 +111,7 @@ from csgnb.octree.layout import (
 )
 from csgnb.octree.piece_cache import MODE as PC_MODE
 from csgnb.octree.piece_cache import ON as PC_ON
-from csgnb.octree.piece_cache import cached_pieces, piece_room, pieces_of_cell, store_cell_pieces
+from csgnb.octree.piece_cache import cached_pieces, piece_room, pieces_of_cell, pieces_outside, store_cell_pieces
 from csgnb.octree.workspace import unmanaged_workspace
 
 __all__ = []
@@ -851,19 +861,48 @@ def _in_out_table(table):
 
 
 @jit(inline="always")
+def _is_difference(table):
+    """Whether the label function is the difference A - B of in / out labels (0 and 1)."""
+    return (table.shape[0] >= 2 and table.shape[1] >= 2 and table[0, 0] == 0 and table[0, 1] == 0
+            and table[1, 0] == 1 and table[1, 1] == 0)
+
+
+@jit(inline="always")
+def _push_failed(ws, need):
+    """Translate the boundary merge's shortage into ``need[0]``."""
+    short = ws.push_state[S_NEED]
+    need[0] = R_PUSH_ARENA if short == NEED_ARENA else (R_PUSH_STACK if short == NEED_STACK else R_PIECES_OUT)
+
+
+@jit(inline="always")
 def _boundary_merge_cell(pal, oc, pool, node, n_tool, table, ws, seed, need):
     """The Boolean of leaf ``node`` (tree in ``ws.ta``, valid cached pieces) and the tool's local part (tree
     ``ws.tb``, its ``n_tool`` pieces in ``ws.bi``) from their boundaries
-    (:func:`csgnb.bsp.boundary_merge.merge_boundaries`), then one import; writes the cell. 1 done, 0 short."""
+    (:func:`csgnb.bsp.boundary_merge.push_pieces`: the tool's pieces first, then the cell's), then one import;
+    writes the cell. 1 done, 0 short.
+
+    A difference whose tool keeps none of its boundary here (it lies nowhere inside the cell's solid) leaves the
+    cell as it is when every cached piece has a vertex strictly outside the tool
+    (:func:`csgnb.octree.piece_cache.pieces_outside`): one vertex a piece instead of all of them, no piece of the
+    cell pushed -- the drill's cells along the hole's wall, which each step's tool reaches and rarely cuts."""
+    begin_push(ws.po, ws.push_state)
+    if push_pieces(pal, ws.bi, n_tool, False, ws.ta, table, ws.po, ws.push, ws.push_state) != DONE:
+        _push_failed(ws, need)
+        return 0
     n_a = 0
     if oc.kind[node] == BSP:
+        if (ws.push_state[S_B_KEPT] == 0 and _is_difference(table)
+                and pieces_outside(pal, ws.pc, node, ws.tb, ws.pa.verts, ws.push.st_start)):
+            oc.counts[S_UNCHANGED] += 1
+            oc.counts[S_BOUNDARY_MERGES] += 1
+            oc.counts[S_BOUNDARY_UNCHANGED] += 1
+            oc.counts[S_BOUNDARY_SHORTCUTS] += 1
+            return 1
         n_a = pieces_of_cell(pal, ws.pc, node, ws.pa, need)
         if n_a < 0:
             return 0
-    status = merge_boundaries(pal, ws.ta, ws.pa, n_a, ws.tb, ws.bi, n_tool, table, ws.po, ws.push, ws.push_state)
-    if status != DONE:
-        short = ws.push_state[S_NEED]
-        need[0] = R_PUSH_ARENA if short == NEED_ARENA else (R_PUSH_STACK if short == NEED_STACK else R_PIECES_OUT)
+    if push_pieces(pal, ws.pa, n_a, True, ws.tb, table, ws.po, ws.push, ws.push_state) != DONE:
+        _push_failed(ws, need)
         return 0
     # (statistics are counted where the cell is done: a cell short of room is done again)
     if ws.push_state[S_A_UNCHANGED] == 1:

@@ -350,7 +350,7 @@ def _check(header: dict, arrays: dict[str, np.ndarray]) -> dict:  # noqa: C901 (
         N_PAL,
         N_POOL,
         POOL_LIVE,
-        S_BOUNDARY_UNCHANGED,
+        S_BOUNDARY_SHORTCUTS,
         UNIFORM,
     )
 
@@ -435,7 +435,7 @@ def _check(header: dict, arrays: dict[str, np.ndarray]) -> dict:  # noqa: C901 (
     counts = _array(arrays, "oc_counts", np.int64, (N_COUNTS,))
     if np.any(counts < 0):
         raise _Bad(f"array 'oc_counts' has a negative entry at {_first(counts < 0)}")
-    if np.any(counts[S_BOUNDARY_UNCHANGED + 1:] != 0):
+    if np.any(counts[S_BOUNDARY_SHORTCUTS + 1:] != 0):
         raise _Bad("array 'oc_counts' has entries in its unused tail")
     n = int(counts[N_NODES])
     oc = {k: _array(arrays, f"oc_{k}", dt, (n, 3) if k == "lo" else (n,)) for k, dt in _OC_DTYPES.items()}

@@ -33,11 +33,12 @@ import numpy as np
 
 from csgnb._jit import jit
 from csgnb._resumable import grown
+from csgnb.bsp.boundary_merge import strictly_outside
 from csgnb.exact.intrinsics import intersect_into
 from csgnb.octree.layout import BSP, R_PIECE_CACHE, R_PIECES_A
 
 __all__ = ["PieceCache", "new_piece_cache", "grown_piece_cache", "compacted_piece_cache", "rekeyed_piece_cache",
-           "valid_entries", "cached_pieces", "pieces_of_cell", "piece_room", "store_cell_pieces",
+           "valid_entries", "cached_pieces", "pieces_of_cell", "pieces_outside", "piece_room", "store_cell_pieces",
            "USED", "MODE", "OFF", "WAITING", "ON", "MODE_NAMES"]
 
 #: counts: rows used (live or not: the valid entries' rows are counted when room is needed), the cache's mode
@@ -153,6 +154,35 @@ def pieces_of_cell(pal, pc, node, p, need):
         p.offsets[n] = e
         r += k + 1
     return n
+
+
+@jit(inline="always")
+def pieces_outside(pal, pc, node, t, v, stack):
+    """Whether every cached piece of cell ``node`` has a vertex strictly outside the solid of tree ``t``
+    (:func:`csgnb.bsp.boundary_merge.strictly_outside`; its vertices computed one at a time into ``v[0]``, a
+    wide (>= 1, 4) row, until one is). False as soon as a piece has none.
+
+    With the tool's boundary nowhere inside the cell's solid, this proves that a difference leaves the cell as it
+    is, at one vertex a piece: each component of the solid in the cell is behind some piece and meets no point of
+    the tool's boundary, so it lies wholly inside the tool or wholly outside -- outside, since a point near that
+    vertex behind the piece is."""
+    r = pc.start[node]
+    end = r + pc.length[node]
+    while r < end:
+        k = pc.size[r]
+        s = pc.rows[r]
+        srow = s if s >= 0 else ~s
+        found = False
+        for j in range(k):
+            nxt = j + 1 if j + 1 < k else 0
+            intersect_into(pal, srow, pal, pc.rows[r + 1 + j], pal, pc.rows[r + 1 + nxt], v, 0)
+            if strictly_outside(pal, v, 0, t, stack):
+                found = True
+                break
+        if not found:
+            return False
+        r += k + 1
+    return True
 
 
 @jit(inline="always")

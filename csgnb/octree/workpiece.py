@@ -79,6 +79,7 @@ from csgnb.octree.layout import (
     R_SPLIT_STACK,
     RESOURCE_NAMES,
     S_BOUNDARY_MERGES,
+    S_BOUNDARY_SHORTCUTS,
     S_CELL_OPS,
     S_COMBINES,
     S_MERGES,
@@ -321,6 +322,10 @@ class WorkpieceStats:
     """Cell Booleans with a mesh tool made from the cell's kept boundary and the tool's pieces, without cutting
     (:mod:`csgnb.octree.piece_cache`), those that found nothing to change included, over the workpiece's life (a
     saved statistic)."""
+    boundary_shortcuts: int = 0
+    """Of those, differences found to change nothing at one vertex a kept piece, without pushing the cell's pieces
+    (the tool keeps none of its boundary in the cell and every piece has a vertex strictly outside it;
+    :func:`csgnb.octree.piece_cache.pieces_outside`), over the workpiece's life (a saved statistic)."""
     seconds: list[float] = field(default_factory=list)
 
 
@@ -630,6 +635,7 @@ class Workpiece:
         s.prefiltered = int(self.ws.merge_state[4])
         s.skipped_merges = int(self.ws.merge_state[6])
         s.boundary_merges = int(self.oc.counts[S_BOUNDARY_MERGES])
+        s.boundary_shortcuts = int(self.oc.counts[S_BOUNDARY_SHORTCUTS])
         s.seconds.append(report.seconds)
         return report
 
@@ -802,6 +808,7 @@ class Workpiece:
         stats.prefiltered = int(self.ws.merge_state[4])
         stats.skipped_merges = int(self.ws.merge_state[6])
         stats.boundary_merges = int(self.oc.counts[S_BOUNDARY_MERGES])
+        stats.boundary_shortcuts = int(self.oc.counts[S_BOUNDARY_SHORTCUTS])
         stats.seconds.extend([seconds] * n)
         return [OpReport(int(r[REP_LEAVES]), int(r[REP_MERGES]), int(r[REP_RELABELS]), int(r[REP_SPLITS]),
                          int(r[REP_COMBINES]), seconds, unchanged=int(r[REP_UNCHANGED]))
