@@ -25,7 +25,7 @@ from csgnb.exact import to_wide
 from csgnb.exact.budgets import budget
 from csgnb.mesh.hull import convex_hull
 from csgnb.octree import Tool, Workpiece
-from csgnb.octree.layout import S_BOUNDARY_MERGES, S_BOUNDARY_SHORTCUTS
+from csgnb.octree.layout import S_BOUNDARY_MERGES
 from csgnb.octree.persist import WorkpieceFileError, read_arrays, write_arrays
 
 LO, HI = (-16, -16, -16), (16, 16, 16)
@@ -309,6 +309,36 @@ def test_a_tool_around_islands_removes_them(width, convex):
         apply(tuple(c - 2 for c in lo), tuple(c + 2 for c in hi), False)  # round the island: it goes
     assert w.stats.boundary_shortcuts > shortcuts
     assert w.volume() == int(voxels.sum()) == 48**3 - 40**3
+
+
+@pytest.mark.parametrize(("width", "convex"), [(128, False), (128, True), (256, False)])
+def test_a_tool_around_voids_fills_them(width, convex):
+    """The union's side of it: voids in a block, each tool a box round one void with its faces in the material
+    (it keeps none of its boundary) -- the void must be filled -- and boxes in the material beside the voids, which
+    change nothing. Exact volumes against a voxel count."""
+    w = Workpiece.box([0, 0, 0], [48, 48, 48], threshold=24, width=width)
+    voxels = np.ones((48, 48, 48), bool)
+
+    def apply(lo, hi, union):
+        tool = _box_tool(np.array(lo), np.array(hi), width, convex)
+        if union:
+            w.union(tool)
+        else:
+            w.difference(tool)
+        voxels[lo[0]:hi[0], lo[1]:hi[1], lo[2]:hi[2]] = union
+        assert w.volume() == int(voxels.sum())
+
+    voids = [((8 + 12 * i, 8 + 12 * j, 8 + 12 * k), (12 + 12 * i, 12 + 12 * j, 12 + 12 * k))
+             for i in range(3) for j in range(3) for k in range(3)]
+    for lo, hi in voids:
+        apply(lo, hi, False)
+    shortcuts = w.stats.boundary_shortcuts
+    for n, (lo, hi) in enumerate(voids):
+        if n % 2:  # a box in the material beside the void: nothing changes
+            apply((lo[0] + 5, lo[1] - 2, lo[2] - 2), (lo[0] + 7, hi[1] + 2, hi[2] + 2), True)
+        apply(tuple(c - 2 for c in lo), tuple(c + 2 for c in hi), True)  # round the void: it is filled
+    assert w.stats.boundary_shortcuts > shortcuts
+    assert w.volume() == int(voxels.sum()) == 48**3
 
 
 @settings(max_examples=8, deadline=None)

@@ -861,10 +861,13 @@ def _in_out_table(table):
 
 
 @jit(inline="always")
-def _is_difference(table):
-    """Whether the label function is the difference A - B of in / out labels (0 and 1)."""
-    return (table.shape[0] >= 2 and table.shape[1] >= 2 and table[0, 0] == 0 and table[0, 1] == 0
-            and table[1, 0] == 1 and table[1, 1] == 0)
+def _apart_keeps_a(table):
+    """Whether the label function is the difference A - B or the union A + B of in / out labels (0 and 1): the two
+    that leave A as it is where B lies wholly on the side of A's boundary it does not change (inside A for a union,
+    outside for a difference)."""
+    if table.shape[0] < 2 or table.shape[1] < 2 or table[0, 0] != 0 or table[1, 0] != 1:
+        return False
+    return (table[0, 1] == 0 and table[1, 1] == 0) or (table[0, 1] == 1 and table[1, 1] == 1)
 
 
 @jit(inline="always")
@@ -881,17 +884,18 @@ def _boundary_merge_cell(pal, oc, pool, node, n_tool, table, ws, seed, need):
     (:func:`csgnb.bsp.boundary_merge.push_pieces`: the tool's pieces first, then the cell's), then one import;
     writes the cell. 1 done, 0 short.
 
-    A difference whose tool keeps none of its boundary here (it lies nowhere inside the cell's solid) leaves the
-    cell as it is when every cached piece has a vertex strictly outside the tool
+    A difference (a union) whose tool keeps none of its boundary here -- it lies nowhere inside (outside) the cell's
+    solid -- leaves the cell as it is when every cached piece has a vertex strictly outside the tool
     (:func:`csgnb.octree.piece_cache.pieces_outside`): one vertex a piece instead of all of them, no piece of the
-    cell pushed -- the drill's cells along the hole's wall, which each step's tool reaches and rarely cuts."""
+    cell pushed -- the drill's cells along the hole's wall, which each step's tool reaches and rarely cuts, and a
+    sweep's cells where the next prism lies in what earlier ones covered."""
     begin_push(ws.po, ws.push_state)
     if push_pieces(pal, ws.bi, n_tool, False, ws.ta, table, ws.po, ws.push, ws.push_state) != DONE:
         _push_failed(ws, need)
         return 0
     n_a = 0
     if oc.kind[node] == BSP:
-        if (ws.push_state[S_B_KEPT] == 0 and _is_difference(table)
+        if (ws.push_state[S_B_KEPT] == 0 and _apart_keeps_a(table)
                 and pieces_outside(pal, ws.pc, node, ws.tb, ws.pa.verts, ws.push.st_start)):
             oc.counts[S_UNCHANGED] += 1
             oc.counts[S_BOUNDARY_MERGES] += 1

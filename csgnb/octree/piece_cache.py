@@ -165,7 +165,8 @@ def pieces_outside(pal, pc, node, t, v, stack):
     With the tool's boundary nowhere inside the cell's solid, this proves that a difference leaves the cell as it
     is, at one vertex a piece: each component of the solid in the cell is behind some piece and meets no point of
     the tool's boundary, so it lies wholly inside the tool or wholly outside -- outside, since a point near that
-    vertex behind the piece is."""
+    vertex behind the piece is. With the tool's boundary nowhere outside the solid, the same for a union: each
+    component of the cell's empty space is in front of some piece, so wholly outside the tool."""
     r = pc.start[node]
     end = r + pc.length[node]
     while r < end:
