@@ -650,6 +650,36 @@ def test_small_hulls_at_256_bit_extents_equal_the_exact_hull(seed):
         assert h.contains(S).all()
 
 
+def test_small_hulls_local_offsets_around_2_63():
+    """small_hulls decides in bulk, from doubles, which sets' local offsets fit in int64 (and forms those by an int64
+    sum that wraps on the way): tetrahedra with a facet whose offset is 2**63 + delta, for delta from -2**13 to
+    2**13 (both signs), have the exact hull's planes, and their offsets are int64 exactly when every one of the
+    set's fits -- what _maybe_int64 gives."""
+    from csgnb.mesh import hull as H
+
+    X = Y = (1 << 21) + 7
+    u, v = np.array([X, 1, 0]), np.array([0, Y, 1])  # n = u x v = (1, -X, X Y): gcd 1
+    sets, targets = [], []
+    for delta in (-(1 << 13), -(1 << 12) - 1, -(1 << 12), -(1 << 11), -1, 0, 1, 1 << 11, 1 << 12, (1 << 12) + 1,
+                  1 << 13):
+        for sign in (1, -1):
+            target = sign * ((1 << 63) + delta)  # n . a
+            q, r = divmod(target, X * Y)
+            a = np.array([r % X, -(r // X), q], np.int64)
+            assert 1 * int(a[0]) - X * int(a[1]) + X * Y * int(a[2]) == target
+            sets.append(np.vstack([np.zeros(3, np.int64), a, a + u, a + v]))
+            targets.append(target)
+    P = np.array(sets, np.int64)
+    assert H._arith(int(np.abs(P).max())) is object  # the double-filtered path
+    for h, S, target in zip(small_hulls(P, width=256), P, targets, strict=True):
+        ref = convex_hull(S, width=256)
+        assert h is not None and hull_planes(h) == hull_planes(ref) == reference_planes(S)
+        d = [int(x) for x in h._d_local]
+        assert abs(target) in {abs(x) for x in d}
+        fits = all(abs(x) < (1 << 63) for x in d)  # (_maybe_int64: |d| < 2**63, -2**63 too stays a Python int)
+        assert (h._d_local.dtype == np.int64) == fits, (target, d)
+
+
 @pytest.mark.parametrize("seed", range(4))
 def test_independent_points_compiled_at_wide_extents_match_python_ints(seed):
     """``_independent`` takes its compiled path up to local extents of 2**29 (a 256-bit grid's capsule: 2**22), the

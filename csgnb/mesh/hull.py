@@ -1397,14 +1397,31 @@ def _small_hulls_filtered(P: np.ndarray, *, width: int, grid) -> list[ConvexHull
     points, first, lo, hi = _unique_rows_per_set(np.ascontiguousarray(L))
     lo += origin
     hi += origin
+    # Each set's offsets as int64 when every one fits, decided in bulk: wherever |d| < 2**83, d_hi (< 2**52) converts
+    # exactly, so the double of d = d_hi 2**31 + d_lo is within 2**8 (d_lo) + 2**11 (the sum, below 2**65) of it, and
+    # beyond that it is far above 2**63: one beyond 2**63 + 2**12 does not fit, one within 2**63 - 2**12 does -- and
+    # then the int64 sum, wrapping mod 2**64 on the way, is d exactly. A set with a value between asks _maybe_int64:
+    # the same arrays as it gives every set, without its max over each set's Python ints.
+    df = np.abs(d_hi.astype(np.float64) * float(1 << 31) + d_lo.astype(np.float64))
+    d64 = d_hi * (1 << 31) + d_lo
+    state = np.where(df <= 2.0**63 - 2.0**12, 0, np.where(df >= 2.0**63 + 2.0**12, 2, 1))  # fits, unsure, not
+    set_state = np.zeros(m, np.int64)
+    if mid.size:
+        np.maximum.at(set_state, mid, state)
     out: list[ConvexHull | None] = []
     for h in range(m):
         a, b = starts[h], starts[h + 1]
         if b - a < 4:  # flat: no supporting plane with a point strictly behind
             out.append(None)
             continue
+        if set_state[h] == 0:
+            offsets = d64[a:b]
+        elif set_state[h] == 1:
+            offsets = _maybe_int64(d[a:b])
+        else:
+            offsets = d[a:b]
         out.append(ConvexHull(points[first[h]:first[h + 1]], origin[h].copy(), np.ascontiguousarray(Nk[a:b]),
-                              _maybe_int64(d[a:b]), width=width, grid=grid, box=(lo[h].copy(), hi[h].copy())))
+                              offsets, width=width, grid=grid, box=(lo[h].copy(), hi[h].copy())))
     return out
 
 
