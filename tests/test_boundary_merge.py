@@ -279,36 +279,50 @@ def test_convex_tools_merge_from_the_boundary_and_carve_the_same_solid(width, se
     assert np.array_equal(with_cache.classify(x), without.classify(x))
 
 
+#: 27 small boxes on a lattice of 12 in a 48-unit block (islands in a cavity, or voids)
+_LATTICE_BOXES = [((8 + 12 * i, 8 + 12 * j, 8 + 12 * k), (12 + 12 * i, 12 + 12 * j, 12 + 12 * k))
+                  for i in range(3) for j in range(3) for k in range(3)]
+
+
+class _VoxelBlock:
+    """A 48-unit block and its unit voxels: boxes subtracted or added to both, the exact volume checked each time."""
+
+    def __init__(self, width, convex):
+        self.width, self.convex = width, convex
+        self.w = Workpiece.box([0, 0, 0], [48, 48, 48], threshold=24, width=width)
+        self.voxels = np.ones((48, 48, 48), bool)
+
+    def apply(self, lo, hi, union):
+        tool = _box_tool(np.array(lo), np.array(hi), self.width, self.convex)
+        if union:
+            self.w.union(tool)
+        else:
+            self.w.difference(tool)
+        self.voxels[lo[0]:hi[0], lo[1]:hi[1], lo[2]:hi[2]] = union
+        assert self.w.volume() == int(self.voxels.sum())
+
+    def round_each(self, union):
+        """Boxes 2 units round each lattice box, and beside every other one a thin box that misses it."""
+        shortcuts = self.w.stats.boundary_shortcuts
+        for n, (lo, hi) in enumerate(_LATTICE_BOXES):
+            if n % 2:
+                self.apply((lo[0] + 5, lo[1] - 2, lo[2] - 2), (lo[0] + 7, hi[1] + 2, hi[2] + 2), union)
+            self.apply(tuple(c - 2 for c in lo), tuple(c + 2 for c in hi), union)
+        assert self.w.stats.boundary_shortcuts > shortcuts
+
+
 @pytest.mark.parametrize(("width", "convex"), [(128, False), (128, True), (256, False)])
 def test_a_tool_around_islands_removes_them(width, convex):
     """Where a difference's tool keeps none of its boundary in a cell (it runs through the cavity around an island
     of material), the cell changes only if some island lies inside the tool: islands in a cavity, each tool a box
     round one island with its faces in the cavity -- the shortcut must not call those cells unchanged -- and boxes
     in the cavity that miss the islands, which it should. Exact volumes against a voxel count."""
-    w = Workpiece.box([0, 0, 0], [48, 48, 48], threshold=24, width=width)
-    voxels = np.ones((48, 48, 48), bool)
-
-    def apply(lo, hi, union):
-        tool = _box_tool(np.array(lo), np.array(hi), width, convex)
-        if union:
-            w.union(tool)
-        else:
-            w.difference(tool)
-        voxels[lo[0]:hi[0], lo[1]:hi[1], lo[2]:hi[2]] = union
-        assert w.volume() == int(voxels.sum())
-
-    apply((4, 4, 4), (44, 44, 44), False)  # the cavity
-    islands = [((8 + 12 * i, 8 + 12 * j, 8 + 12 * k), (12 + 12 * i, 12 + 12 * j, 12 + 12 * k))
-               for i in range(3) for j in range(3) for k in range(3)]
-    for lo, hi in islands:
-        apply(lo, hi, True)
-    shortcuts = w.stats.boundary_shortcuts
-    for n, (lo, hi) in enumerate(islands):
-        if n % 2:  # a box in the cavity beside the island: nothing changes
-            apply((lo[0] + 5, lo[1] - 2, lo[2] - 2), (lo[0] + 7, hi[1] + 2, hi[2] + 2), False)
-        apply(tuple(c - 2 for c in lo), tuple(c + 2 for c in hi), False)  # round the island: it goes
-    assert w.stats.boundary_shortcuts > shortcuts
-    assert w.volume() == int(voxels.sum()) == 48**3 - 40**3
+    block = _VoxelBlock(width, convex)
+    block.apply((4, 4, 4), (44, 44, 44), False)  # the cavity
+    for lo, hi in _LATTICE_BOXES:
+        block.apply(lo, hi, True)
+    block.round_each(False)  # the islands go
+    assert block.w.volume() == 48**3 - 40**3
 
 
 @pytest.mark.parametrize(("width", "convex"), [(128, False), (128, True), (256, False)])
@@ -316,29 +330,11 @@ def test_a_tool_around_voids_fills_them(width, convex):
     """The union's side of it: voids in a block, each tool a box round one void with its faces in the material
     (it keeps none of its boundary) -- the void must be filled -- and boxes in the material beside the voids, which
     change nothing. Exact volumes against a voxel count."""
-    w = Workpiece.box([0, 0, 0], [48, 48, 48], threshold=24, width=width)
-    voxels = np.ones((48, 48, 48), bool)
-
-    def apply(lo, hi, union):
-        tool = _box_tool(np.array(lo), np.array(hi), width, convex)
-        if union:
-            w.union(tool)
-        else:
-            w.difference(tool)
-        voxels[lo[0]:hi[0], lo[1]:hi[1], lo[2]:hi[2]] = union
-        assert w.volume() == int(voxels.sum())
-
-    voids = [((8 + 12 * i, 8 + 12 * j, 8 + 12 * k), (12 + 12 * i, 12 + 12 * j, 12 + 12 * k))
-             for i in range(3) for j in range(3) for k in range(3)]
-    for lo, hi in voids:
-        apply(lo, hi, False)
-    shortcuts = w.stats.boundary_shortcuts
-    for n, (lo, hi) in enumerate(voids):
-        if n % 2:  # a box in the material beside the void: nothing changes
-            apply((lo[0] + 5, lo[1] - 2, lo[2] - 2), (lo[0] + 7, hi[1] + 2, hi[2] + 2), True)
-        apply(tuple(c - 2 for c in lo), tuple(c + 2 for c in hi), True)  # round the void: it is filled
-    assert w.stats.boundary_shortcuts > shortcuts
-    assert w.volume() == int(voxels.sum()) == 48**3
+    block = _VoxelBlock(width, convex)
+    for lo, hi in _LATTICE_BOXES:
+        block.apply(lo, hi, False)
+    block.round_each(True)  # the voids are filled
+    assert block.w.volume() == 48**3
 
 
 @settings(max_examples=8, deadline=None)
