@@ -1392,7 +1392,6 @@ def _small_hulls_filtered(P: np.ndarray, *, width: int, grid) -> list[ConvexHull
     hi_part, lo_part = Nk >> 31, Nk & ((1 << 31) - 1)  # N = hi 2**31 + lo, each product below 2**61
     d_hi = -(hi_part * Ak_).sum(axis=1)
     d_lo = -(lo_part * Ak_).sum(axis=1)
-    d = d_hi.astype(object) * (1 << 31) + d_lo.astype(object)
     starts = np.searchsorted(mid, np.arange(m + 1))
     points, first, lo, hi = _unique_rows_per_set(np.ascontiguousarray(L))
     lo += origin
@@ -1408,6 +1407,8 @@ def _small_hulls_filtered(P: np.ndarray, *, width: int, grid) -> list[ConvexHull
     set_state = np.zeros(m, np.int64)
     if mid.size:
         np.maximum.at(set_state, mid, state)
+    # the offsets as Python ints only when some set needs them (a drill's prisms: none)
+    d = d_hi.astype(object) * (1 << 31) + d_lo.astype(object) if np.any(set_state) else None
     out: list[ConvexHull | None] = []
     for h in range(m):
         a, b = starts[h], starts[h + 1]
