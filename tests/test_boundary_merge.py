@@ -163,12 +163,17 @@ def _strictly_outside_all(tree, points, width):
 
 
 @pytest.mark.parametrize("width", [128, 256])
-def test_strictly_outside_never_claims_a_point_of_the_closed_solid(width):
+@pytest.mark.parametrize("at_budget", [False, True])
+def test_strictly_outside_never_claims_a_point_of_the_closed_solid(width, at_budget):
     """The boundary merge's shortcut rests on :func:`strictly_outside`: True only where a ball around the point
     misses the solid. Unions of grid boxes (planes shared, faces meeting) at every point of a lattice through their
     corners, edges and faces: never True on a closed box (exact: integer corners), always True two units away from
-    all of them; for one box exactly the points off the closed box."""
+    all of them; for one box exactly the points off the closed box. ``at_budget``: the lattice scaled and moved to
+    reach ~7/8 of the width's largest mesh coordinate (offsets and products at the top of the budget)."""
     rng = np.random.default_rng(width)
+    v = budget(width).max_mesh_coordinate
+    scale, shift = (v // 8, -6 * (v // 8)) if at_budget else (1, 0)  # the lattice -1 .. 13 to -7/8 v .. 7/8 v
+    bounds = ((-v, -v, -v), (v, v, v)) if at_budget else (LO, HI)
     pts = np.array([[x, y, z] for x in range(-1, 14) for y in range(-1, 14) for z in range(-1, 14)], np.int64)
     for trial in range(12):
         boxes = []
@@ -177,14 +182,14 @@ def test_strictly_outside_never_claims_a_point_of_the_closed_solid(width):
             lo = 2 * rng.integers(0, 4, 3)
             hi = lo + 2 * rng.integers(1, 3, 3)
             boxes.append((lo, hi))
-            b = bsp_from_mesh(*box_mesh(lo, hi), width=width)
-            tree = b if tree is None else remove_redundancy(merge(tree, b, UNION, LO, HI))
+            b = bsp_from_mesh(*box_mesh(shift + scale * lo, shift + scale * hi), width=width)
+            tree = b if tree is None else remove_redundancy(merge(tree, b, UNION, *bounds))
         closed = np.zeros(len(pts), bool)
         far = np.ones(len(pts), bool)
         for lo, hi in boxes:
             closed |= np.all((pts >= lo) & (pts <= hi), axis=1)
             far &= np.any((pts < lo - 1) | (pts > hi + 1), axis=1)
-        out = _strictly_outside_all(tree, pts, width)
+        out = _strictly_outside_all(tree, shift + scale * pts, width)
         assert not np.any(out & closed), trial
         assert np.all(out[far]), trial
         if len(boxes) == 1:
