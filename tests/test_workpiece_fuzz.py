@@ -329,3 +329,31 @@ def test_palette_compaction_fuzz(monkeypatch):
     compacted, compacted_changes, sizes = run(True)
     assert -1 not in plain_sizes and sizes.count(-1) >= 4, sizes
     _same_run(plain, compacted, plain_changes, compacted_changes)
+
+
+def test_live_planes_are_the_sorted_distinct_rows_referenced():
+    """The compaction's live rows (marked in a boolean array since 2026-12-06) are exactly ``np.unique`` of the
+    references: BSP node planes (-1 at leaves), the wall map's rows where its key is set, and the cached pieces'
+    rows, flipped supports stored as ``~row`` -- including the largest row, a row referenced only as ``~row``, and
+    nothing referenced at all."""
+    from types import SimpleNamespace
+
+    from csgnb.octree.workpiece import _live_planes
+
+    rng = np.random.default_rng(11)
+    for trial in range(300):
+        used = int(rng.integers(1, 400))
+        plane = rng.integers(-1, used, int(rng.integers(0, 2000))).astype(np.int32)
+        keys = rng.integers(-1, 3, 30)
+        amap = SimpleNamespace(keys=keys, rows=rng.integers(0, used, 30).astype(np.int32))
+        pieces = rng.integers(-used, used, int(rng.integers(0, 2000))).astype(np.int32) if trial % 3 else None
+        if trial % 5 == 0 and pieces is not None:
+            pieces[0] = ~np.int32(used - 1)  # the last row, only as a flipped support
+        refs = [plane[plane >= 0], amap.rows[keys >= 0]]
+        if pieces is not None:
+            refs.append(np.where(pieces >= 0, pieces, ~pieces))
+        live = _live_planes(plane, amap, pieces)
+        assert live.dtype == np.int64
+        assert np.array_equal(live, np.unique(np.concatenate(refs).astype(np.int64))), trial
+    nothing = SimpleNamespace(keys=np.full(4, -1), rows=np.zeros(4, np.int32))
+    assert _live_planes(np.full(5, -1, np.int32), nothing).shape == (0,)

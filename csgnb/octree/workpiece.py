@@ -158,11 +158,18 @@ PALETTE_COMPACT_LIVE = 0.5
 
 def _live_planes(plane: np.ndarray, amap: AxisMap, piece_rows: np.ndarray | None = None) -> np.ndarray:
     """The palette rows in use : sorted (k,) int64 -- by BSP nodes ``plane`` (-1 at leaves), the wall map and the
-    cached boundary pieces' ``piece_rows`` (signed supports and edge planes)."""
+    cached boundary pieces' ``piece_rows`` (signed supports and edge planes).
+
+    Marked in a boolean array over the rows, not ``np.unique`` of the references: a late 256-bit drill step's
+    compaction reads ~6 million references to ~10^5 rows, which ``np.unique`` hashed in ~150 ms of its ~220."""
     parts = [plane[plane >= 0], amap.rows[amap.keys >= 0]]
     if piece_rows is not None:
         parts.append(np.where(piece_rows >= 0, piece_rows, ~piece_rows))
-    return np.unique(np.concatenate(parts).astype(np.int64))
+    rows = 1 + max((int(p.max()) for p in parts if p.size), default=-1)
+    mark = np.zeros(rows, np.bool_)
+    for p in parts:
+        mark[p] = True
+    return np.flatnonzero(mark).astype(np.int64)
 
 
 def _renumbering(live: np.ndarray, used: int) -> np.ndarray:
