@@ -71,6 +71,19 @@ def test_wide_roundtrip_at_the_extremes(width, data):
     assert as_ints(arr) == values
 
 
+@given(width=widths, data=st.data())
+def test_wide_max_abs_is_the_largest_magnitude(width, data):
+    """``wide_max_abs`` (a translated tool's largest offset for the budget check, from its limbs) against Python ints,
+    the extremes of the width included: |-2**(w-1)| = 2**(w-1), and -1, whose two's complement is all ones."""
+    from csgnb.exact.wide import wide_max_abs
+
+    lo, hi = -(1 << (width - 1)), (1 << (width - 1)) - 1
+    special = st.sampled_from([lo, hi, -1, 0, 1, 1 << 64, -(1 << 64), (1 << 64) - 1, -(1 << 63), lo + 1])
+    values = data.draw(st.lists(st.one_of(special, st.integers(lo, hi), st.integers(-(1 << 70), 1 << 70)),
+                                min_size=0, max_size=8))
+    assert wide_max_abs(exact.to_wide(np.array(values, dtype=object), width)) == max(map(abs, values), default=0)
+
+
 @pytest.mark.parametrize("width", WIDTHS)
 def test_to_wide_refuses_values_outside_the_width(width):
     with pytest.raises(PrecisionError, match=rf"2\*\*{width - 1}"):

@@ -413,6 +413,63 @@ def test_translated_mesh_tools_reuse_their_sources_boxes():
     assert results[0] == results[1]
 
 
+def test_tools_moved_beyond_int64_take_their_sources_planes_and_vertices_moved(monkeypatch):
+    """A mesh tool whose offsets are beyond int64 (a 256-bit drill's tools) makes its moved copies' (k, 4) Python
+    ints only when asked: a copy's wide planes are the source's with d - n·t formed in a compiled loop, its budget
+    extremes come from them, and its polygons' vertices are the source's moved by x + t·x4 -- each bit for bit what
+    the Python-int planes and the three-plane intersections give; translating twice is translating by the sum; a
+    workpiece cut by it equals one cut by the same tool sent through pickle (no source: every value made the old
+    way: the same canonical arrays); and where the source's extremes could not promise the width, the Python ints
+    are taken."""
+    import pickle
+
+    from csgnb.bsp.polygon import set_vertices_kernel
+    from csgnb.exact.integral import max_abs
+    from csgnb.octree.workpiece import _polygon_geometry, identity_grid
+
+    width = 256
+    # an oblique tetrahedron with a notch, near the 256-bit mesh budget (~2**26): normals ~2**48, offsets ~2**72
+    V, F = tetra_mesh([0, 0, 0], 1 << 24)
+    V = V + np.array([[0, 0, 0], [0, 3, 0], [0, 0, 5], [7, 0, 0]])
+    notch = tetra_mesh([1 << 21, 1 << 21, -1], 1 << 22)
+    tool = Tool.from_bsp(BSP.from_mesh(V, F, width=width) - BSP.from_mesh(*notch, width=width))
+    assert tool.kind == "mesh" and max_abs(tool.planes[:, 3]) > (1 << 62)
+    rng = np.random.default_rng(4)
+    for trial in range(6):
+        t = rng.integers(-(1 << 22), 1 << 22, 3)
+        moved = tool.translated(t)
+        assert "planes" not in moved.__dict__  # not made
+        wide = moved.planes_wide(width)
+        extremes = moved.plane_extremes(width)
+        verts = _polygon_geometry(moved, width)[0]
+        assert "planes" not in moved.__dict__
+        planes = moved.planes  # made now, in Python ints
+        assert np.array_equal(wide, to_wide(planes, width))
+        assert extremes == (max_abs(planes[:, :3]), max_abs(planes[:, 3]))
+        ref = np.empty_like(verts)
+        set_vertices_kernel(wide, moved.polygons.support, moved.polygons.offsets, moved.polygons.edges, ref)
+        assert np.array_equal(verts, ref)
+        t2 = rng.integers(-(1 << 20), 1 << 20, 3)
+        twice = moved.translated(t2) if trial % 2 else tool.translated(t2).translated(t)
+        assert np.array_equal(twice.planes_wide(width), tool.translated(t + t2).planes_wide(width))
+        assert twice.n_planes == tool.n_planes and np.array_equal(twice.planes, tool.translated(t + t2).planes)
+    t = np.array([1 << 22, -(1 << 21), 3])
+    results = []
+    for tl in (tool.translated(t), pickle.loads(pickle.dumps(tool.translated(t)))):
+        w = Workpiece.box(t + [1 << 20] * 3, t + [3 << 22] * 3, grid=identity_grid(width), threshold=60)
+        w -= tl
+        results.append((w.volume(), w.n_cells, w.n_bsp_nodes, w._arrays()))
+    (volume, cells, nodes, arrays), (volume_p, cells_p, nodes_p, arrays_p) = results
+    assert (volume, cells, nodes) == (volume_p, cells_p, nodes_p)
+    assert 0 < volume < Fraction(((3 << 22) - (1 << 20)) ** 3)
+    assert arrays.keys() == arrays_p.keys() and all(np.array_equal(arrays[k], arrays_p[k]) for k in arrays)
+    # the source's extremes too large to promise the width: the Python-int planes, converted
+    monkeypatch.setattr(Tool, "plane_extremes", lambda self, w: (1 << 200, 1 << 255))
+    far = tool.translated(t)
+    assert far._moved_wide(width) is None
+    assert np.array_equal(far.planes_wide(width), to_wide(tool.translated(t).planes, width))
+
+
 def _needles(grid, apex, n, seed):
     """Thin tetrahedra from one apex in random directions: n x 3 planes through one point."""
     rng = np.random.default_rng(seed)

@@ -48,6 +48,7 @@ __all__ = [
     "planes_parallel_at",
     "points_equal_at",
     "compare_plane_values_at",
+    "translate_point_into",
     "box_plane_sides",
     "compare_cached_values_at",
     "compare_filtered_values_at",
@@ -298,6 +299,27 @@ def signed_distance_into(typingctx, pts, i, planes, j, out, io):
         return context.get_dummy_value()
 
     return types.none(pts, i, planes, j, out, io), codegen
+
+
+@intrinsic
+def translate_point_into(typingctx, X, i, shift, j, out, io):
+    """Store the homogeneous point ``X[i]`` moved by the integer vector ``shift[j]`` ((n, 3) int64) into ``out[io]``:
+    ``(x + t·x4, x4)``, each coordinate a wide-times-word product and a sum (``X`` and ``out`` wide, one width).
+
+    This is exactly the point the moved planes ``(n, d - n·t)`` meet in (eq. 5 of the moved planes gives it bit for
+    bit: the plane map ``(n, d) -> (n, d - n·t)`` has determinant 1), so a translated tool's vertices need no new
+    intersections. The caller keeps the moved point within the width (the moved planes' budget does)."""
+    lw.int_array(shift, "translate_point_into")
+    T = _T(lw.same_width("translate_point_into", X, out))
+
+    def codegen(context, builder, sig, args):
+        x = lw.load_row(context, builder, sig.args[0], args[0], args[1], sig.args[1], T, 4)
+        t = lw.load_row(context, builder, sig.args[2], args[2], args[3], sig.args[3], I64, 3)
+        moved = [builder.add(x[c], lw.mul_exact(builder, x[3], t[c], T)) for c in range(3)] + [x[3]]
+        lw.store_row(context, builder, sig.args[4], args[4], args[5], sig.args[5], T, moved)
+        return context.get_dummy_value()
+
+    return types.none(X, i, shift, j, out, io), codegen
 
 
 @intrinsic

@@ -25,6 +25,7 @@ __all__ = [
     "to_wide",
     "to_width",
     "from_wide",
+    "wide_max_abs",
     "is_wide",
     "check_width",
 ]
@@ -177,6 +178,28 @@ def _python_ints_to_wide(arr: np.ndarray, width: int) -> np.ndarray:
             ) from None
         dst[:, c, :] = np.frombuffer(raw, np.uint64).reshape(-1, k)
     return out
+
+
+def wide_max_abs(arr: np.ndarray) -> int:
+    """Exact max |v| over the wide array ``arr`` as a Python int (0 when empty), without a Python int per value.
+
+    The magnitudes are formed limb by limb (two's complement negated where the sign limb says so, the carry
+    carried up), ordered as unsigned numbers by ``np.lexsort`` with the top limb as the first key, and only the
+    largest is converted. |-2**(w-1)| = 2**(w-1) is an unsigned w-bit number, so nothing wraps."""
+    width_of(arr)
+    limbs = np.ascontiguousarray(arr).reshape(-1)["limbs"]
+    if limbs.shape[0] == 0:
+        return 0
+    k = limbs.shape[1]
+    negative = (limbs[:, k - 1] >> np.uint64(63)).astype(np.bool_)
+    magnitude = np.where(negative[:, None], ~limbs, limbs)
+    carry = negative
+    for i in range(k):  # + 1 where negated: ~v + 1 = -v
+        column = magnitude[:, i] + carry.astype(np.uint64)
+        carry = carry & (column == 0)
+        magnitude[:, i] = column
+    top = magnitude[np.lexsort(tuple(magnitude[:, i] for i in range(k)))[-1]]
+    return int.from_bytes(np.ascontiguousarray(top).tobytes(), "little")
 
 
 def to_width(arr: np.ndarray, width: int) -> np.ndarray:

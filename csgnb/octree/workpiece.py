@@ -112,7 +112,14 @@ from csgnb.octree.piece_cache import (
     rekeyed_piece_cache,
     valid_entries,
 )
-from csgnb.octree.tool import Tool, _exact_planes, convex_tool_tree, split_planes_wide, store_int64_rows
+from csgnb.octree.tool import (
+    Tool,
+    _exact_planes,
+    convex_tool_tree,
+    moved_points,
+    split_planes_wide,
+    store_int64_rows,
+)
 from csgnb.octree.volume import CellVolumes, LocalChange, cell_key, convex_change
 from csgnb.octree.workspace import ToolArrays, grow, new_workspace, with_palette
 
@@ -277,26 +284,34 @@ def _polygon_geometry(tool: Tool, width: int) -> tuple[np.ndarray, np.ndarray, n
     int64 (lo, hi), from the tool's own planes; computed once per tool and width (a translated tool is a new
     tool) and shared by every workpiece it is applied to -- the shards of a sharded workpiece too.
 
-    The vertices are always computed exactly. The boxes of a tool translated from one whose boxes are known are
-    those boxes moved by the translation: still integer boxes that hold every polygon (the exact vertices move by
-    exactly that vector), without converting ~50,000 vertices to doubles for each of a drill's 270 steps."""
+    The vertices are always computed exactly. A tool translated from a source has its source's geometry (made
+    once) moved: the vertices by :func:`csgnb.octree.tool.moved_points` (bit for bit the moved planes'
+    intersections), the boxes by the translation (still integer boxes that hold every polygon) -- no three-plane
+    intersections and no ~50,000 vertices converted to doubles for each of a drill's 270 steps."""
     cache = tool.__dict__.setdefault("_geometry", {})
     found = cache.get(width)
     if found is not None:
         return found
     polys = tool.polygons
-    verts = np.empty((polys.edges.shape[0], 4), wide_dtype(width))
-    set_vertices_kernel(tool.planes_wide(width), polys.support, polys.offsets, polys.edges, verts)
     source, shift = tool.__dict__.get("_moved_from", (None, None))
-    base = None if source is None else source.__dict__.get("_geometry", {}).get(width)
+    # a translated tool's geometry is its source's moved: the source's made once (a drill's 90 tools are only ever
+    # applied translated, turn 0 by zero)
+    base = None if source is None or not len(polys) else _polygon_geometry(source, width)
     if base is not None:
+        # the source's vertices moved: x + t·x4, bit for bit the moved planes' intersections (translate_point_into),
+        # two wide-by-word products a coordinate instead of three 3x3 determinants a vertex; the moved planes
+        # passed the workpiece's budget before this (_add_planes), so the moved points fit the width
+        verts = moved_points(base[0], shift)
         plo, phi = base[1] + shift, base[2] + shift
     elif len(polys):
+        verts = np.empty((polys.edges.shape[0], 4), wide_dtype(width))
+        set_vertices_kernel(tool.planes_wide(width), polys.support, polys.offsets, polys.edges, verts)
         pos = to_double_position(verts)
         first = polys.offsets[:-1].astype(np.intp)  # every polygon has three or more vertices
         plo = (np.floor(np.minimum.reduceat(pos, first, axis=0)) - 1).astype(np.int64)
         phi = (np.ceil(np.maximum.reduceat(pos, first, axis=0)) + 1).astype(np.int64)
     else:
+        verts = np.empty((polys.edges.shape[0], 4), wide_dtype(width))
         plo, phi = np.zeros((0, 3), np.int64), np.zeros((0, 3), np.int64)
     found = (verts, plo, phi)
     cache[width] = found
@@ -490,6 +505,9 @@ class Workpiece:
         split = tool.split_planes
         if split is not None:  # a 256-bit grid's hull: no (k, 4) Python-int array on the way
             self._check_extremes(max_abs(split[0]), max_abs(split[1]), "the tool's planes")
+            small = None
+        elif "planes" not in tool.__dict__:  # a tool translated beyond int64: its wide planes, moved compiled
+            self._check_extremes(*tool.plane_extremes(self.width), "the tool's planes")
             small = None
         else:
             planes = tool.planes
