@@ -325,7 +325,7 @@ class Tool:
         if t.shape != (3,) or t.dtype.kind not in "iu":
             raise TypeError(f"a translation must be a (3,) integer vector, got {t.dtype} {t.shape}")
         moved = Tool.__new__(Tool)
-        lazy = self.__dict__.get("_translation") if "planes" not in self.__dict__ else None
+        lazy = self._pending_translation
         planes = None if lazy is not None else self.planes
         moved.__dict__.update(self.__dict__)
         moved.__dict__.pop("_split", None)  # the moved tool's planes are its own
@@ -372,7 +372,7 @@ class Tool:
         """The planes as a ``(k, 4)`` wide array (cached per width)."""
         if width not in self._wide:
             split = self.split_planes
-            moved = self._moved_wide(width) if "planes" not in self.__dict__ else None
+            moved = None if split is not None else self._moved_wide(width)
             if split is not None:
                 self._wide[width] = split_planes_wide(*split, width)
             elif moved is not None:
@@ -382,13 +382,18 @@ class Tool:
                 self._wide[width] = to_wide(self.planes, width)
         return self._wide[width]
 
+    @property
+    def _pending_translation(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """``(source planes, t)`` while this tool's own planes, translated beyond int64, are not made yet; else None."""
+        return None if "planes" in self.__dict__ else self.__dict__.get("_translation")
+
     def _moved_wide(self, width: int) -> np.ndarray | None:
         """A translated tool's wide planes from its source's at ``width`` bits: ``d - n·t`` for every row in a
         compiled loop (exact: no value can wrap, checked first from the source's largest coefficients), instead of
         ``(k, 4)`` Python ints converted limb by limb (a 256-bit drill tool's ~7,000 planes: ~4 ms a step). None
         when the tool was not translated from a source, or the check cannot promise the width."""
         source, shift = self.__dict__.get("_moved_from", (None, None))
-        if source is None or "_translation" not in self.__dict__:
+        if source is None or self._pending_translation is None:
             return None
         normal, offset = source.plane_extremes(width)
         if offset + 3 * normal * int(np.abs(shift).max(initial=0)) >= 1 << (width - 1):
@@ -407,7 +412,7 @@ class Tool:
         normals are its source's), without making its ``(k, 4)`` Python ints."""
         cache = self.__dict__.setdefault("_extremes", {})
         if width not in cache:
-            if "planes" not in self.__dict__ and "_translation" in self.__dict__:
+            if self._pending_translation is not None:
                 self.planes_wide(width)  # fills the cache when the compiled translation applies
             if width not in cache:
                 split = self.split_planes
@@ -424,8 +429,9 @@ class Tool:
         split = self.split_planes
         if split is not None:
             return int(split[0].shape[0])
-        if "planes" not in self.__dict__ and "_translation" in self.__dict__:
-            return int(self._translation[0].shape[0])
+        pending = self._pending_translation
+        if pending is not None:
+            return int(pending[0].shape[0])
         return int(self.planes.shape[0])
 
     def __repr__(self) -> str:

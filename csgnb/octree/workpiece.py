@@ -506,7 +506,7 @@ class Workpiece:
         if split is not None:  # a 256-bit grid's hull: no (k, 4) Python-int array on the way
             self._check_extremes(max_abs(split[0]), max_abs(split[1]), "the tool's planes")
             small = None
-        elif "planes" not in tool.__dict__:  # a tool translated beyond int64: its wide planes, moved compiled
+        elif tool._pending_translation is not None:  # a tool translated beyond int64: its wide planes, moved
             self._check_extremes(*tool.plane_extremes(self.width), "the tool's planes")
             small = None
         else:
