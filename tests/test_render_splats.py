@@ -9,6 +9,7 @@ import pytest
 from csgnb.csg.gallery import all_models, figure2, figure15, tour_part
 from csgnb.errors import GeometryError
 from csgnb.render import Camera, SplatRenderer, Viewer, compare, raytrace, render, verify
+from csgnb.render.viewer import WHEEL_STEPS, ZOOM_STEPS
 from csgnb.sampling import sample_csg
 
 MODELS = all_models()
@@ -161,17 +162,23 @@ def test_viewer_renders_on_drag_and_checks_its_shape():
     assert frame.shape == (48, 64) and not np.allclose(v.camera.eye, first.eye)
     assert "ms per frame" in v.label.value and "holes 0" in v.label.value
     assert v.reference_image.value and v.difference_image.value
-    v.zoom.value = 2.0
+    # The sliders show the dragged angles in whole degrees: a value the browser's slider keeps as it is
+    # (test_notebooks_in_browser.py checks that it sends none back).
+    azimuth, elevation = v._angles()
+    assert (v.azimuth.value, v.elevation.value) == (round(azimuth), round(elevation)) != (-60, 30)
+    assert all(type(s.value) is int for s in (v.azimuth, v.elevation, v.zoom))
+    v.zoom.value = ZOOM_STEPS
+    assert v.zoom_factor == 2.0 and v.zoom_readout.value == "x2.00"
     assert v.frame.stats.covered > frame.stats.covered
     # The wheel zooms through the slider: the slider shows what the wheel did, and the picture follows it.
     covered, distance = v.frame.stats.covered, np.linalg.norm(v.camera.eye - v.camera.target)
     for _ in range(3):
         v._on_event({"type": "wheel", "deltaY": -100})
-    assert v.zoom.value > 2.0 * 1.2
+    assert v.zoom.value == ZOOM_STEPS + 3 * WHEEL_STEPS and v.zoom_factor > 2.0 * 1.2
     assert np.linalg.norm(v.camera.eye - v.camera.target) < distance and v.frame.stats.covered > covered
     for _ in range(200):  # out as far as the slider goes, and no further
         v._on_event({"type": "wheel", "deltaY": 100})
-    assert v.zoom.value == 2.0 ** v.zoom.min
+    assert v.zoom.value == v.zoom.min and v.zoom_factor == 0.25 and v.zoom_readout.value == "x0.25"
     with pytest.raises(GeometryError, match="another shape"):
         Viewer(cloud, shape=tour_part(), size=(32, 24))
 

@@ -25,8 +25,23 @@ __all__ = ["Viewer"]
 
 #: Degrees of orbit per pixel of drag.
 DRAG_DEGREES = 0.4
-#: Zoom factor per wheel step (through the zoom slider, which bounds it).
-WHEEL_ZOOM = 1.1
+#: Steps of the zoom slider per doubling of the zoom: the slider holds whole steps, the zoom is 2 ** (steps / 20).
+ZOOM_STEPS = 20
+#: Zoom slider steps per wheel notch (2 ** (3 / 20): x1.11 a notch), bounded by the slider's range.
+WHEEL_STEPS = 3
+
+# Why every slider holds whole numbers: the browser's slider (ipywidgets 8 on noUiSlider) turns a value set from
+# Python into its own position and back, and sends the result back as if the user had moved it wherever the two
+# differ. For a float slider they differ by rounding (elevation 30 came back as 30.000000000000014, a log slider's
+# every value came back): each angle a drag set came back as one more full render with the reference, and a value
+# set before a queued drag came back *after* it, turning the view to where it had been. An integer slider rounds
+# what it reads and sends nothing when that is the value it was given (checked in a real browser:
+# tests/test_notebooks_in_browser.py::test_the_viewer_s_sliders_send_back_nothing_python_set).
+
+
+def _whole(slider, value: float) -> int:
+    """``value`` rounded to a whole number within ``slider``'s range: a value the slider keeps as it is."""
+    return int(min(slider.max, max(slider.min, round(float(value)))))
 
 
 class Viewer:
@@ -86,17 +101,21 @@ class Viewer:
             self.difference_image = widgets.Image(format="png", layout=layout)
             images += [self.reference_image, self.difference_image]
         self.label = widgets.HTML()
-        slider = dict(continuous_update=True, readout_format=".0f", layout=widgets.Layout(width="32%"))
-        az, el = self._angles()
-        self.azimuth = widgets.FloatSlider(value=az, min=-180, max=180, step=1, description="azimuth", **slider)
-        self.elevation = widgets.FloatSlider(value=el, min=-89, max=89, step=1, description="elevation", **slider)
-        self.zoom = widgets.FloatLogSlider(value=1.0, base=2, min=-2, max=3, step=0.05, description="zoom",
-                                           continuous_update=True, layout=widgets.Layout(width="32%"))
-        self._base = self.camera
+        slider = dict(continuous_update=True, layout=widgets.Layout(width="32%"))
+        self.azimuth = widgets.IntSlider(min=-180, max=180, description="azimuth", **slider)
+        self.elevation = widgets.IntSlider(min=-89, max=89, description="elevation", **slider)
         self._syncing = False
+        self._show_angles()
+        # zoom x1/4 .. x8 in whole steps; its readout shows the factor, not the steps
+        self.zoom = widgets.IntSlider(value=0, min=-2 * ZOOM_STEPS, max=3 * ZOOM_STEPS, description="zoom",
+                                      readout=False, continuous_update=True, layout=widgets.Layout(width="26%"))
+        self.zoom_readout = widgets.Label(layout=widgets.Layout(width="6%"))
+        self._show_zoom()
+        self._base = self.camera
         for s in (self.azimuth, self.elevation, self.zoom):
             s.observe(self._on_slider, names="value")
-        self.widget = widgets.VBox([widgets.HBox(images), widgets.HBox([self.azimuth, self.elevation, self.zoom]),
+        self.widget = widgets.VBox([widgets.HBox(images),
+                                    widgets.HBox([self.azimuth, self.elevation, self.zoom, self.zoom_readout]),
                                     self.label])
         self.events = None
         try:
@@ -172,23 +191,37 @@ class Viewer:
         self.label.value = text
 
     # -- interaction -----------------------------------------------------------------------------
-    def _set_camera(self, camera: Camera, reference: bool) -> None:
-        self.camera = camera
+    @property
+    def zoom_factor(self) -> float:
+        """The zoom the zoom slider sets: ``2 ** (viewer.zoom.value / ZOOM_STEPS)`` (1: the initial view)."""
+        return 2.0 ** (self.zoom.value / ZOOM_STEPS)
+
+    def _show_zoom(self) -> None:
+        self.zoom_readout.value = f"x{self.zoom_factor:.2f}"
+
+    def _show_angles(self) -> None:
+        """Set the angle sliders to the camera's angles in whole degrees (``_whole``), rendering nothing."""
+        az, el = self._angles()
         self._syncing = True
         try:
-            az, el = self._angles()
-            self.azimuth.value, self.elevation.value = az, el
+            self.azimuth.value, self.elevation.value = _whole(self.azimuth, az), _whole(self.elevation, el)
         finally:
             self._syncing = False
+
+    def _set_camera(self, camera: Camera, reference: bool) -> None:
+        self.camera = camera
+        self._show_angles()
         self.update(reference=reference)
 
     def _on_slider(self, change) -> None:
         if self._syncing:
             return
-        cam = Camera.orbit(self._base.target, self.azimuth.value, self.elevation.value,
-                           self._base.distance / self.zoom.value, self._base.width, self._base.height,
+        self._show_zoom()
+        zoom = self.zoom_factor
+        cam = Camera.orbit(self._base.target, float(self.azimuth.value), float(self.elevation.value),
+                           self._base.distance / zoom, self._base.width, self._base.height,
                            up=self._base.up, fov=self._base.fov, projection=self._base.projection,
-                           ortho_height=self._base.ortho_height / self.zoom.value)
+                           ortho_height=self._base.ortho_height / zoom)
         self.camera = cam
         self.update(reference=True)
 
@@ -207,8 +240,8 @@ class Viewer:
         elif kind == "wheel":
             # Through the zoom slider, so that it shows the zoom the wheel sets (its observer re-renders); the
             # slider's range bounds the wheel's too.
-            factor = WHEEL_ZOOM if event.get("deltaY", 0) < 0 else 1 / WHEEL_ZOOM
-            self.zoom.value = self.zoom.value * factor
+            steps = WHEEL_STEPS if event.get("deltaY", 0) < 0 else -WHEEL_STEPS
+            self.zoom.value = _whole(self.zoom, self.zoom.value + steps)
 
     def drag(self, dx: float, dy: float) -> Frame:
         """Orbit as a mouse drag by (dx, dy) pixels would (for scripts and tests); return the frame."""
