@@ -502,7 +502,8 @@ viewer = Viewer(sample_csg(tour_part(), 0.1), shape=tour_part(), size=(240, 180)
 def log(change):
     if not queued:
         with LOG.open("a") as f:
-            f.write(f"{change['owner'].description} {change['old']} {change['new']}\\n")
+            by = "python" if viewer._syncing else "browser"  # the viewer sets its angle sliders while syncing
+            f.write(f"{change['owner'].description} {change['old']} {change['new']} {by}\\n")
 
 
 for s in (viewer.azimuth, viewer.elevation, viewer.zoom):
@@ -552,7 +553,31 @@ def test_the_viewer_s_sliders_send_back_nothing_python_set(lab, browser):
             raise AssertionError(f"{exc}\n{_diagnosis(lab, page)}") from None
         _wait_idle(page, 60)
         moves = [line.split() for line in log.read_text().splitlines()]
-        assert moves and all(m[0] == "azimuth" and abs(int(m[2]) - int(m[1])) == 1 for m in moves), moves
+        assert moves and all(m[0] == "azimuth" and abs(int(m[2]) - int(m[1])) == 1 and m[3] == "browser"
+                             for m in moves), moves
+
+        # A mouse drag on the picture (ipyevents) orbits: the picture changes, Python sets the angle sliders to
+        # follow, and the browser sends none of those values back.
+        log.unlink()
+        picture = cell.locator(".jp-Cell-outputArea img").first
+        picture.scroll_into_view_if_needed()
+        box = picture.bounding_box()
+        before = _signature(cell)
+        x, y = box["x"] + box["width"] / 2, box["y"] + box["height"] / 2
+        page.mouse.move(x, y)
+        page.mouse.down()
+        page.mouse.move(x + 0.3 * box["width"], y - 0.1 * box["height"], steps=6)
+        page.mouse.up()
+        deadline = time.monotonic() + 120
+        while _signature(cell) == before and time.monotonic() < deadline:
+            page.wait_for_timeout(250)
+        assert _signature(cell) != before, f"a drag on the viewer did not change its picture\n{_diagnosis(lab, page)}"
+        for _ in range(3):
+            page.wait_for_timeout(1000)
+            _wait_idle(page, 60)
+        changes = [line.split() for line in log.read_text().splitlines()] if log.exists() else []
+        assert changes and {c[0] for c in changes} <= {"azimuth", "elevation"}, changes
+        assert all(c[3] == "python" for c in changes), f"the browser sent back values Python set: {changes}"
     finally:
         page.close()
         lab.shut_down_kernels()
