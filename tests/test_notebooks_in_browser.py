@@ -501,7 +501,8 @@ for _name in NOTEBOOKS:
 # A viewer whose slider changes are logged once the cells Run All queued have run: from then on only the browser
 # changes a slider (the browser's messages wait in the kernel's queue behind those cells).
 VIEWER_SLIDERS_NOTEBOOK = [
-    """import os
+    """import inspect
+import os
 import pathlib
 
 from csgnb.csg.gallery import tour_part
@@ -517,7 +518,8 @@ viewer = Viewer(sample_csg(tour_part(), 0.1), shape=tour_part(), size=(240, 180)
 def log(change):
     if not queued:
         with LOG.open("a") as f:
-            by = "python" if viewer._syncing else "browser"  # the viewer sets its angle sliders while syncing
+            # set by the viewer (syncing its angles, or handling a mouse event) or by the browser (a comm message)
+            by = "python" if any(f.function in ("_show_angles", "_on_event") for f in inspect.stack()) else "browser"
             f.write(f"{change['owner'].description} {change['old']} {change['new']} {by}\\n")
 
 
@@ -532,8 +534,9 @@ for _ in range(2):
 
 
 def test_the_viewer_s_sliders_send_back_nothing_python_set(lab, browser):
-    """The Viewer's sliders in a real browser send back no value that Python set -- neither the angles a drag sets
-    nor the zoom the wheel sets nor the initial angles -- and a key press on one sends exactly its one step.
+    """The Viewer's sliders in a real browser send back no value that Python set -- neither the initial angles nor
+    the angles a drag sets nor the zoom the wheel sets, from Python or from the mouse over the picture -- and a key
+    press on one sends exactly its one step.
 
     With float sliders the browser sent each back, rounded its own way (azimuth -83.99999999999999 came back as -84.0,
     elevation 30 as 30.000000000000014, every zoom), each as one more full render; the initial angles came back after
@@ -571,28 +574,43 @@ def test_the_viewer_s_sliders_send_back_nothing_python_set(lab, browser):
         assert moves and all(m[0] == "azimuth" and abs(int(m[2]) - int(m[1])) == 1 and m[3] == "browser"
                              for m in moves), moves
 
-        # A mouse drag on the picture (ipyevents) orbits: the picture changes, Python sets the angle sliders to
-        # follow, and the browser sends none of those values back.
-        log.unlink()
+        def mouse(describe: str, act) -> list[list[str]]:
+            """Apply a mouse `act` to the picture: it must change, and the slider changes it makes are returned."""
+            log.unlink(missing_ok=True)
+            before = _signature(cell)
+            act()
+            deadline = time.monotonic() + 120
+            while _signature(cell) == before and time.monotonic() < deadline:
+                page.wait_for_timeout(250)
+            assert _signature(cell) != before, f"{describe} did not change the picture\n{_diagnosis(lab, page)}"
+            for _ in range(3):
+                page.wait_for_timeout(1000)
+                _wait_idle(page, 60)
+            changes = [line.split() for line in log.read_text().splitlines()] if log.exists() else []
+            assert all(c[3] == "python" for c in changes), f"the browser sent back values Python set: {changes}"
+            return changes
+
         picture = cell.locator(".jp-Cell-outputArea img").first
         picture.scroll_into_view_if_needed()
         box = picture.bounding_box()
-        before = _signature(cell)
         x, y = box["x"] + box["width"] / 2, box["y"] + box["height"] / 2
-        page.mouse.move(x, y)
-        page.mouse.down()
-        page.mouse.move(x + 0.3 * box["width"], y - 0.1 * box["height"], steps=6)
-        page.mouse.up()
-        deadline = time.monotonic() + 120
-        while _signature(cell) == before and time.monotonic() < deadline:
-            page.wait_for_timeout(250)
-        assert _signature(cell) != before, f"a drag on the viewer did not change its picture\n{_diagnosis(lab, page)}"
-        for _ in range(3):
-            page.wait_for_timeout(1000)
-            _wait_idle(page, 60)
-        changes = [line.split() for line in log.read_text().splitlines()] if log.exists() else []
+
+        def drag():
+            page.mouse.move(x, y)
+            page.mouse.down()
+            page.mouse.move(x + 0.3 * box["width"], y - 0.1 * box["height"], steps=6)
+            page.mouse.up()
+
+        def wheel():
+            page.mouse.move(x, y)
+            page.mouse.wheel(0, -100)
+
+        # A drag on the picture (ipyevents) orbits, Python setting the angle sliders to follow; the wheel zooms in
+        # through the zoom slider. The browser sends none of those values back.
+        changes = mouse("a drag on the viewer", drag)
         assert changes and {c[0] for c in changes} <= {"azimuth", "elevation"}, changes
-        assert all(c[3] == "python" for c in changes), f"the browser sent back values Python set: {changes}"
+        changes = mouse("the wheel over the viewer", wheel)
+        assert changes and all(c[0] == "zoom" and int(c[2]) > int(c[1]) for c in changes), changes
     finally:
         page.close()
         lab.shut_down_kernels()
