@@ -167,6 +167,9 @@ def test_viewer_renders_on_drag_and_checks_its_shape():
     azimuth, elevation = v._angles()
     assert (v.azimuth.value, v.elevation.value) == (round(azimuth), round(elevation)) != (-60, 30)
     assert all(type(s.value) is int for s in (v.azimuth, v.elevation, v.zoom))
+    steep = Viewer(cloud, size=(32, 24))
+    steep.drag(0, 400)  # 160 degrees up: the camera stops short of the pole, the slider at its end
+    assert steep.elevation.value == steep.elevation.max == 89 and type(steep.elevation.value) is int
     v.zoom.value = ZOOM_STEPS
     assert v.zoom_factor == 2.0 and v.zoom_readout.value == "x2.00"
     assert v.frame.stats.covered > frame.stats.covered
