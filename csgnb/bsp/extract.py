@@ -434,7 +434,8 @@ class Extractor:
         self.stack = np.zeros((max(64, 2 * depth + 8), 3), np.int64)
         self.stack[0] = (0, box, 6)
         self.state = np.array([1, 0, 0, 0], np.int64)
-        self.cells = np.zeros((16, 2), np.int64)
+        # an in-cell per leaf at most ((n + 1) / 2 of a tree's n nodes): KEEP_CELLS never resumes for this array
+        self.cells = np.zeros((tree.n_nodes // 2 + 2 if mode & KEEP_CELLS else 16, 2), np.int64)
         self.sc = new_clip_scratch(tree.palette.dtype)
         n = tree.n_nodes
         self.out = new_pieces(tree.palette.dtype, 256 + 16 * n, 64 + 4 * n) if mode & PIECES else new_pieces(
@@ -458,8 +459,11 @@ class Extractor:
         sc = self.sc
         if sc.work.shape[0] < self.store.m.he.shape[0]:
             sc = sc._replace(work=np.empty(self.store.m.he.shape[0], np.int32))
-        self.sc = grown_clip_scratch(sc) if top >= 0 and self.tree.plane[self.stack[top, _NODE]] < 0 else sc
-        self.out = grown_pieces(self.out, 4 * self.sc.arena_v.shape[0], self.sc.stack.shape[0])
+        self.sc = sc
+        if self.mode & PIECES:  # only clipping a leaf's faces writes pieces and uses the clip scratch
+            if top >= 0 and self.tree.plane[self.stack[top, _NODE]] < 0:
+                self.sc = grown_clip_scratch(sc)
+            self.out = grown_pieces(self.out, 4 * self.sc.arena_v.shape[0], self.sc.stack.shape[0])
 
     def run(self) -> Extractor:
         run_resumable(self.step, self.grow, "boundary extraction")
