@@ -7,6 +7,7 @@ from fractions import Fraction
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from csgnb.exact import rational
 from csgnb.exact.rational import (
     coprime_fraction,
     fraction_text,
@@ -33,10 +34,20 @@ def test_reduced_fraction_is_fraction(n, d):
 @settings(max_examples=60, deadline=None)
 @given(st.lists(st.tuples(ints, positive), max_size=40), st.sampled_from([1, 2, 3, 6, 2**64, 3**40]))
 def test_pairwise_sums_are_reduced_sums(terms, common):
-    """Terms with shared factors (``common``), a single term (returned reduced), none."""
+    """Terms with shared factors (``common``), a single term (returned reduced), none; added over the running common
+    denominator, and with the pairwise fallback taking over after the first terms."""
     terms = [(n, d * common) for n, d in terms]
+    expected = sum((Fraction(n, d) for n, d in terms), Fraction(0))
     num, den = sum_fraction_pairs(terms)
-    assert same(coprime_fraction(num, den), sum((Fraction(n, d) for n, d in terms), Fraction(0)))
+    assert same(coprime_fraction(num, den), expected)
+    # the pairwise rest, from wherever the running common denominator passes its bound (here: almost at once)
+    bound = rational.RUNNING_SUM_BITS
+    try:
+        rational.RUNNING_SUM_BITS = 8
+        num, den = sum_fraction_pairs(terms)
+    finally:
+        rational.RUNNING_SUM_BITS = bound
+    assert same(coprime_fraction(num, den), expected)
 
 
 @given(ints, positive, st.integers(-400, 400))
