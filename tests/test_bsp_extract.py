@@ -210,3 +210,22 @@ def test_keeping_cells_grows_no_pieces_and_resumes_only_for_the_store(seed):
     assert run_resumable(small.step, small.grow, "extraction") > 0
     assert small.out.vx.shape[0] == pieces and small.sc.pool.shape[0] == scratch
     assert np.array_equal(small.cells[: small.state[1], 0], kept[:, 0])
+
+
+@settings(deadline=None, max_examples=25)
+@given(n_inner=st.integers(1, 40), seed=st.integers(0, 2**32 - 1), width=st.sampled_from([128, 192, 256]))
+def test_the_wide_surface_volume_is_the_fraction_volume(n_inner, seed, width):
+    """``BoundarySurface.exact_volume`` (terms made in limbs, summed in GMP) equals Fraction arithmetic on the exact
+    vertex positions, per label and in all, at every width."""
+    from csgnb.mesh.halfedge import polygons_volume
+    from csgnb.mesh.volume import wide_polygons_volume
+
+    tree = random_bsp(n_inner, seed=seed, extent=EXTENT, max_normal=7, materials=3, width=width)
+    s = extract_boundary(tree, LO, HI).surface
+    pos = s.exact_positions()
+    polygons = s.polygons()
+    for label in [None, *sorted(set(s.labels.tolist()))]:
+        chosen = [p for i, p in enumerate(polygons) if label is None or s.labels[i] == label]
+        assert s.exact_volume(label) == polygons_volume([[pos[v] for v in p] for p in chosen])
+    with pytest.raises(ValueError, match="one entry per polygon"):
+        wide_polygons_volume(s.vertices, s.offsets, s.indices, np.ones(s.n_polygons + 1, bool))

@@ -112,12 +112,15 @@ class BoundarySurface:
         return [tuple(Fraction(int(x[i]), int(x[3])) for i in range(3)) for x in from_wide(self.vertices)]
 
     def exact_volume(self, label: int | None = None) -> Fraction:
-        """Return the exact enclosed volume (of the polygons of one ``label``, or all)."""
-        from csgnb.mesh.halfedge import polygons_volume
+        """Return the exact enclosed volume (of the polygons of one ``label``, or all).
 
-        pos = self.exact_positions()
-        polys = [p for i, p in enumerate(self.polygons()) if label is None or self.labels[i] == label]
-        return polygons_volume([[pos[v] for v in p] for p in polys])
+        Each fan triangle's term is made exactly in limbs and the terms summed in GMP
+        (:func:`csgnb.mesh.volume.wide_polygons_volume`); ``polygons_volume`` of :meth:`exact_positions` is the same
+        value in Fraction arithmetic, ~20x slower."""
+        from csgnb.mesh.volume import wide_polygons_volume
+
+        keep = None if label is None else np.asarray(self.labels) == label
+        return wide_polygons_volume(self.vertices, self.offsets, self.indices, keep)
 
     def _directed_edges(self, label: int | None, indices: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """(tails, heads) of every polygon edge (of one ``label``, or all), ``(h,) int64`` each."""
