@@ -593,3 +593,56 @@ def test_hull_tools_with_offsets_beyond_int64_keep_split_planes_and_give_the_sam
     for name in a:
         assert np.array_equal(a[name], b[name]), name
     assert w_split.volume() == w_plain.volume()
+
+
+@pytest.mark.parametrize("width", [128, 256])
+def test_leaves_measured_together_have_the_volumes_measured_alone(width):
+    """``CellVolumes.measure`` (many BSP leaves in one forest extraction, the in-cells told apart by their block,
+    their terms made in one kernel call) gives each leaf the volume ``bsp_volume`` gives it alone, also in batches
+    smaller than the leaves; the workpiece's total is the sum of the single measurements."""
+    from csgnb.octree import volume as V
+
+    rng = np.random.default_rng(width)
+    w = Workpiece.box([0, 0, 0], [64, 64, 64], width=width, threshold=8)
+    for _ in range(12):
+        c = rng.integers(4, 60, 3)
+        r = rng.integers(3, 9, 3)
+        w -= convex_hull(np.array([c + [x, y, z] for x in (-r[0], r[0]) for y in (-r[1], 0, r[1])
+                                   for z in (-r[2], r[2])]), width=width)
+    leaves = [n for n in w._leaves().tolist() if w.oc.kind[n] == V.BSP]
+    assert len(leaves) > 20
+    alone = {n: V.bsp_volume(w, n, w.oc.lo[n].astype(np.int64), w.oc.lo[n].astype(np.int64) + int(w.oc.size[n]))
+             for n in leaves}
+    keys = [V.cell_key(w, n) for n in leaves]
+    batch = V.MEASURE_BATCH
+    try:
+        for size in (batch, 7):
+            V.MEASURE_BATCH = size
+            volumes = V.CellVolumes()
+            volumes.measure(w, leaves, keys)
+            assert len(volumes) == len(set(keys))
+            assert all(volumes.volume(w, n, key=k) == alone[n] for n, k in zip(leaves, keys, strict=True))
+    finally:
+        V.MEASURE_BATCH = batch
+    fresh = V.CellVolumes()
+    assert fresh.total(w, w._leaves()) == w.volume() == sum(
+        (V.CellVolumes().volume(w, n) for n in w._leaves().tolist()), Fraction(0))
+
+
+def test_grouped_cell_volumes_are_each_group_s_volume():
+    """``grouped_cells_volumes``: one kernel call, each group's volume as ``cells_volume`` of the group (empty
+    groups 0); a grouping that does not end at the last cell is refused."""
+    from csgnb.bsp import extract_cells, random_bsp
+    from csgnb.mesh.volume import cells_volume, grouped_cells_volumes
+
+    tree = random_bsp(60, seed=3, extent=500)
+    store, cells = extract_cells(tree, [-500] * 3, [500] * 3)
+    handles = cells[:, 1]
+    ends = [0, 3, 3, 10, handles.shape[0]]
+    got = grouped_cells_volumes(store, handles, ends)
+    starts = [0] + ends[:-1]
+    assert got == [cells_volume(store, handles[a:b]) if b > a else Fraction(0)
+                   for a, b in zip(starts, ends, strict=True)]
+    assert sum(got, Fraction(0)) == cells_volume(store, handles)
+    with pytest.raises(ValueError, match="last group"):
+        grouped_cells_volumes(store, handles, [1, 2])

@@ -30,7 +30,7 @@ from csgnb.exact.rational import coprime_fraction, sum_fraction_pairs
 from csgnb.exact.wide import width_of
 from csgnb.mesh.halfedge import FACE, HE, NEXT, VERT, collect_cell_halfedges
 
-__all__ = ["cells_volume", "sum_fractions", "term_limbs", "wide_polygons_volume"]
+__all__ = ["cells_volume", "grouped_cells_volumes", "sum_fractions", "term_limbs", "wide_polygons_volume"]
 
 
 def term_limbs(width: int) -> int:
@@ -80,12 +80,14 @@ def volume_term_into(typingctx, X, a, b, c, out, row):
 
 
 @jit
-def _terms_kernel(m, handles, work, out):
-    """Write the fan-triangle terms of every cell in ``handles`` into ``out``; return how many (or -needed)."""
+def _terms_kernel(m, handles, work, out, ends):
+    """Write the fan-triangle terms of every cell in ``handles`` into ``out``; return how many (more than ``out``
+    holds: call again with that room). ``ends[i]``: the terms written up to and including cell ``i``."""
     m = unmanaged_tuple(m)
     handles = unmanaged(handles)
     work = unmanaged(work)
     out = unmanaged(out)
+    ends = unmanaged(ends)
     he = m.he
     n = 0
     for i in range(handles.shape[0]):
@@ -105,6 +107,7 @@ def _terms_kernel(m, handles, work, out):
                     volume_term_into(m.vx, a, he[h, VERT], he[h2, VERT], out, n)
                 n += 1
                 h = h2
+        ends[i] = n
     return n
 
 
@@ -137,14 +140,39 @@ def cells_volume(store, handles) -> Fraction:
     handles = np.ascontiguousarray(np.asarray(handles, np.int64).reshape(-1))
     if handles.shape[0] == 0:
         return Fraction(0)
+    terms, _ = _cell_terms(store, handles)
+    return _terms_volume(terms, term_limbs(store.width))
+
+
+def grouped_cells_volumes(store, handles, group_ends) -> list[Fraction]:
+    """Exact volumes of groups of convex cells of a :class:`~csgnb.mesh.MeshStore`, the terms of all of them made
+    in **one** kernel call: group ``g`` is ``handles[group_ends[g - 1]:group_ends[g]]`` (``group_ends`` ascending,
+    its last entry ``len(handles)``; an empty group has volume 0). What :func:`cells_volume` of each group gives.
+    """
+    handles = np.ascontiguousarray(np.asarray(handles, np.int64).reshape(-1))
+    group_ends = np.asarray(group_ends, np.int64).reshape(-1)
+    if group_ends.shape[0] and int(group_ends[-1]) != handles.shape[0]:
+        raise ValueError(f"the last group must end at the last handle ({handles.shape[0]}), got {group_ends[-1]}")
+    L = term_limbs(store.width)
+    terms, ends = _cell_terms(store, handles)
+    # the term range of each group: from the end of its first cell's predecessor to the end of its last cell
+    cut = np.concatenate([[0], ends])[group_ends]
+    starts = np.concatenate([[0], cut[:-1]])
+    return [_terms_volume(terms[a:b], L) for a, b in zip(starts.tolist(), cut.tolist(), strict=True)]
+
+
+def _cell_terms(store, handles: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The fan-triangle terms of the cells ``handles`` ((n, 2L) int64, cell after cell) and, per cell, the end of
+    its terms ((len(handles),) int64)."""
     L = term_limbs(store.width)
     work = np.empty(store.he.shape[0], np.int32)
+    ends = np.zeros(handles.shape[0], np.int64)
     out = np.empty((max(64, 32 * handles.shape[0]), 2 * L), np.int64)
-    n = int(_terms_kernel(store.m, handles, work, out))
+    n = int(_terms_kernel(store.m, handles, work, out, ends))
     if n > out.shape[0]:
         out = np.empty((n, 2 * L), np.int64)
-        n = int(_terms_kernel(store.m, handles, work, out))
-    return _terms_volume(out[:n], L)
+        n = int(_terms_kernel(store.m, handles, work, out, ends))
+    return out[:n], ends
 
 
 @jit
