@@ -646,3 +646,28 @@ def test_grouped_cell_volumes_are_each_group_s_volume():
     assert sum(got, Fraction(0)) == cells_volume(store, handles)
     with pytest.raises(ValueError, match="last group"):
         grouped_cells_volumes(store, handles, [1, 2])
+
+
+def test_volume_terms_sum_alike_grouped_or_one_by_one():
+    """``_terms_volume`` reads mostly-distinct denominators term by term and groups shared ones in limbs: both ways
+    give the Fraction sum of the terms (the same terms, then each repeated four times, which sends them the other
+    way)."""
+    from csgnb.bsp import extract_cells, random_bsp
+    from csgnb.mesh.volume import _cell_terms, _terms_volume, cells_volume, term_limbs
+
+    tree = random_bsp(40, seed=11, extent=300, max_normal=9)
+    store, cells = extract_cells(tree, [-300] * 3, [300] * 3)
+    terms, _ = _cell_terms(store, cells[:, 1])
+    L = term_limbs(store.width)
+
+    def value(row) -> int:
+        return int.from_bytes(row.tobytes(), "little", signed=True)
+
+    def expected(rows) -> Fraction:
+        return sum((Fraction(value(r[:L]), value(r[L:])) for r in rows), Fraction(0)) / 6
+
+    assert 4 * np.unique(terms[:, L]).shape[0] > 3 * terms.shape[0]  # mostly distinct: read one by one
+    volume = _terms_volume(terms, L)
+    assert volume == expected(terms) == cells_volume(store, cells[:, 1])
+    repeated = np.repeat(terms, 4, axis=0)  # every denominator four times: grouped in limbs
+    assert _terms_volume(repeated, L) == 4 * volume == expected(repeated)

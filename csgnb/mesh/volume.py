@@ -224,6 +224,16 @@ def _terms_volume(terms: np.ndarray, L: int) -> Fraction:
     n = terms.shape[0]
     if n == 0:
         return Fraction(0)
+    k = 8 * L
+    if 4 * np.unique(terms[:, L]).shape[0] > 3 * n:
+        # Mostly distinct denominators (a sweep's slanted cells; told by their lowest limbs alone): grouping would
+        # find next to nothing to add in limbs, so every term is read as it is (a carved part's volume: -7 %).
+        # Box-like cells, whose terms share a few denominators (1 most of all), are grouped below (half the time
+        # of reading every term there).
+        raw = np.ascontiguousarray(terms).tobytes()
+        frac = [(int.from_bytes(raw[2 * i * k:(2 * i + 1) * k], "little", signed=True),
+                 int.from_bytes(raw[(2 * i + 1) * k:(2 * i + 2) * k], "little", signed=True)) for i in range(n)]
+        return _sixth(*sum_fraction_pairs(frac))
     den = np.ascontiguousarray(terms[:, L:]).view(np.dtype((np.void, 8 * L))).reshape(-1)
     uniq, inverse = np.unique(den, return_inverse=True)
     order = np.argsort(inverse, kind="stable").astype(np.int64)
@@ -233,12 +243,15 @@ def _terms_volume(terms: np.ndarray, L: int) -> Fraction:
     _group_sums(terms, order, starts, L, sums)
     # Sums of equal-denominator groups as plain integers, added over a running common denominator (the terms'
     # denominators share their factors; pairwise where they do not: csgnb.exact.rational.sum_fraction_pairs).
-    k = 8 * L
     nb = sums.tobytes()
     db = np.ascontiguousarray(terms[order[starts[:-1]], L:]).tobytes()
     frac = [(int.from_bytes(nb[i * k:(i + 1) * k], "little", signed=True),
              int.from_bytes(db[i * k:(i + 1) * k], "little", signed=True)) for i in range(uniq.shape[0])]
-    num, den = sum_fraction_pairs(frac)  # reduced: only the factors of 6 can cancel against the numerator
+    return _sixth(*sum_fraction_pairs(frac))
+
+
+def _sixth(num: int, den: int) -> Fraction:
+    """``num / (6 den)`` of a reduced ``num / den``: only the factors of 6 can cancel against the numerator."""
     g = math.gcd(num, 6)
     return coprime_fraction(num // g, (6 // g) * den)
 
