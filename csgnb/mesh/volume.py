@@ -7,10 +7,12 @@ computed exactly by one LLVM intrinsic at four times the palette width (a 3x3
 determinant of coordinates bounded by 3^(3/2) N² D, eq. 7), made positive in the
 denominator, and written as raw 64-bit limbs.
 
-Summing Fractions term by term in Python would cost microseconds each. Instead the terms
-are grouped by denominator (cells of a workpiece share few distinct ones: a vertex's
-``x4`` depends only on the normals of its three planes) and each group's numerators are
-added in limbs by a kernel; only one Fraction per distinct denominator is formed.
+Summing Fractions term by term in Python would cost microseconds each. Instead, where the terms
+share denominators (box-like cells: a vertex's ``x4`` depends only on the normals of its three
+planes), they are grouped by denominator and each group's numerators added in limbs by a kernel;
+where the denominators are mostly distinct (a sweep's slanted cells) each term is read as it is.
+Either way the integers are summed in GMP over a running common denominator
+(:func:`csgnb.exact.rational.sum_fraction_pairs`), no Fraction per term.
 """
 
 from __future__ import annotations
@@ -134,8 +136,7 @@ def _group_sums(terms, order, starts, limbs, sums):
 def cells_volume(store, handles) -> Fraction:
     """Exact total volume of the convex cells ``handles`` of a :class:`~csgnb.mesh.MeshStore`.
 
-    Terms with equal denominators are added in limbs first, so the cost is one Fraction
-    per distinct denominator, not per triangle.
+    The terms are made in limbs by one kernel call and summed as the module docstring says.
     """
     handles = np.ascontiguousarray(np.asarray(handles, np.int64).reshape(-1))
     if handles.shape[0] == 0:
@@ -224,43 +225,36 @@ def _terms_volume(terms: np.ndarray, L: int) -> Fraction:
     n = terms.shape[0]
     if n == 0:
         return Fraction(0)
-    k = 8 * L
     if 4 * np.unique(terms[:, L]).shape[0] > 3 * n:
         # Mostly distinct denominators (a sweep's slanted cells; told by their lowest limbs alone): grouping would
         # find next to nothing to add in limbs, so every term is read as it is (a carved part's volume: -7 %).
         # Box-like cells, whose terms share a few denominators (1 most of all), are grouped below (half the time
         # of reading every term there).
-        raw = np.ascontiguousarray(terms).tobytes()
-        frac = [(int.from_bytes(raw[2 * i * k:(2 * i + 1) * k], "little", signed=True),
-                 int.from_bytes(raw[(2 * i + 1) * k:(2 * i + 2) * k], "little", signed=True)) for i in range(n)]
-        return _sixth(*sum_fraction_pairs(frac))
-    den = np.ascontiguousarray(terms[:, L:]).view(np.dtype((np.void, 8 * L))).reshape(-1)
-    uniq, inverse = np.unique(den, return_inverse=True)
-    order = np.argsort(inverse, kind="stable").astype(np.int64)
-    starts = np.searchsorted(inverse[order], np.arange(uniq.shape[0] + 1)).astype(np.int64)
-    sums = np.empty((uniq.shape[0], L), np.int64)
-    # The sum of a group fits: at most n terms of at most 2^(3b) each, far below 2^(4b - 1).
-    _group_sums(terms, order, starts, L, sums)
-    # Sums of equal-denominator groups as plain integers, added over a running common denominator (the terms'
+        nums, dens = terms[:, :L], terms[:, L:]
+    else:
+        den = np.ascontiguousarray(terms[:, L:]).view(np.dtype((np.void, 8 * L))).reshape(-1)
+        uniq, inverse = np.unique(den, return_inverse=True)
+        order = np.argsort(inverse, kind="stable").astype(np.int64)
+        starts = np.searchsorted(inverse[order], np.arange(uniq.shape[0] + 1)).astype(np.int64)
+        nums = np.empty((uniq.shape[0], L), np.int64)
+        # The sum of a group fits: at most n terms of at most 2^(3b) each, far below 2^(4b - 1).
+        _group_sums(terms, order, starts, L, nums)
+        dens = terms[order[starts[:-1]], L:]
+    # Numerators over their denominators as plain integers, added over a running common denominator (the terms'
     # denominators share their factors; pairwise where they do not: csgnb.exact.rational.sum_fraction_pairs).
-    nb = sums.tobytes()
-    db = np.ascontiguousarray(terms[order[starts[:-1]], L:]).tobytes()
+    k = 8 * L
+    nb = np.ascontiguousarray(nums).tobytes()
+    db = np.ascontiguousarray(dens).tobytes()
     frac = [(int.from_bytes(nb[i * k:(i + 1) * k], "little", signed=True),
-             int.from_bytes(db[i * k:(i + 1) * k], "little", signed=True)) for i in range(uniq.shape[0])]
-    return _sixth(*sum_fraction_pairs(frac))
-
-
-def _sixth(num: int, den: int) -> Fraction:
-    """``num / (6 den)`` of a reduced ``num / den``: only the factors of 6 can cancel against the numerator."""
+             int.from_bytes(db[i * k:(i + 1) * k], "little", signed=True)) for i in range(nums.shape[0])]
+    num, den = sum_fraction_pairs(frac)  # reduced: only the factors of 6 can cancel against the numerator
     g = math.gcd(num, 6)
     return coprime_fraction(num // g, (6 // g) * den)
 
 
 def sum_fractions(values) -> Fraction:
-    """The exact sum of Fractions: numerators of equal denominators added first, then the groups pairwise.
-
-    A running sum of n terms whose denominators share little costs O(n²) digit operations (its
-    denominator grows with every term); pairwise costs about O(n log n), in GMP
+    """The exact sum of Fractions: numerators of equal denominators added first, then the groups in GMP over a
+    running common denominator, pairwise where the denominators share little
     (:func:`csgnb.exact.rational.sum_fraction_pairs`).
 
     >>> sum_fractions([Fraction(1, 3), Fraction(1, 6), Fraction(1, 2)])
