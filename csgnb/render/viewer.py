@@ -67,6 +67,8 @@ class Viewer:
     reference every tile is splatted (``fallback="never"``) unless they say otherwise, so that the difference
     checks the splats, not the ray tracer against itself.
 
+    ``viewer.azimuth`` / ``viewer.elevation`` are integer sliders in whole degrees, ``viewer.zoom`` one in steps of
+    2^(1/20) (``viewer.zoom_factor`` is the zoom they set; see the module's note on whole numbers).
     ``viewer.widget`` is the ipywidgets box; displaying the viewer shows it. ``viewer.frame`` is
     the last splat frame, ``viewer.frame_ms`` its render time, ``viewer.drawn`` the cloud it drew (``cloud`` or a
     level of detail, ``viewer.levels``; ``viewer.level`` its level, ``viewer.chooser`` what chose it).
